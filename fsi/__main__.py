@@ -1,0 +1,3 @@
+from fsi.cli import run_console
+
+run_console()

@@ -1,0 +1,92 @@
+"""The command line: ``fsi mesh``, ``fsi check`` (``python -m fsi`` is the same).
+
+Exit status: 0 done; 2 the configuration or the command line is wrong (nothing is written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+from typing import Sequence
+
+from mpi4py import MPI
+
+from fsi import config
+
+log = logging.getLogger("fsi")
+
+EXIT_OK, EXIT_USAGE = 0, 2
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="fsi", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    def with_config(p: argparse.ArgumentParser) -> None:
+        p.add_argument("config", type=Path, help="YAML case file")
+        p.add_argument("--set", dest="overrides", action="append", default=[],
+                       metavar="KEY.PATH=VALUE", help="override a configuration value (repeatable)")
+
+    p = sub.add_parser("mesh", help="build the case's mesh: DIR/mesh.xdmf and DIR/mesh.json")
+    with_config(p)
+    p.add_argument("--out", type=Path, required=True, metavar="DIR")
+    p = sub.add_parser("check", help="validate a case without running it")
+    with_config(p)
+    return parser
+
+
+def _setup_logging(comm: MPI.Comm) -> None:
+    """Progress on rank 0 only; other ranks report warnings and errors."""
+    logger = logging.getLogger("fsi")
+    if not logger.handlers:
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("%(message)s"))
+        logger.addHandler(handler)
+        logger.propagate = False
+    logger.setLevel(logging.INFO if comm.rank == 0 else logging.WARNING)
+    # The JIT compiler's build steps log at INFO through the root logger: keep them quiet.
+    logging.getLogger().setLevel(logging.WARNING)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    comm = MPI.COMM_WORLD
+    _setup_logging(comm)
+    try:
+        args = _parser().parse_args(argv)
+    except SystemExit as e:  # argparse has printed the message; --help exits 0
+        return int(e.code or 0)
+    try:
+        case = config.load(args.config, args.overrides)
+    except config.ConfigError as e:
+        if comm.rank == 0:
+            print(f"fsi: error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    return {"mesh": _mesh, "check": _check}[args.command](args, case)
+
+
+def _check(args: argparse.Namespace, case: config.Case) -> int:
+    log.info("%s: valid (case %r, geometry %s, mesh %s, structure %s)", args.config, case.name,
+             case.geometry.kind, case.mesh.level, case.structure.mode)
+    return EXIT_OK
+
+
+def _mesh(args: argparse.Namespace, case: config.Case) -> int:
+    from fsi import io, mesh
+
+    tagged = mesh.build(case, MPI.COMM_WORLD)
+    summary = mesh.summary(tagged, case)
+    io.write_mesh(args.out, tagged, summary)
+    cells = summary["cells"]
+    log.info("mesh of %s (%s): %d triangles (%s)", args.config, case.mesh.level, cells["total"],
+             ", ".join(f"{k} {v}" for k, v in cells.items() if k != "total"))
+    for name, value in summary.get("measures", {}).items():
+        log.info("  %s: %.6g", name, value)
+    log.info("wrote %s and %s", args.out / "mesh.xdmf", args.out / "mesh.json")
+    return EXIT_OK
+
+
+def run_console() -> None:
+    """Console-script entry point."""
+    sys.exit(main())

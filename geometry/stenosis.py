@@ -1,0 +1,202 @@
+"""The stenosed artery of ../shared/MODEL.md §1: lumen, vessel wall, lipid pool, fibrous cap.
+
+Coordinates: the lumen is ``0 <= x <= length``, ``0 <= y <= height``. A plaque side ("bottom" or
+"top") carries a vessel-wall layer of ``wall_thickness`` outside the lumen and a plaque centred at
+``x = length / 2``. Heights are measured from the wall into the lumen, ``s`` below:
+
+* plaque (fibrous cap) surface ``s = A/2 (1 - cos(2π (x - x0) / l))`` on ``[x0, x0 + l]``,
+  ``l = stenosis_length``, ``A = stenosis_degree * height / number of plaque sides``;
+* lipid pool surface ``s = a/2 (1 - cos(2π (x - x1) / l_lip))`` on ``[x1, x1 + l_lip]``,
+  ``l_lip = lipid_length``, ``a = A - cap_thickness``, centred like the plaque.
+
+The cap is thinnest, ``cap_thickness``, at the apex as long as the lipid pool is short enough;
+:func:`min_cap_thickness` checks that. A side without plaque is the healthy, rigid wall Γw2 and
+carries no structure.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, Sequence
+
+import numpy as np
+
+from geometry.tags import Boundary, Region
+
+SIDES = ("bottom", "top")
+
+
+class StenosisParameters(Protocol):
+    length: float
+    height: float
+    wall_thickness: float
+    stenosis_length: float
+    stenosis_degree: float
+    cap_thickness: float
+    lipid_length: float
+    plaque_sides: Sequence[str]
+
+
+def plaque_height(p: StenosisParameters) -> float:
+    """Apex height ``A`` of each plaque above its wall."""
+    return p.stenosis_degree * p.height / len(p.plaque_sides)
+
+
+def _cosine_bump(x: np.ndarray, amplitude: float, centre: float, length: float) -> np.ndarray:
+    s = amplitude / 2 * (1 - np.cos(2 * np.pi * (x - centre + length / 2) / length))
+    return np.where(np.abs(x - centre) <= length / 2, s, 0.0)
+
+
+def plaque_profile(p: StenosisParameters, x: np.ndarray) -> np.ndarray:
+    """Height of the fibrous-cap surface (the lumen boundary) above the wall at ``x``."""
+    return _cosine_bump(np.asarray(x, dtype=float), plaque_height(p), p.length / 2, p.stenosis_length)
+
+
+def lipid_profile(p: StenosisParameters, x: np.ndarray) -> np.ndarray:
+    """Height of the lipid-pool surface above the wall at ``x``."""
+    a = plaque_height(p) - p.cap_thickness
+    return _cosine_bump(np.asarray(x, dtype=float), a, p.length / 2, p.lipid_length)
+
+
+def analytic_areas(p: StenosisParameters) -> dict[str, float]:
+    """Exact region areas (m²): a cosine bump of amplitude ``A`` and length ``l`` has area A l / 2."""
+    n = len(p.plaque_sides)
+    plaque = plaque_height(p) * p.stenosis_length / 2
+    lipid = (plaque_height(p) - p.cap_thickness) * p.lipid_length / 2
+    areas = {
+        Region.FLUID.label: p.length * p.height - n * plaque,
+        Region.WALL.label: n * p.length * p.wall_thickness,
+        Region.CAP.label: n * (plaque - lipid),
+        Region.LIPID.label: n * lipid,
+    }
+    areas["total"] = sum(areas.values())
+    return areas
+
+
+def distance_to_polyline(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """Distance from each point (n, 2) to the polyline through ``vertices`` (m, 2)."""
+    a, b = vertices[:-1], vertices[1:]
+    return distance_to_segments(points, a, b)
+
+
+def distance_to_segments(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance from each point (n, 2) to the nearest of the segments ``a[k]``–``b[k]``."""
+    ab = b - a
+    length2 = np.maximum(np.einsum("ij,ij->i", ab, ab), np.finfo(float).tiny)
+    out = np.empty(len(points))
+    for i0 in range(0, len(points), 256):  # chunks keep the (points × segments) arrays small
+        q = points[i0 : i0 + 256, None, :]
+        t = np.clip(np.einsum("pij,ij->pi", q - a, ab) / length2, 0.0, 1.0)
+        nearest = a + t[..., None] * ab
+        out[i0 : i0 + 256] = np.sqrt(((q - nearest) ** 2).sum(-1)).min(axis=1)
+    return out
+
+
+def min_cap_thickness(p: StenosisParameters, samples: int = 801) -> float:
+    """Smallest distance from the lipid-pool surface to the lumen (the thinnest fibrous cap).
+
+    Sampled densely (an odd count, so the apex is a sample); accurate to about 1e-8 m.
+    """
+    xc = p.length / 2
+    x_lipid = np.linspace(xc - p.lipid_length / 2, xc + p.lipid_length / 2, samples)
+    x_cap = np.linspace(xc - p.stenosis_length / 2, xc + p.stenosis_length / 2, 2 * samples)
+    lipid = np.column_stack([x_lipid, lipid_profile(p, x_lipid)])
+    cap = np.column_stack([x_cap, plaque_profile(p, x_cap)])
+    return float(distance_to_polyline(lipid, cap).min())
+
+
+def build(p: StenosisParameters, size: float, stenosis_size: float, spline_points: int = 101) -> None:
+    """Add the stenosed artery to the current gmsh model (built-in kernel) with physical groups.
+
+    ``size`` is the element size away from the plaque, ``stenosis_size`` the size at the plaque's
+    corner and apex points; gmsh interpolates in between. Meshing is left to the caller.
+    """
+    import gmsh
+
+    geo = gmsh.model.geo
+    L, H, tw = p.length, p.height, p.wall_thickness
+    xc, l, l_lip = L / 2, p.stenosis_length, p.lipid_length
+    A = plaque_height(p)
+    a = A - p.cap_thickness
+
+    groups: dict[int, list[int]] = {int(t): [] for t in (*Region, *Boundary)}
+
+    def to_xy(side: str, x: float, s: float) -> tuple[float, float]:
+        return (x, s) if side == "bottom" else (x, H - s)
+
+    def point(side: str, x: float, s: float, lc: float) -> int:
+        return geo.addPoint(*to_xy(side, x, s), 0.0, lc)
+
+    def spline(side: str, start: int, end: int, x0: float, x1: float, profile) -> int:
+        xs = np.linspace(x0, x1, spline_points)[1:-1]
+        inner = [point(side, x, float(profile(np.array([x]))[0]), stenosis_size) for x in xs]
+        return geo.addSpline([start, *inner, end])
+
+    lumen_chain: dict[str, list[int]] = {}  # left-to-right curves of each lumen side
+    corners: dict[str, tuple[int, int]] = {}  # (x = 0, x = L) end points of each lumen side
+    for side in SIDES:
+        left, right = point(side, 0.0, 0.0, size), point(side, L, 0.0, size)
+        corners[side] = (left, right)
+        if side not in p.plaque_sides:
+            lumen_chain[side] = [geo.addLine(left, right)]
+            groups[Boundary.RIGID_WALL].extend(lumen_chain[side])
+            continue
+        hs = stenosis_size
+        p_x0, p_top, p_x3 = point(side, xc - l / 2, 0, hs), point(side, xc, A, hs), point(side, xc + l / 2, 0, hs)
+        p_x1, p_lip, p_x2 = point(side, xc - l_lip / 2, 0, hs), point(side, xc, a, hs), point(side, xc + l_lip / 2, 0, hs)
+
+        def cap_profile(x):
+            return plaque_profile(p, x)
+
+        def lipid_prof(x):
+            return lipid_profile(p, x)
+
+        healthy_left, healthy_right = geo.addLine(left, p_x0), geo.addLine(p_x3, right)
+        cap_left = spline(side, p_x0, p_top, xc - l / 2, xc, cap_profile)
+        cap_right = spline(side, p_top, p_x3, xc, xc + l / 2, cap_profile)
+        lip_left = spline(side, p_x1, p_lip, xc - l_lip / 2, xc, lipid_prof)
+        lip_right = spline(side, p_lip, p_x2, xc, xc + l_lip / 2, lipid_prof)
+        base_left, base_mid, base_right = (
+            geo.addLine(p_x0, p_x1), geo.addLine(p_x1, p_x2), geo.addLine(p_x2, p_x3)
+        )
+        lumen_chain[side] = [healthy_left, cap_left, cap_right, healthy_right]
+
+        cap_loop = [base_left, lip_left, lip_right, base_right, -cap_right, -cap_left]
+        lipid_loop = [base_mid, -lip_right, -lip_left]
+        q_left, q_right = point(side, 0.0, -tw, size), point(side, L, -tw, size)
+        clamp_left, clamp_right = geo.addLine(q_left, left), geo.addLine(right, q_right)
+        exterior = geo.addLine(q_right, q_left)
+        wall_loop = [healthy_left, base_left, base_mid, base_right, healthy_right,
+                     clamp_right, exterior, clamp_left]  # fmt: skip
+
+        groups[Region.CAP].append(geo.addPlaneSurface([geo.addCurveLoop(cap_loop)]))
+        groups[Region.LIPID].append(geo.addPlaneSurface([geo.addCurveLoop(lipid_loop)]))
+        groups[Region.WALL].append(geo.addPlaneSurface([geo.addCurveLoop(wall_loop)]))
+        groups[Boundary.INTERFACE].extend(lumen_chain[side])
+        groups[Boundary.CLAMPED].extend([clamp_left, clamp_right])
+        groups[Boundary.EXTERIOR].append(exterior)
+        groups[Boundary.CAP_LIPID].extend([lip_left, lip_right])
+        groups[Boundary.PLAQUE_BASE].extend([base_left, base_mid, base_right])
+
+    inlet = geo.addLine(corners["bottom"][0], corners["top"][0])
+    outlet = geo.addLine(corners["bottom"][1], corners["top"][1])
+    bottom, top = lumen_chain["bottom"], lumen_chain["top"]
+    fluid_loop = [*bottom, outlet, *[-c for c in reversed(top)], -inlet]
+    groups[Region.FLUID].append(geo.addPlaneSurface([geo.addCurveLoop(fluid_loop)]))
+    groups[Boundary.INLET].append(inlet)
+    groups[Boundary.OUTLET].append(outlet)
+
+    geo.synchronize()
+    add_physical_groups(groups)
+
+
+def add_physical_groups(groups: dict[int, list[int]]) -> None:
+    """Create one named physical group per non-empty tag (surfaces for regions, else curves)."""
+    import gmsh
+
+    for tag, entities in groups.items():
+        if not entities:
+            continue
+        dim = 2 if tag in Region._value2member_map_ else 1
+        name = (Region(tag) if dim == 2 else Boundary(tag)).label
+        gmsh.model.addPhysicalGroup(dim, entities, tag)
+        gmsh.model.setPhysicalName(dim, tag, name)

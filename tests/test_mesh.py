@@ -1,0 +1,144 @@
+"""The tagged stenosis mesh: tags, sizes, areas, conformity, measures, 1 rank = 2 ranks."""
+
+import json
+
+from mpi4py import MPI
+
+import dolfinx.mesh
+import numpy as np
+import pytest
+
+from fsi import cli, compat, config, mesh
+from geometry import stenosis
+from geometry.tags import STRUCTURE_REGIONS, Boundary, Region
+
+STUDY_COARSE_TRIANGLES = 3272  # MODEL.md §1
+
+
+@pytest.fixture(scope="module")
+def coarse():
+    case = config.from_dict({})
+    tagged = mesh.build(case)
+    return case, tagged, mesh.summary(tagged, case)
+
+
+@pytest.fixture(scope="module")
+def fine():
+    case = config.from_dict({"mesh": {"level": "fine"}})
+    tagged = mesh.build(case)
+    return case, tagged, mesh.summary(tagged, case)
+
+
+def test_every_region_and_boundary_is_tagged_and_non_empty(coarse):
+    _, _, s = coarse
+    for region in Region:
+        assert s["cells"][region.label] > 0, region
+    for boundary in Boundary:
+        assert s["facets"][boundary.label] > 0, boundary
+    assert sum(s["cells"][r.label] for r in Region) == s["cells"]["total"]
+
+
+def test_mesh_sizes_match_the_study(coarse, fine):
+    n_coarse, n_fine = coarse[2]["cells"]["total"], fine[2]["cells"]["total"]
+    assert abs(n_coarse / STUDY_COARSE_TRIANGLES - 1) < 0.10
+    assert n_fine == 16 * n_coarse  # two uniform refinements, as the study's 3,272 -> 52,352
+
+
+@pytest.mark.parametrize("level,tolerance", [("coarse", 5e-3), ("fine", 5e-4)])
+def test_region_areas_match_the_cosine_integrals(coarse, fine, level, tolerance):
+    case, _, s = coarse if level == "coarse" else fine
+    exact = stenosis.analytic_areas(case.geometry)
+    for name, area in exact.items():
+        assert s["area_m2"][name] == pytest.approx(area, rel=tolerance), name
+
+
+@pytest.mark.parametrize("level,tolerance", [("coarse", 5e-3), ("fine", 5e-4)])
+def test_measured_stenosis_degree_and_cap_thickness(coarse, fine, level, tolerance):
+    case, _, s = coarse if level == "coarse" else fine
+    g = case.geometry
+    # The apexes are gmsh points, so the degree is exact; the thinnest cap is measured from the
+    # cap–lipid vertices to the lumen facets, whose chords lie slightly inside the curve.
+    assert s["measures"]["stenosis_degree"] == pytest.approx(g.stenosis_degree, rel=1e-12)
+    assert s["measures"]["min_cap_thickness_m"] == pytest.approx(g.cap_thickness, rel=tolerance)
+    assert s["measures"]["min_cap_thickness_m"] <= g.cap_thickness * (1 + 1e-12)
+
+
+def _boundary_vertices(submesh) -> set[tuple[float, float]]:
+    """Coordinates of the vertices on the exterior facets of a submesh, gathered on all ranks."""
+    tdim = submesh.topology.dim
+    submesh.topology.create_connectivity(tdim - 1, tdim)
+    facets = dolfinx.mesh.exterior_facet_indices(submesh.topology)
+    nodes = compat.entities_to_geometry(submesh, tdim - 1, facets).ravel()
+    local = [tuple(x) for x in submesh.geometry.x[nodes, :2]]
+    return set().union(*submesh.comm.allgather(local))
+
+
+def test_fluid_and_structure_meshes_share_the_interface_vertices_exactly(coarse):
+    _, tagged, s = coarse
+    fluid, _ = mesh.extract(tagged, Region.FLUID)
+    solid, _ = mesh.extract(tagged, *STRUCTURE_REGIONS)
+    interface = {tuple(x) for x in mesh.facet_segments(tagged, Boundary.INTERFACE).reshape(-1, 2)}
+    on_fluid, on_solid = _boundary_vertices(fluid), _boundary_vertices(solid)
+    assert interface <= on_fluid and interface <= on_solid  # bitwise-equal coordinates
+    assert on_fluid & on_solid == interface  # and no other boundary vertex is shared
+    assert len(interface) == s["facets"]["interface"] + 1  # one open polyline
+
+
+def test_totals_are_identical_on_one_and_all_ranks(coarse):
+    case, _, s_world = coarse
+    tagged = mesh.build(case, MPI.COMM_SELF)
+    s_self = mesh.summary(tagged, case)
+    assert s_self["cells"] == s_world["cells"]
+    assert s_self["facets"] == s_world["facets"]
+    for name, area in s_self["area_m2"].items():
+        assert s_world["area_m2"][name] == pytest.approx(area, rel=1e-12)
+    for name, value in s_self["measures"].items():
+        assert s_world["measures"][name] == pytest.approx(value, rel=1e-12)
+
+
+@pytest.mark.parametrize("sides", [["top"], ["bottom", "top"]])
+def test_plaque_on_the_top_or_both_sides(sides):
+    case = config.from_dict({"geometry": {"plaque_sides": sides}})
+    tagged = mesh.build(case)
+    s = mesh.summary(tagged, case)
+    exact = stenosis.analytic_areas(case.geometry)
+    for name, area in exact.items():
+        assert s["area_m2"][name] == pytest.approx(area, rel=5e-3), name
+    assert s["measures"]["stenosis_degree"] == pytest.approx(0.5, rel=1e-12)
+    assert (s["facets"]["rigid_wall"] > 0) == (len(sides) == 1)
+    assert s["measures"]["min_cap_thickness_m"] == pytest.approx(0.0005, rel=5e-3)
+
+
+def test_channel_mesh():
+    case = config.from_dict(config.parse_yaml(
+        "geometry: {kind: channel, length: 0.02, height: 0.007}\nstructure: {mode: rigid}"))
+    tagged = mesh.build(case)
+    s = mesh.summary(tagged, case)
+    assert s["area_m2"]["fluid"] == pytest.approx(0.02 * 0.007, rel=1e-12)
+    assert s["cells"]["total"] == s["cells"]["fluid"] > 0
+    for name in ("inlet", "outlet", "rigid_wall"):
+        assert s["facets"][name] > 0
+    for name in ("interface", "clamped", "exterior"):
+        assert s["facets"][name] == 0
+    assert "measures" not in s
+
+
+def test_fsi_mesh_writes_xdmf_and_json(shared_tmp, coarse):
+    out = shared_tmp / "mesh"
+    assert cli.main(["mesh", "configs/stenosis_fixed_newtonian.yaml", "--out", str(out)]) == 0
+    summary = json.loads((out / "mesh.json").read_text())
+    assert set(summary["cells"]) == {"fluid", "wall", "cap", "lipid", "total"}
+    assert set(summary["area_m2"]) == {"fluid", "wall", "cap", "lipid", "total"}
+    assert {"inlet", "outlet", "interface", "rigid_wall", "clamped", "exterior"} <= set(
+        summary["facets"])
+    assert set(summary["measures"]) == {"stenosis_degree", "min_cap_thickness_m"}
+    assert summary["cells"] == coarse[2]["cells"]
+
+    # The XDMF file reads back with the same tags.
+    msh, cell_tags, facet_tags = compat.read_mesh_with_tags(MPI.COMM_WORLD, str(out / "mesh.xdmf"))
+    n_cells = msh.topology.index_map(2).size_local
+    owned = cell_tags.indices < n_cells
+    fluid = MPI.COMM_WORLD.allreduce(int(np.count_nonzero(cell_tags.values[owned] == Region.FLUID)))
+    assert fluid == summary["cells"]["fluid"]
+    assert set(np.unique(np.concatenate(MPI.COMM_WORLD.allgather(facet_tags.values)))) == {
+        int(b) for b in Boundary}
