@@ -103,11 +103,12 @@ MESH_LEVELS = {"coarse": 0, "medium": 1, "fine": 2}
 
 @dataclass(frozen=True)
 class MeshSettings:
-    """gmsh sizes of the coarse mesh; ``level`` adds uniform refinements (fine = coarse × 16)."""
+    """gmsh sizes of the coarse mesh: ``size`` away from, ``local_size`` at the plaque (or the
+    obstacle); ``level`` adds uniform refinements (medium = coarse × 4, fine = coarse × 16)."""
 
     level: Literal["coarse", "medium", "fine"] = "coarse"
     size: float = positive(6.0e-4, " (m)")
-    stenosis_size: float = positive(2.2e-4, " (m)")
+    local_size: float = positive(2.2e-4, " (m)")
 
     @property
     def refinements(self) -> int:
@@ -442,9 +443,9 @@ def validate(case: Case) -> None:
     elif case.structure.mode != "rigid":
         raise ConfigError("", "structure.mode", f"'rigid' for geometry.kind '{g.kind}'"
                           " (it has no structure)", case.structure.mode)
-    if case.mesh.stenosis_size > case.mesh.size:
-        raise ConfigError("", "mesh.stenosis_size", f"at most mesh.size = {case.mesh.size} m",
-                          case.mesh.stenosis_size)
+    if case.mesh.local_size > case.mesh.size:
+        raise ConfigError("", "mesh.local_size", f"at most mesh.size = {case.mesh.size} m",
+                          case.mesh.local_size)
 
     schedule = case.time.schedule
     if not schedule:

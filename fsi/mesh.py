@@ -83,7 +83,7 @@ def build(case: Case, comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
 def _build_model(case: Case) -> None:
     g, m = case.geometry, case.mesh
     if isinstance(g, StenosisGeometry):
-        stenosis.build(g, size=m.size, stenosis_size=m.stenosis_size)
+        stenosis.build(g, size=m.size, local_size=m.local_size)
     elif isinstance(g, ChannelGeometry):
         channel.build(g, size=m.size)
     else:  # pragma: no cover - the config admits no other kind

@@ -104,10 +104,10 @@ def min_cap_thickness(p: StenosisParameters, samples: int = 801) -> float:
     return float(distance_to_polyline(lipid, cap).min())
 
 
-def build(p: StenosisParameters, size: float, stenosis_size: float, spline_points: int = 101) -> None:
+def build(p: StenosisParameters, size: float, local_size: float, spline_points: int = 101) -> None:
     """Add the stenosed artery to the current gmsh model (built-in kernel) with physical groups.
 
-    ``size`` is the element size away from the plaque, ``stenosis_size`` the size at the plaque's
+    ``size`` is the element size away from the plaque, ``local_size`` the size at the plaque's
     corner and apex points; gmsh interpolates in between. Meshing is left to the caller.
     """
     import gmsh
@@ -128,7 +128,7 @@ def build(p: StenosisParameters, size: float, stenosis_size: float, spline_point
 
     def spline(side: str, start: int, end: int, x0: float, x1: float, profile) -> int:
         xs = np.linspace(x0, x1, spline_points)[1:-1]
-        inner = [point(side, x, float(profile(np.array([x]))[0]), stenosis_size) for x in xs]
+        inner = [point(side, x, float(profile(np.array([x]))[0]), local_size) for x in xs]
         return geo.addSpline([start, *inner, end])
 
     lumen_chain: dict[str, list[int]] = {}  # left-to-right curves of each lumen side
@@ -140,7 +140,7 @@ def build(p: StenosisParameters, size: float, stenosis_size: float, spline_point
             lumen_chain[side] = [geo.addLine(left, right)]
             groups[Boundary.RIGID_WALL].extend(lumen_chain[side])
             continue
-        hs = stenosis_size
+        hs = local_size
         p_x0, p_top, p_x3 = point(side, xc - l / 2, 0, hs), point(side, xc, A, hs), point(side, xc + l / 2, 0, hs)
         p_x1, p_lip, p_x2 = point(side, xc - l_lip / 2, 0, hs), point(side, xc, a, hs), point(side, xc + l_lip / 2, 0, hs)
 
