@@ -26,6 +26,23 @@ def model_to_mesh(comm: MPI.Comm, rank: int, gdim: int):
     return mesh, cell_tags, facet_tags
 
 
+def function_space(mesh, family: str, degree: int, shape: tuple[int, ...] = ()):
+    """A Lagrange/DG function space: scalar (``shape=()``), vector (``(2,)``) or tensor."""
+    if LEGACY:
+        import dolfinx.fem
+
+        if shape == ():
+            return dolfinx.fem.FunctionSpace(mesh, (family, degree))
+        if len(shape) == 1:
+            return dolfinx.fem.VectorFunctionSpace(mesh, (family, degree), dim=shape[0])
+        return dolfinx.fem.TensorFunctionSpace(mesh, (family, degree), shape=shape)
+    import basix.ufl
+    import dolfinx.fem
+
+    element = basix.ufl.element(family, mesh.basix_cell(), degree, shape=shape or None)
+    return dolfinx.fem.functionspace(mesh, element)
+
+
 def create_submesh(mesh, dim: int, entities: np.ndarray):
     """A submesh of ``entities`` and the map from its cells to the parent's (local) cells."""
     submesh, entity_map, *_ = dolfinx.mesh.create_submesh(mesh, dim, entities)
