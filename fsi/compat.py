@@ -43,6 +43,14 @@ def function_space(mesh, family: str, degree: int, shape: tuple[int, ...] = ()):
     return dolfinx.fem.functionspace(mesh, element)
 
 
+def element_info(V) -> tuple[bool, int, tuple[int, ...]]:
+    """(discontinuous?, degree, value shape) of a (non-mixed) function space's element."""
+    e = V.ufl_element()
+    if LEGACY:
+        return "Discontinuous" in e.family(), e.degree(), tuple(e.value_shape())
+    return e.discontinuous, e.degree, tuple(e.reference_value_shape)
+
+
 def create_submesh(mesh, dim: int, entities: np.ndarray):
     """A submesh of ``entities`` and the map from its cells to the parent's (local) cells."""
     submesh, entity_map, *_ = dolfinx.mesh.create_submesh(mesh, dim, entities)
@@ -52,6 +60,10 @@ def create_submesh(mesh, dim: int, entities: np.ndarray):
 def entities_to_geometry(mesh, dim: int, entities: np.ndarray) -> np.ndarray:
     """Geometry-node indices (rows) of the given entities."""
     entities = np.asarray(entities, dtype=np.int32)
+    if entities.size == 0:
+        # dolfinx 0.9 divides by zero (SIGFPE) on an empty list, e.g. on a rank that holds no
+        # facet of a boundary: ask for entity 0 (every rank has one) to get the row shape.
+        return entities_to_geometry(mesh, dim, np.zeros(1, dtype=np.int32))[:0]
     if LEGACY:
         return dolfinx.cpp.mesh.entities_to_geometry(mesh._mesh, dim, entities, False)
     return dolfinx.mesh.entities_to_geometry(mesh, dim, entities, False)
@@ -74,3 +86,85 @@ def read_mesh_with_tags(comm: MPI.Comm, path: str):
         mesh.topology.create_connectivity(tdim - 1, tdim)
         facet_tags = xdmf.read_meshtags(mesh, name="facet_tags")
     return mesh, cell_tags, facet_tags
+
+
+# --------------------------------------------------------------------------------------------
+# Function spaces, submesh vertex maps, dof layouts and PETSc vectors (added for fsi.solid)
+
+
+def function_space(mesh, family: str, degree: int, shape: tuple[int, ...] = ()):
+    """The ``family`` (e.g. "Lagrange", "DG") space of ``degree`` on ``mesh``: scalar for
+    ``shape == ()``, vector for ``(n,)``, tensor for ``(n, m)``."""
+    if LEGACY:
+        import dolfinx.fem
+
+        if shape == ():
+            return dolfinx.fem.FunctionSpace(mesh, (family, degree))
+        if len(shape) == 1:
+            return dolfinx.fem.VectorFunctionSpace(mesh, (family, degree), dim=shape[0])
+        return dolfinx.fem.TensorFunctionSpace(mesh, (family, degree), shape=shape)
+    import dolfinx.fem
+
+    return dolfinx.fem.functionspace(mesh, (family, degree, shape if shape else None))
+
+
+def create_submesh_with_vertex_map(mesh, dim: int, entities: np.ndarray):
+    """A submesh of ``entities``, its cell → parent cell map and vertex → parent vertex map."""
+    submesh, entity_map, vertex_map, *_ = dolfinx.mesh.create_submesh(mesh, dim, entities)
+    return submesh, np.asarray(entity_map, dtype=np.int32), np.asarray(vertex_map, dtype=np.int32)
+
+
+def interpolation_points(V) -> np.ndarray:
+    """Reference points of ``V``'s element for interpolating a :class:`dolfinx.fem.Expression`."""
+    points = V.element.interpolation_points
+    return points() if LEGACY else points
+
+
+def cell_dofs(V) -> np.ndarray:
+    """The dofmap as an array (cells, dofs per cell) of local (block) dof indices."""
+    dofs = V.dofmap.list
+    return dofs.array.reshape(-1, V.dofmap.dof_layout.num_dofs) if LEGACY else np.asarray(dofs)
+
+
+def petsc_vector(u):
+    """The PETSc vector that wraps a :class:`dolfinx.fem.Function`'s values."""
+    return u.vector if LEGACY else u.x.petsc_vec
+
+
+# --------------------------------------------------------------------------------------------
+# Mixed spaces, expressions and the geometry dofmap (added for fsi.fluid and fsi.metrics)
+
+
+def mixed_space(mesh, parts):
+    """A mixed space of ``parts``, ``(family, degree, shape)`` triples with ``shape`` () for a
+    scalar, e.g. Taylor–Hood ``[("Lagrange", 2, (2,)), ("Lagrange", 1, ())]``."""
+    import dolfinx.fem
+
+    if LEGACY:
+        import ufl
+
+        cell = mesh.ufl_cell()
+        elements = [ufl.FiniteElement(f, cell, d) if not s else
+                    ufl.VectorElement(f, cell, d, dim=s[0]) for f, d, s in parts]
+        return dolfinx.fem.FunctionSpace(mesh, ufl.MixedElement(elements))
+    import basix.ufl
+
+    cell = mesh.topology.cell_name()
+    elements = [basix.ufl.element(f, cell, d, shape=s if s else None) for f, d, s in parts]
+    return dolfinx.fem.functionspace(mesh, basix.ufl.mixed_element(elements))
+
+
+def eval_expression(expression, mesh, cells: np.ndarray) -> np.ndarray:
+    """Values of a ``dolfinx.fem.Expression`` at its reference points on ``cells``, shape
+    (len(cells), num_points * value_size)."""
+    cells = np.asarray(cells, dtype=np.int32)
+    values = expression.eval(cells) if LEGACY else expression.eval(mesh, cells)
+    return np.asarray(values).reshape(len(cells), -1)
+
+
+def geometry_dofmap(mesh) -> np.ndarray:
+    """Geometry-node indices per local cell, shape (num_cells, nodes_per_cell)."""
+    dofmap = mesh.geometry.dofmap
+    if LEGACY:
+        return dofmap.array.reshape(dofmap.num_nodes, -1)
+    return np.asarray(dofmap)

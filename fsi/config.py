@@ -98,6 +98,22 @@ class ChannelGeometry:
     height: float = positive(0.007, " (m)")
 
 
+@dataclass(frozen=True)
+class TurekHronGeometry:
+    """The Turek–Hron benchmark (../shared/reference/turek_hron.md, geometry/turek_hron.py): a
+    channel ``[0, length] × [0, height]``, a rigid cylinder and an elastic flag of
+    ``flag_length`` (from the cylinder's rightmost point to the tip) × ``flag_thickness`` centred
+    on the cylinder's axis. Defaults are the benchmark's (tip and point A at x = 0.6)."""
+
+    kind: Literal["turek_hron"] = "turek_hron"
+    length: float = positive(2.5, " (m)")
+    height: float = positive(0.41, " (m)")
+    cylinder_centre: tuple[float, ...] = (0.2, 0.2)
+    cylinder_radius: float = positive(0.05, " (m)")
+    flag_length: float = positive(0.35, " (m)")
+    flag_thickness: float = positive(0.02, " (m)")
+
+
 MESH_LEVELS = {"coarse": 0, "medium": 1, "fine": 2}
 
 
@@ -136,7 +152,55 @@ class Carreau:
     power_index: float = positive(0.344)
 
 
-Rheology = Union[Newtonian, Carreau]
+@dataclass(frozen=True)
+class CarreauYasuda:
+    """μ(s) = μ∞ + (μ0 − μ∞)(1 + (λ s)^a)^((n − 1)/a). Defaults: blood (Cho & Kensey 1991, as
+    used by Johnston et al. 2004)."""
+
+    model: Literal["carreau_yasuda"] = "carreau_yasuda"
+    mu_0: float = positive(0.056, " (Pa s)")
+    mu_inf: float = positive(0.00345, " (Pa s)")
+    relaxation_time: float = positive(1.902, " (s)")
+    power_index: float = positive(0.22)
+    yasuda_exponent: float = positive(1.25)
+
+
+@dataclass(frozen=True)
+class Cross:
+    """μ(s) = μ∞ + (μ0 − μ∞) / (1 + (λ s)^m). Defaults: blood (Johnston et al. 2004)."""
+
+    model: Literal["cross"] = "cross"
+    mu_0: float = positive(0.0364, " (Pa s)")
+    mu_inf: float = positive(0.0035, " (Pa s)")
+    relaxation_time: float = positive(0.38, " (s)")
+    exponent: float = positive(1.45)
+
+
+@dataclass(frozen=True)
+class PowerLaw:
+    """μ(s) = K (s² + s0²)^((n − 1)/2): the power law K s^(n−1) with the shear rate smoothly
+    floored at s0, so μ(0) = K s0^(n−1) is finite. Defaults: blood, K and n of Johnston et al.
+    (2004); s0 = 0.0169 1/s puts μ(0) at their cap of 0.056 Pa s."""
+
+    model: Literal["power_law"] = "power_law"
+    consistency: float = positive(0.017, " (Pa s^n)")
+    power_index: float = positive(0.708)
+    shear_rate_floor: float = positive(0.0169, " (1/s)")
+
+
+@dataclass(frozen=True)
+class Casson:
+    """Casson's √τ = √τy + √(μc s), regularised after Papanastasiou:
+    μ(s) = (√μc + √(τy / s) (1 − exp(−√(m s))))², finite at s = 0 (μ(0) = (√μc + √(τy m))²).
+    Defaults: typical blood values (τy 5 mPa, μc 3.5 mPa s) and m = 100 s."""
+
+    model: Literal["casson"] = "casson"
+    viscosity: float = positive(0.0035, " (Pa s)")
+    yield_stress: float = positive(0.005, " (Pa)")
+    regularization: float = positive(100.0, " (s)")
+
+
+Rheology = Union[Newtonian, Carreau, CarreauYasuda, Cross, PowerLaw, Casson]
 
 
 @dataclass(frozen=True)
@@ -146,6 +210,93 @@ class InletPulse:
     kind: Literal["traction_pulse"] = "traction_pulse"
     amplitude: float = positive(1200.0, " (Pa, peak)")
     duration: float = positive(0.005, " (s)")
+
+
+_FORMULA_NAMES = ("sin", "cos", "tan", "exp", "log", "sqrt", "tanh", "abs", "min", "max")
+
+
+def time_function(formula: str) -> typing.Callable[[float], float]:
+    """``formula``, an arithmetic expression in the time ``t`` (s), as a function of t.
+
+    Allowed: numbers, ``t``, ``pi``, ``e``, ``+ - * / ** %``, parentheses, comparisons (true = 1,
+    e.g. ``600*(1 - cos(2*pi*t/0.005))*(t <= 0.005)``) and the functions sin, cos, tan, exp, log,
+    sqrt, tanh, abs, min, max. Raises ValueError for anything else (names, attributes, strings).
+    """
+    import ast
+    import math
+
+    try:
+        tree = ast.parse(formula, mode="eval")
+    except SyntaxError as e:
+        raise ValueError(f"not an expression: {e.msg}") from None
+    allowed = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Compare, ast.Call, ast.Name, ast.Load,
+               ast.Constant, ast.operator, ast.unaryop, ast.cmpop)
+    for node in ast.walk(tree):
+        if not isinstance(node, allowed) or isinstance(node, (ast.MatMult, ast.BitAnd, ast.BitOr,
+                                                              ast.BitXor, ast.LShift, ast.RShift,
+                                                              ast.FloorDiv, ast.Invert, ast.Not,
+                                                              ast.Is, ast.IsNot, ast.In,
+                                                              ast.NotIn)):
+            raise ValueError(f"{type(node).__name__} is not allowed")
+        if isinstance(node, ast.Constant):
+            if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
+                raise ValueError(f"{node.value!r} is not a number")
+            node.value = float(node.value)  # float powers overflow instead of running forever
+        if isinstance(node, ast.Name) and node.id not in ("t", "pi", "e", *_FORMULA_NAMES):
+            raise ValueError(f"unknown name {node.id!r}")
+        if isinstance(node, ast.Call) and (node.keywords or not isinstance(node.func, ast.Name)
+                                           or node.func.id not in _FORMULA_NAMES):
+            raise ValueError("only calls of " + ", ".join(_FORMULA_NAMES))
+    code = compile(tree, "<formula>", "eval")
+    names = {"__builtins__": {}, "pi": math.pi, "e": math.e, "abs": abs, "min": min, "max": max}
+    names.update({f: getattr(math, f) for f in _FORMULA_NAMES if hasattr(math, f)})
+    return lambda t: float(eval(code, names, {"t": float(t)}))  # noqa: S307 (checked above)
+
+
+def _is_time_formula(text: str) -> bool:
+    try:
+        time_function(text)
+    except ValueError:
+        return False
+    return True
+
+
+@dataclass(frozen=True)
+class InletPressure:
+    """Inlet normal traction σ n = −P(t) n (P pushes blood in) with P (Pa) a formula in t."""
+
+    kind: Literal["pressure"] = "pressure"
+    formula: str = _check("0", _is_time_formula, "an expression in t (numbers, + - * / ** %,"
+                          " comparisons, pi, e, " + ", ".join(_FORMULA_NAMES) + ")")
+
+
+def _is_time_table(rows: tuple) -> bool:
+    return (len(rows) >= 1 and all(len(r) == 2 for r in rows)
+            and all(b[0] > a[0] for a, b in zip(rows, rows[1:])))
+
+
+@dataclass(frozen=True)
+class InletPressureTable:
+    """Inlet normal traction σ n = −P(t) n from rows [t (s), P (Pa)]: linear between rows,
+    constant beyond the first and last."""
+
+    kind: Literal["pressure_table"] = "pressure_table"
+    table: tuple[tuple[float, ...], ...] = _check(
+        ((0.0, 0.0),), _is_time_table, "a non-empty list of [t, P] pairs with increasing t")
+
+
+@dataclass(frozen=True)
+class ParabolicInflow:
+    """Velocity inflow u = 1.5 Ū 4 s (H − s) / H² along the inward normal (s the distance along
+    the inlet of width H), ramped by (1 − cos(π t / ramp_time)) / 2 for t < ramp_time
+    (Turek–Hron: ramp_time 2 s; 0 = no ramp). Defaults: Turek–Hron CFD1/FSI1."""
+
+    kind: Literal["parabolic_velocity"] = "parabolic_velocity"
+    mean_velocity: float = positive(0.2, " (m/s)")
+    ramp_time: float = non_negative(2.0, " (s)")
+
+
+Inlet = Union[InletPulse, InletPressure, InletPressureTable, ParabolicInflow]
 
 
 @dataclass(frozen=True)
@@ -173,10 +324,15 @@ class SolverSettings:
 
 @dataclass(frozen=True)
 class Fluid:
+    """Blood (MODEL.md §2). ``open_boundary`` is the form of the inlet/outlet traction
+    conditions: ``stress`` the study's σ n = −P n (σ the Cauchy stress); ``do_nothing``
+    μ ∇u n − p n = −P n (Heywood, Rannacher & Turek 1996), exact for fully developed flow."""
+
     density: float = positive(1060.0, " (kg/m^3)")
     rheology: Rheology = field(default_factory=Newtonian)
-    inlet: InletPulse = field(default_factory=InletPulse)
+    inlet: Inlet = field(default_factory=InletPulse)
     outlet: Outlet = field(default_factory=Outlet)
+    open_boundary: Literal["stress", "do_nothing"] = "stress"
     quadrature_degree: int = at_least(4, 1)
     solver: SolverSettings = field(default_factory=SolverSettings)
 
@@ -187,23 +343,75 @@ class Fluid:
 
 @dataclass(frozen=True)
 class Material:
-    """St. Venant–Kirchhoff material of one structure region (MODEL.md §3)."""
+    """Hyperelastic material of one structure region (MODEL.md §3; fsi/materials.py): the
+    study's St. Venant–Kirchhoff ``svk`` or a compressible ``neo_hookean``, plane strain."""
 
-    law: Literal["svk"] = "svk"
+    law: Literal["svk", "neo_hookean"] = "svk"
     density: float = positive(1200.0, " (kg/m^3)")
     young_modulus: float = positive(1.6e6, " (Pa)")
     poisson_ratio: float = open_interval(0.45, -1.0, 0.5)
 
 
 @dataclass(frozen=True)
+class WallMaterial(Material):
+    """The vessel wall's defaults (E = 4 MPa); keys not given keep these, not the plaque's."""
+
+    young_modulus: float = positive(4.0e6, " (Pa)")
+
+
+@dataclass(frozen=True)
+class FlagMaterial(Material):
+    """The Turek–Hron flag's defaults (CSM1/FSI1: ρ 1000, μs 0.5 MPa → E 1.4 MPa, ν 0.4)."""
+
+    density: float = positive(1000.0, " (kg/m^3)")
+    young_modulus: float = positive(1.4e6, " (Pa)")
+    poisson_ratio: float = open_interval(0.4, -1.0, 0.5)
+
+
+@dataclass(frozen=True)
+class GeneralizedAlpha:
+    """Chung–Hulbert generalized-α with high-frequency spectral radius ρ∞ (1: no dissipation,
+    0: asymptotic annihilation). The study does not state its scheme; a dissipative default
+    damps the structure's unresolved modes (their periods are far below the 5 ms step)."""
+
+    scheme: Literal["generalized_alpha"] = "generalized_alpha"
+    spectral_radius: float = _check(0.5, lambda v: 0 <= v <= 1, "a number in [0, 1]")
+
+
+@dataclass(frozen=True)
+class Newmark:
+    """The trapezoidal rule (β = 1/4, γ = 1/2): no numerical dissipation, energy-conserving."""
+
+    scheme: Literal["newmark"] = "newmark"
+
+
+@dataclass(frozen=True)
+class QuasiStatic:
+    """No inertia: the structure is in equilibrium with its loads at every step."""
+
+    scheme: Literal["quasi_static"] = "quasi_static"
+
+
+StructuralTimeIntegration = Union[GeneralizedAlpha, Newmark, QuasiStatic]
+
+
+@dataclass(frozen=True)
 class Structure:
-    """``fixed_wall``: vessel wall held, plaque deforms; ``moving_wall``: wall and plaque deform;
-    ``rigid``: no structure solve (fluid-only runs)."""
+    """``fixed_wall``: vessel wall held, plaque deforms; ``moving_wall``: wall and plaque deform
+    (clamped at the wall ends; the Turek–Hron flag at its joint with the cylinder); ``rigid``: no
+    structure solve (fluid-only runs). ``flag`` is the Turek–Hron flag's material (CSM1/FSI1
+    values by default); ``body_force`` a force per unit mass on the structure (gravity, m/s²);
+    ``degree`` the Lagrange degree of the displacement (P1 locks in bending)."""
 
     mode: Literal["fixed_wall", "moving_wall", "rigid"] = "fixed_wall"
-    wall: Material = field(default_factory=lambda: Material(young_modulus=4.0e6))
+    wall: WallMaterial = field(default_factory=WallMaterial)
     cap: Material = field(default_factory=Material)
     lipid: Material = field(default_factory=Material)
+    flag: FlagMaterial = field(default_factory=FlagMaterial)
+    body_force: tuple[float, ...] = _check(
+        (0.0, 0.0), lambda v: len(v) == 2, "a list of two numbers [gx, gy] (m/s^2)")
+    time_integration: StructuralTimeIntegration = field(default_factory=GeneralizedAlpha)
+    degree: int = _check(2, lambda v: 1 <= v <= 3, "an integer in [1, 3]")
     quadrature_degree: int = at_least(4, 1)
     solver: SolverSettings = field(default_factory=SolverSettings)
 
@@ -231,14 +439,22 @@ class Time:
 
 @dataclass(frozen=True)
 class Coupling:
-    """Dirichlet–Neumann iterations per step (MODEL.md §5)."""
+    """Dirichlet–Neumann iterations per step (MODEL.md §5; fsi/coupling.py).
+
+    ``initial_relaxation``: ω of constant relaxation, Aitken's first ω and IQN-ILS's relaxed
+    first iteration; ``max_relaxation``: Aitken's cap |ω| <= ω_max; ``iqn_reuse``: time steps
+    whose secant columns IQN-ILS reuses; ``iqn_filter``: its QR filter threshold (relative);
+    ``predictor``: extrapolation of the interface displacement from previous steps.
+    """
 
     acceleration: Literal["constant", "aitken", "iqn-ils"] = "aitken"
     tolerance: float = positive(1.0e-6)
     max_iterations: int = at_least(50, 1)
     initial_relaxation: float = _check(0.5, lambda v: 0 < v <= 1, "a number in (0, 1]")
+    max_relaxation: float = positive(1.0)
     iqn_reuse: int = at_least(4, 0)
     iqn_filter: float = positive(1.0e-8)
+    predictor: Literal["constant", "linear", "quadratic"] = "linear"
 
 
 @dataclass(frozen=True)
@@ -252,7 +468,8 @@ class Output:
 @dataclass(frozen=True)
 class Case:
     name: str = "case"
-    geometry: Union[StenosisGeometry, ChannelGeometry] = field(default_factory=StenosisGeometry)
+    geometry: Union[StenosisGeometry, ChannelGeometry, TurekHronGeometry] = field(
+        default_factory=StenosisGeometry)
     mesh: MeshSettings = field(default_factory=MeshSettings)
     fluid: Fluid = field(default_factory=Fluid)
     structure: Structure = field(default_factory=Structure)
@@ -440,6 +657,9 @@ def validate(case: Case) -> None:
                               "a lipid pool short enough that the fibrous cap is nowhere thinner"
                               f" than cap_thickness = {g.cap_thickness} m (it would be"
                               f" {thinnest:.3g} m)", g.lipid_length)
+    elif isinstance(g, TurekHronGeometry):
+        # Any structure mode: 'rigid' is the CFD benchmark, the others make the flag elastic.
+        _validate_turek_hron(g)
     elif case.structure.mode != "rigid":
         raise ConfigError("", "structure.mode", f"'rigid' for geometry.kind '{g.kind}'"
                           " (it has no structure)", case.structure.mode)
@@ -459,6 +679,10 @@ def validate(case: Case) -> None:
         raise ConfigError("", f"time.schedule[{len(schedule) - 1}].until",
                           f"at least time.end = {case.time.end} s", schedule[-1].until)
 
+    if case.coupling.max_relaxation < case.coupling.initial_relaxation:
+        raise ConfigError("", "coupling.max_relaxation", "at least coupling.initial_relaxation ="
+                          f" {case.coupling.initial_relaxation}", case.coupling.max_relaxation)
+
     # Sub-solvers must be well below the coupling tolerance or the coupling stalls near it.
     for name in ("fluid", "structure"):
         rtol = getattr(case, name).solver.rtol
@@ -466,6 +690,26 @@ def validate(case: Case) -> None:
             raise ConfigError("", f"{name}.solver.rtol",
                               f"at most coupling.tolerance / 10 = {case.coupling.tolerance / 10:g}",
                               rtol)
+
+
+def _validate_turek_hron(g: TurekHronGeometry) -> None:
+    """The cylinder inside the channel, the flag attached to it and ending inside the channel."""
+    if len(g.cylinder_centre) != 2:
+        raise ConfigError("", "geometry.cylinder_centre", "a list of two numbers [x, y] (m)",
+                          list(g.cylinder_centre))
+    cx, cy = g.cylinder_centre
+    r = g.cylinder_radius
+    if not (r < cx and r < cy < g.height - r):
+        raise ConfigError("", "geometry.cylinder_radius",
+                          f"a cylinder of centre {list(g.cylinder_centre)} inside the channel"
+                          f" [0, {g.length}] x [0, {g.height}] m", r)
+    if g.flag_thickness >= 2 * r:
+        raise ConfigError("", "geometry.flag_thickness",
+                          f"less than the cylinder diameter {2 * r} m", g.flag_thickness)
+    if cx + r + g.flag_length >= g.length:
+        raise ConfigError("", "geometry.flag_length",
+                          f"a flag tip (x = centre + radius + length) before the outlet x ="
+                          f" {g.length} m", g.flag_length)
 
 
 def to_dict(case: Case) -> dict:

@@ -1,12 +1,15 @@
-"""Files: the mesh (XDMF with tags) and its summary (JSON). Physics modules never open files."""
+"""Files: the mesh (XDMF with tags) and its summary, metrics tables (CSV) and field time series
+(XDMF). Physics modules never open files."""
 
 from __future__ import annotations
 
+import csv
 import json
 from pathlib import Path
 
 from mpi4py import MPI
 
+import dolfinx.fem
 import dolfinx.io
 
 from fsi import compat
@@ -33,3 +36,77 @@ def write_mesh(out: Path, tagged: TaggedMesh, summary: dict) -> None:
         compat.write_meshtags(xdmf, tagged.mesh, tagged.cell_tags)
         compat.write_meshtags(xdmf, tagged.mesh, tagged.facet_tags)
     write_json(comm, out / "mesh.json", summary)
+
+
+class MetricsTable:
+    """``metrics.csv``: one row per time step, written by rank 0 and flushed at every row, so a
+    run that stops keeps every finished step. On restart the rows after ``keep_until_step`` are
+    dropped and new rows are appended."""
+
+    def __init__(self, comm: MPI.Comm, path: Path, columns: list[str],
+                 keep_until_step: int | None = None):
+        self.comm, self.path, self.columns = comm, path, list(columns)
+        self._file = None
+        if comm.rank != 0:
+            return
+        rows: list[dict] = []
+        if keep_until_step is not None and path.exists():
+            with path.open(newline="") as f:
+                rows = [r for r in csv.DictReader(f) if int(r["step"]) <= keep_until_step]
+        self._file = path.open("w", newline="")
+        self._writer = csv.DictWriter(self._file, fieldnames=self.columns, extrasaction="raise")
+        self._writer.writeheader()
+        for row in rows:
+            self._writer.writerow({k: row.get(k, "") for k in self.columns})
+        self._file.flush()
+
+    def write(self, row: dict) -> None:
+        if self._file is not None:
+            self._writer.writerow({k: _format(row.get(k, "")) for k in self.columns})
+            self._file.flush()
+
+    def close(self) -> None:
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+
+def _format(value) -> str:
+    return f"{value:.10g}" if isinstance(value, float) else str(value)
+
+
+def read_metrics(path: Path) -> list[dict[str, float]]:
+    """The rows of a ``metrics.csv`` as numbers."""
+    with Path(path).open(newline="") as f:
+        return [{k: float(v) for k, v in row.items() if v != ""} for row in csv.DictReader(f)]
+
+
+class FieldWriter:
+    """An XDMF time series of fields for ParaView. Lagrange fields are written as their P1
+    interpolants and DG fields as DG0 (XDMF stores vertex and cell data only); on a moving mesh
+    the mesh displacement is one of the fields (ParaView: Warp By Vector)."""
+
+    def __init__(self, comm: MPI.Comm, path: Path, mesh):
+        self._xdmf = dolfinx.io.XDMFFile(comm, str(path), "w")
+        self._xdmf.write_mesh(mesh)
+        self._outputs: dict[str, dolfinx.fem.Function] = {}
+
+    def _output_for(self, f: dolfinx.fem.Function) -> dolfinx.fem.Function:
+        if f.name not in self._outputs:
+            discontinuous, _, shape = compat.element_info(f.function_space)
+            family, degree = ("DG", 0) if discontinuous else ("Lagrange", 1)
+            out = dolfinx.fem.Function(compat.function_space(f.function_space.mesh, family,
+                                                             degree, shape))
+            out.name = f.name
+            self._outputs[f.name] = out
+        return self._outputs[f.name]
+
+    def write(self, t: float, fields: list[dolfinx.fem.Function]) -> None:
+        for f in fields:
+            out = self._output_for(f)
+            out.interpolate(f)
+            self._xdmf.write_function(out, t)
+
+    def close(self) -> None:
+        self._xdmf.close()
+

@@ -15,12 +15,13 @@ from mpi4py import MPI
 
 import dolfinx
 import dolfinx.fem
+import dolfinx.mesh
 import numpy as np
 import ufl
 
 from fsi import compat
-from fsi.config import Case, ChannelGeometry, StenosisGeometry
-from geometry import channel, stenosis
+from fsi.config import Case, ChannelGeometry, StenosisGeometry, TurekHronGeometry
+from geometry import channel, stenosis, turek_hron
 from geometry.tags import Boundary, Region
 
 log = logging.getLogger(__name__)
@@ -28,11 +29,12 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class TaggedMesh:
-    """The whole system's mesh (fluid and structure) with its region and boundary tags."""
+    """A mesh with its region and boundary tags: the whole system's, or a region's submesh."""
 
     mesh: dolfinx.mesh.Mesh
     cell_tags: dolfinx.mesh.MeshTags
     facet_tags: dolfinx.mesh.MeshTags
+    parent_cells: np.ndarray | None = None  # for a submesh: its cells' indices in the parent
 
     @property
     def comm(self) -> MPI.Comm:
@@ -86,13 +88,64 @@ def _build_model(case: Case) -> None:
         stenosis.build(g, size=m.size, local_size=m.local_size)
     elif isinstance(g, ChannelGeometry):
         channel.build(g, size=m.size)
+    elif isinstance(g, TurekHronGeometry):
+        turek_hron.build(g, size=m.size, local_size=m.local_size)
     else:  # pragma: no cover - the config admits no other kind
         raise ValueError(f"unknown geometry kind {g.kind!r}")
+
+
+def geometry_module(case: Case):
+    """The module of geometry/ that builds the case's geometry."""
+    return {StenosisGeometry: stenosis, ChannelGeometry: channel,
+            TurekHronGeometry: turek_hron}[type(case.geometry)]
 
 
 def extract(tagged: TaggedMesh, *regions: Region):
     """The submesh of ``regions`` (e.g. the fluid, or wall + cap + lipid) and its parent-cell map."""
     return compat.create_submesh(tagged.mesh, tagged.mesh.topology.dim, tagged.cells(*regions))
+
+
+def restrict(tagged: TaggedMesh, *regions: Region) -> TaggedMesh:
+    """The submesh of ``regions`` with the parent's cell and facet tags carried over (a facet
+    keeps its tag on each side that has it); ``parent_cells`` maps its cells to the parent's."""
+    mesh = tagged.mesh
+    tdim = mesh.topology.dim
+    submesh, parent_cells = extract(tagged, *regions)
+    submesh.topology.create_connectivity(tdim, tdim - 1)
+    submesh.topology.create_connectivity(tdim - 1, tdim)
+    mesh.topology.create_connectivity(tdim, tdim - 1)
+
+    # A submesh cell keeps its parent's vertex order, so local facet k is the parent's facet k.
+    n_sub = submesh.topology.index_map(tdim).size_local + submesh.topology.index_map(tdim).num_ghosts
+    sub_c2f = _cell_facets(submesh, n_sub)
+    parent_c2f = _cell_facets(mesh, mesh.topology.index_map(tdim).size_local
+                              + mesh.topology.index_map(tdim).num_ghosts)[parent_cells[:n_sub]]
+    n_parent_facets = mesh.topology.index_map(tdim - 1).size_local + mesh.topology.index_map(tdim - 1).num_ghosts
+    parent_to_sub = np.full(n_parent_facets, -1, dtype=np.int32)
+    parent_to_sub[parent_c2f.ravel()] = sub_c2f.ravel()
+
+    facet_values = np.full(n_parent_facets, -1, dtype=np.int32)
+    facet_values[tagged.facet_tags.indices] = tagged.facet_tags.values
+    keep = (parent_to_sub >= 0) & (facet_values >= 0)
+    sub_facets, values = parent_to_sub[keep], facet_values[keep]
+    order = np.argsort(sub_facets)
+    facet_tags = dolfinx.mesh.meshtags(submesh, tdim - 1, sub_facets[order], values[order])
+
+    parent_cell_values = np.full(mesh.topology.index_map(tdim).size_local
+                                 + mesh.topology.index_map(tdim).num_ghosts, -1, dtype=np.int32)
+    parent_cell_values[tagged.cell_tags.indices] = tagged.cell_tags.values
+    cell_values = parent_cell_values[parent_cells]
+    cell_tags = dolfinx.mesh.meshtags(submesh, tdim, np.arange(len(parent_cells), dtype=np.int32),
+                                      cell_values)
+    cell_tags.name, facet_tags.name = "cell_tags", "facet_tags"
+    return TaggedMesh(submesh, cell_tags, facet_tags, parent_cells)
+
+
+def _cell_facets(mesh, n_cells: int) -> np.ndarray:
+    """Facet indices of the first ``n_cells`` cells, shape (n_cells, facets per cell)."""
+    tdim = mesh.topology.dim
+    c2f = mesh.topology.connectivity(tdim, tdim - 1)
+    return c2f.array.reshape(-1, tdim + 1)[:n_cells]
 
 
 def _owned_count(indices: np.ndarray, index_map) -> int:
@@ -113,14 +166,19 @@ def summary(tagged: TaggedMesh, case: Case) -> dict:
         local = dolfinx.fem.assemble_scalar(dolfinx.fem.form(one * measure))
         return float(comm.allreduce(local, op=MPI.SUM))
 
-    cells = {r.label: comm.allreduce(_owned_count(tagged.cells(r), cell_map)) for r in Region}
+    builder = geometry_module(case)
+    cells = {r.label: comm.allreduce(_owned_count(tagged.cells(r), cell_map))
+             for r in builder.REGIONS}
     cells["total"] = cell_map.size_global
-    areas = {r.label: area(dx(int(r))) for r in Region}
+    areas = {r.label: area(dx(int(r))) for r in builder.REGIONS}
     areas["total"] = area(dx)
-    facets = {b.label: comm.allreduce(_owned_count(tagged.facets(b), facet_map)) for b in Boundary}
+    facets = {b.label: comm.allreduce(_owned_count(tagged.facets(b), facet_map))
+              for b in builder.BOUNDARIES}
     result = {"cells": cells, "area_m2": areas, "facets": facets}
     if isinstance(case.geometry, StenosisGeometry):
         result["measures"] = stenosis_measures(tagged, case.geometry)
+    elif isinstance(case.geometry, TurekHronGeometry):
+        result["measures"] = turek_hron_measures(tagged, case.geometry)
     return result
 
 
@@ -132,6 +190,27 @@ def facet_segments(tagged: TaggedMesh, boundary: Boundary) -> np.ndarray:
     nodes = compat.entities_to_geometry(mesh, 1, facets).reshape(-1, 2)
     local = mesh.geometry.x[nodes][:, :, :2]
     return np.concatenate(tagged.comm.allgather(local)).reshape(-1, 2, 2)
+
+
+def turek_hron_measures(tagged: TaggedMesh, g: TurekHronGeometry) -> dict:
+    """How finely the benchmark's obstacle is resolved, and whether point A is a mesh vertex.
+
+    ``cylinder_segments``: facets around the whole cylinder (obstacle + clamped arc);
+    ``flag_tip_segments``: facets across the flag at its tip; ``point_a_distance_m``: distance
+    from point A to the nearest mesh vertex (0 when A is a vertex).
+    """
+    cylinder = len(facet_segments(tagged, Boundary.OBSTACLE)) + len(
+        facet_segments(tagged, Boundary.CLAMPED))
+    interface = facet_segments(tagged, Boundary.INTERFACE)
+    on_tip = np.abs(interface[:, :, 0] - turek_hron.tip_x(g)) <= 1e-12 * g.length
+    a = np.array(turek_hron.point_a(g))
+    x = tagged.mesh.geometry.x[:, :2]
+    nearest = float(np.sqrt(((x - a) ** 2).sum(axis=1)).min(initial=np.inf))
+    return {
+        "cylinder_segments": cylinder,
+        "flag_tip_segments": int(np.count_nonzero(on_tip.all(axis=1))),
+        "point_a_distance_m": float(tagged.comm.allreduce(nearest, op=MPI.MIN)),
+    }
 
 
 def stenosis_measures(tagged: TaggedMesh, g: StenosisGeometry) -> dict:

@@ -53,3 +53,112 @@ def bdf_weights(order: int, dt: float, dt_previous: float | None = None) -> tupl
         r = dt / dt_previous
         return ((1 + 2 * r) / (1 + r) / dt, -(1 + r) / dt, r * r / (1 + r) / dt)
     raise ValueError(f"BDF order {order} is not supported (1 or 2)")
+
+
+# --------------------------------------------------------------------------------------------
+# Structural time integration (the Newmark family, used by fsi.solid)
+
+
+@dataclass(frozen=True)
+class NewmarkFamily:
+    """Generalized-α / Newmark coefficients for ``M a + f_int(η) = f_ext`` (Chung–Hulbert 1993).
+
+    Balance at intermediate times, with ``x_{n+1-α} = (1 − α) x_{n+1} + α x_n``::
+
+        M a_{n+1-αm} + f_int(η_{n+1-αf}) = f_ext(t_{n+1-αf})
+
+    and Newmark's kinematics::
+
+        η_{n+1} = η_n + dt v_n + dt² ((1/2 − β) a_n + β a_{n+1})
+        v_{n+1} = v_n + dt ((1 − γ) a_n + γ a_{n+1})
+
+    ``dynamic = False`` is the quasi-static scheme: no inertia, balance at ``t_{n+1}``, the
+    velocity a backward difference and the acceleration zero. The arithmetic below works on
+    numbers, numpy arrays and UFL expressions alike, so the solver builds its residual and
+    updates its vectors from the same formulas.
+    """
+
+    alpha_m: float
+    alpha_f: float
+    beta: float
+    gamma: float
+    dynamic: bool = True
+
+    @classmethod
+    def newmark(cls) -> NewmarkFamily:
+        """The trapezoidal rule (β = 1/4, γ = 1/2), balanced at the midpoint (αm = αf = 1/2).
+
+        Only ``(a_n + a_{n+1})/2`` enters, so this is the implicit midpoint rule
+        ``(η_{n+1} − η_n)/dt = (v_n + v_{n+1})/2``, ``M (v_{n+1} − v_n)/dt = −f_int + f_ext``:
+        for linear problems identical to the classical trapezoidal Newmark (energy-conserving),
+        and with the solver's energy-momentum stress exactly energy-conserving for SVK too.
+        It is the generalized-α method with ρ∞ = 1.
+        """
+        return cls.generalized_alpha(1.0)
+
+    @classmethod
+    def generalized_alpha(cls, spectral_radius: float) -> NewmarkFamily:
+        """Chung–Hulbert from the high-frequency spectral radius ρ∞ ∈ [0, 1]::
+
+            αm = (2ρ∞ − 1)/(ρ∞ + 1),  αf = ρ∞/(ρ∞ + 1),
+            γ = 1/2 − αm + αf,        β = (1 − αm + αf)²/4
+
+        (second-order accurate, unconditionally stable, minimal low-frequency dissipation).
+        """
+        r = spectral_radius
+        if not 0.0 <= r <= 1.0:
+            raise ValueError(f"the spectral radius must lie in [0, 1], got {r}")
+        alpha_m, alpha_f = (2 * r - 1) / (r + 1), r / (r + 1)
+        return cls(alpha_m, alpha_f, (1 - alpha_m + alpha_f) ** 2 / 4, 0.5 - alpha_m + alpha_f)
+
+    @classmethod
+    def quasi_static(cls) -> NewmarkFamily:
+        return cls(0.0, 0.0, 0.25, 0.5, dynamic=False)
+
+    @staticmethod
+    def at(x_new, x_old, alpha: float):
+        """``x_{n+1-α} = (1 − α) x_new + α x_old``."""
+        return (1 - alpha) * x_new + alpha * x_old
+
+    def acceleration(self, eta, eta_n, v_n, a_n, dt):
+        """``a_{n+1} = (η_{n+1} − η_n − dt v_n)/(β dt²) − (1/(2β) − 1) a_n`` (0 if quasi-static)."""
+        if not self.dynamic:
+            return 0 * eta
+        b = self.beta
+        return (eta - eta_n - dt * v_n) / (b * dt * dt) - (1 / (2 * b) - 1) * a_n
+
+    def velocity(self, eta, eta_n, v_n, a_n, dt):
+        """``v_{n+1} = v_n + dt ((1 − γ) a_n + γ a_{n+1})``, or ``(η_{n+1} − η_n)/dt`` if quasi-static."""
+        if not self.dynamic:
+            return (eta - eta_n) / dt
+        a = self.acceleration(eta, eta_n, v_n, a_n, dt)
+        return v_n + dt * ((1 - self.gamma) * a_n + self.gamma * a)
+
+    def amplification_matrix(self, omega_dt: float):
+        """The matrix ``A`` with ``x_{n+1} = A x_n``, ``x = (u, dt u̇, dt² ü)``, for ``ü + ω²u = 0``.
+
+        Its spectral radius is the per-step amplitude factor of a mode with ``ω dt = omega_dt``.
+        """
+        import numpy as np
+
+        am, af, b, g, w2 = self.alpha_m, self.alpha_f, self.beta, self.gamma, omega_dt**2
+        lhs = np.array([[w2 * (1 - af), 0, 1 - am], [1, 0, -b], [0, 1, -g]], dtype=float)
+        rhs = np.array([[-w2 * af, 0, -am], [1, 1, 0.5 - b], [0, 1, 1 - g]], dtype=float)
+        return np.linalg.solve(lhs, rhs)
+
+    def spectral_radius(self, omega_dt: float) -> float:
+        """``ρ(A(ω dt))``: 1 for the trapezoidal rule, → ρ∞ as ``ω dt → ∞``."""
+        import numpy as np
+
+        return float(np.abs(np.linalg.eigvals(self.amplification_matrix(omega_dt))).max())
+
+
+def structural_scheme(settings) -> NewmarkFamily:
+    """The scheme of ``structure.time_integration`` (a config object with a ``scheme`` tag)."""
+    if settings.scheme == "newmark":
+        return NewmarkFamily.newmark()
+    if settings.scheme == "generalized_alpha":
+        return NewmarkFamily.generalized_alpha(settings.spectral_radius)
+    if settings.scheme == "quasi_static":
+        return NewmarkFamily.quasi_static()
+    raise ValueError(f"unknown structural time scheme {settings.scheme!r}")

@@ -10,6 +10,10 @@ from typing import Protocol
 from geometry.stenosis import add_physical_groups
 from geometry.tags import Boundary, Region
 
+# The tags this builder writes (mesh.json reports these).
+REGIONS = (Region.FLUID,)
+BOUNDARIES = (Boundary.INLET, Boundary.OUTLET, Boundary.RIGID_WALL)
+
 
 class ChannelParameters(Protocol):
     length: float

@@ -22,6 +22,11 @@ import numpy as np
 
 from geometry.tags import Boundary, Region
 
+# The tags this builder writes (mesh.json reports these).
+REGIONS = (Region.FLUID, Region.WALL, Region.CAP, Region.LIPID)
+BOUNDARIES = (Boundary.INLET, Boundary.OUTLET, Boundary.INTERFACE, Boundary.RIGID_WALL,
+              Boundary.CLAMPED, Boundary.EXTERIOR, Boundary.CAP_LIPID, Boundary.PLAQUE_BASE)
+
 SIDES = ("bottom", "top")
 
 

@@ -3,6 +3,8 @@
 Names follow ../shared/MODEL.md §1: ``interface`` is Γw1, ``rigid_wall`` Γw2, ``clamped`` ΓD and
 ``exterior`` ΓN. ``cap_lipid`` (fibrous cap | lipid pool) and ``plaque_base`` (plaque | vessel
 wall) are internal structure boundaries, tagged for measurements and the fixed-wall mode.
+In the Turek–Hron benchmark (geometry/turek_hron.py) ``interface`` is the flag's wetted surface,
+``clamped`` the flag–cylinder joint and ``obstacle`` the cylinder's wetted arc.
 """
 
 from enum import IntEnum
@@ -15,6 +17,7 @@ class Region(IntEnum):
     WALL = 2
     CAP = 3
     LIPID = 4
+    FLAG = 5  # Turek–Hron: the elastic flag behind the rigid cylinder
 
     @property
     def label(self) -> str:
@@ -32,6 +35,7 @@ class Boundary(IntEnum):
     EXTERIOR = 16
     CAP_LIPID = 17
     PLAQUE_BASE = 18
+    OBSTACLE = 19  # Turek–Hron: the rigid cylinder's wetted surface
 
     @property
     def label(self) -> str:

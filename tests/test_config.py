@@ -68,7 +68,7 @@ BAD = [
     ("structure: {cap: {young_modulus: -1.6e6}}", "structure.cap.young_modulus", "positive"),
     ("structure: {mode: flexible}", "structure.mode", "'moving_wall'"),
     ("fluid: {density: '1060'}", "fluid.density", "a number"),
-    ("fluid: {rheology: {model: casson}}", "fluid.rheology.model", "'carreau'"),
+    ("fluid: {rheology: {model: bingham}}", "fluid.rheology.model", "'carreau'"),
     ("fluid: {rheology: {model: carreau, viscosity: 0.0035}}", "fluid.rheology.viscosity",
      "one of the keys"),
     ("fluid: {quadrature_degree: 4.5}", "fluid.quadrature_degree", "an integer"),

@@ -13,6 +13,10 @@ from geometry import stenosis
 from geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 
 STUDY_COARSE_TRIANGLES = 3272  # MODEL.md §1
+STENOSIS_REGIONS = (Region.FLUID, Region.WALL, Region.CAP, Region.LIPID)
+STENOSIS_BOUNDARIES = (Boundary.INLET, Boundary.OUTLET, Boundary.INTERFACE, Boundary.RIGID_WALL,
+                       Boundary.CLAMPED, Boundary.EXTERIOR, Boundary.CAP_LIPID,
+                       Boundary.PLAQUE_BASE)
 
 
 @pytest.fixture(scope="module")
@@ -31,11 +35,11 @@ def fine():
 
 def test_every_region_and_boundary_is_tagged_and_non_empty(coarse):
     _, _, s = coarse
-    for region in Region:
+    for region in STENOSIS_REGIONS:
         assert s["cells"][region.label] > 0, region
-    for boundary in Boundary:
+    for boundary in STENOSIS_BOUNDARIES:
         assert s["facets"][boundary.label] > 0, boundary
-    assert sum(s["cells"][r.label] for r in Region) == s["cells"]["total"]
+    assert sum(s["cells"][r.label] for r in STENOSIS_REGIONS) == s["cells"]["total"]
 
 
 def test_mesh_sizes_match_the_study(coarse, fine):
@@ -116,10 +120,8 @@ def test_channel_mesh():
     s = mesh.summary(tagged, case)
     assert s["area_m2"]["fluid"] == pytest.approx(0.02 * 0.007, rel=1e-12)
     assert s["cells"]["total"] == s["cells"]["fluid"] > 0
-    for name in ("inlet", "outlet", "rigid_wall"):
-        assert s["facets"][name] > 0
-    for name in ("interface", "clamped", "exterior"):
-        assert s["facets"][name] == 0
+    assert set(s["facets"]) == {"inlet", "outlet", "rigid_wall"}
+    assert min(s["facets"].values()) > 0
     assert "measures" not in s
 
 
@@ -141,4 +143,4 @@ def test_fsi_mesh_writes_xdmf_and_json(shared_tmp, coarse):
     fluid = MPI.COMM_WORLD.allreduce(int(np.count_nonzero(cell_tags.values[owned] == Region.FLUID)))
     assert fluid == summary["cells"]["fluid"]
     assert set(np.unique(np.concatenate(MPI.COMM_WORLD.allgather(facet_tags.values)))) == {
-        int(b) for b in Boundary}
+        int(b) for b in STENOSIS_BOUNDARIES}

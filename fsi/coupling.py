@@ -1,0 +1,390 @@
+"""Dirichlet–Neumann coupling: interface accelerations as pure objects, and the per-step loop.
+
+The coupled problem of one time step is the fixed point ``x = H(x)`` of the interface
+displacement ``x``: the fluid takes ``x`` (mesh and wall velocity) and returns the interface
+traction, the solid takes that traction and returns the displacement ``x̃ = H(x)``. The residual
+is ``r = x̃ − x``.
+
+An *acceleration* chooses the next input from the current pair ``(x_k, x̃_k)``:
+
+* :class:`ConstantRelaxation` ``x_{k+1} = x_k + ω r_k``;
+* :class:`Aitken` (Δ² dynamic relaxation, Küttler & Wall 2008)
+  ``ω_k = −ω_{k−1} r_{k−1}·(r_k − r_{k−1}) / |r_k − r_{k−1}|²``, capped ``|ω| <= ω_max`` and
+  carried over from the last iteration of the previous step;
+* :class:`IQNILS` (interface quasi-Newton with an inverse-Jacobian least-squares approximation,
+  Degroote, Bathe & Vierendeels 2009) ``x_{k+1} = x̃_k + W c`` with
+  ``c = argmin |V c + r_k|``, ``V``/``W`` the differences of successive residuals/outputs of this
+  step and of the last ``q`` steps, filtered by a QR decomposition.
+
+Interface vectors are numpy arrays of the values each rank owns: every inner product and norm is
+MPI-global (``comm.allreduce``), so all ranks take the same decisions and the iterates do not
+depend on the number of ranks. :func:`couple_step` runs the Dirichlet–Neumann iterations of one
+step against solvers that follow the small :class:`InterfaceSolver` protocol.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import deque
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Protocol, Sequence
+
+from mpi4py import MPI
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from fsi.config import Coupling
+
+log = logging.getLogger(__name__)
+
+
+# --------------------------------------------------------------------------------------------
+# MPI-global linear algebra on distributed interface vectors
+
+
+def dot(comm: MPI.Comm, a: np.ndarray, b: np.ndarray) -> float:
+    """The global inner product a·b of two distributed vectors (each rank holds its slice)."""
+    return float(comm.allreduce(float(np.dot(a, b)), op=MPI.SUM))
+
+
+def norm(comm: MPI.Comm, a: np.ndarray) -> float:
+    """The global Euclidean norm |a| of a distributed vector."""
+    return float(np.sqrt(dot(comm, a, a)))
+
+
+def relative_residual(comm: MPI.Comm, x: np.ndarray, x_tilde: np.ndarray) -> float:
+    """``|x̃ − x| / |x̃|``, the coupling criterion (``|x̃ − x|`` when ``x̃ = 0``)."""
+    scale = norm(comm, x_tilde)
+    difference = norm(comm, x_tilde - x)
+    return difference / scale if scale > 0 else difference
+
+
+def filtered_qr(comm: MPI.Comm, columns: Sequence[np.ndarray], threshold: float):
+    """QR decomposition ``V = Q R`` of distributed columns, dropping dependent ones.
+
+    Columns are taken in the given order (put the most valuable first) and orthogonalised by
+    classical Gram–Schmidt with reorthogonalisation ("twice is enough"), one global reduction
+    per pass. Column ``v_i`` is dropped when what is left of it after orthogonalisation is
+    ``|v_i − Q Qᵀ v_i| < threshold · |v_i|`` (the relative "QR2" filter of Haelterman et al.
+    2016), so a (nearly) repeated or zero column never makes ``R`` singular.
+
+    Returns ``(Q, R, kept)``: ``Q`` (local rows × m) with orthonormal columns, ``R`` (m × m)
+    upper triangular, ``kept`` the indices of the m kept columns.
+    """
+    n_local = columns[0].shape[0] if len(columns) else 0
+    q_columns: list[np.ndarray] = []
+    r_columns: list[np.ndarray] = []
+    kept: list[int] = []
+    for i, v in enumerate(columns):
+        size = norm(comm, v)
+        m = len(q_columns)
+        coefficients = np.zeros(m)
+        w = np.array(v, dtype=float)
+        if m:
+            Q = np.column_stack(q_columns)
+            for _ in range(2):
+                c = comm.allreduce(Q.T @ w, op=MPI.SUM)
+                w -= Q @ c
+                coefficients += c
+        remainder = norm(comm, w)
+        if size == 0.0 or remainder < threshold * size:
+            continue
+        q_columns.append(w / remainder)
+        r_columns.append(np.append(coefficients, remainder))
+        kept.append(i)
+    m = len(q_columns)
+    Q = np.column_stack(q_columns) if m else np.zeros((n_local, 0))
+    R = np.zeros((m, m))
+    for j, r in enumerate(r_columns):
+        R[: j + 1, j] = r
+    return Q, R, kept
+
+
+# --------------------------------------------------------------------------------------------
+# Accelerations
+
+
+class Acceleration(Protocol):
+    """Chooses the next interface input of a step's fixed-point iterations."""
+
+    def start_step(self) -> None:
+        """A new time step begins (its first ``next_input`` follows)."""
+
+    def next_input(self, x: np.ndarray, x_tilde: np.ndarray) -> np.ndarray:
+        """The next input ``x_{k+1}`` from the input ``x_k`` and the output ``x̃_k = H(x_k)``."""
+
+    def end_step(self) -> None:
+        """The step converged: keep what the next step reuses."""
+
+
+class ConstantRelaxation:
+    """``x_{k+1} = x_k + ω (x̃_k − x_k)``, the same ω in every iteration."""
+
+    def __init__(self, comm: MPI.Comm, omega: float):
+        if not 0 < omega:
+            raise ValueError(f"relaxation factor must be positive, got {omega}")
+        self.comm, self.omega = comm, omega
+
+    def start_step(self) -> None:
+        pass
+
+    def next_input(self, x: np.ndarray, x_tilde: np.ndarray) -> np.ndarray:
+        return x + self.omega * (x_tilde - x)
+
+    def end_step(self) -> None:
+        pass
+
+
+class Aitken:
+    """Aitken's Δ² dynamic relaxation (Küttler & Wall 2008, Comput. Mech. 43:61–72).
+
+    ``x_{k+1} = x_k + ω_k r_k`` with ``r_k = x̃_k − x_k`` and, from the second iteration of a
+    step on, ``ω_k = −ω_{k−1} r_{k−1}·(r_k − r_{k−1}) / |r_k − r_{k−1}|²`` (global dot products),
+    the secant of the residual along the last step. ``|ω| <= omega_max`` always. The first step
+    starts with ``omega_initial``; every later step starts with the last ω of the step before.
+    For a scalar (or ``a I``) linear map the second ω is exact: three evaluations converge.
+    """
+
+    def __init__(self, comm: MPI.Comm, omega_initial: float, omega_max: float = 1.0):
+        if not 0 < omega_initial <= omega_max:
+            raise ValueError("need 0 < omega_initial <= omega_max, got "
+                             f"{omega_initial}, {omega_max}")
+        self.comm, self.omega_max = comm, omega_max
+        self.omega = omega_initial
+        self._previous_residual: np.ndarray | None = None
+
+    def _capped(self, omega: float) -> float:
+        return float(np.sign(omega) * min(abs(omega), self.omega_max))
+
+    def start_step(self) -> None:
+        self._previous_residual = None
+        self.omega = self._capped(self.omega)
+
+    def next_input(self, x: np.ndarray, x_tilde: np.ndarray) -> np.ndarray:
+        r = x_tilde - x
+        if self._previous_residual is not None:
+            dr = r - self._previous_residual
+            dr2 = dot(self.comm, dr, dr)
+            if dr2 > 0.0:  # an unchanged residual leaves ω as it is
+                secant = dot(self.comm, self._previous_residual, dr) / dr2
+                self.omega = self._capped(-self.omega * secant)
+        self._previous_residual = r
+        return x + self.omega * r
+
+    def end_step(self) -> None:
+        self._previous_residual = None
+
+
+class IQNILS:
+    """Interface quasi-Newton, inverse Jacobian from a least-squares model (IQN-ILS).
+
+    Degroote, Bathe & Vierendeels 2009 (Comput. Struct. 87:793–801). With the residual
+    ``r_k = x̃_k − x_k``, the columns ``V = [Δr]`` and ``W = [Δx̃]`` hold the differences of
+    successive residuals and outputs, this step's newest first, then those of the last
+    ``reuse`` converged steps (newest step first). The update
+
+        x_{k+1} = x̃_k + W c,   c = argmin_c |V c + r_k|,
+
+    uses the secant model ``Δr ≈ V c → Δx̃ ≈ W c`` to cancel the residual; ``c`` comes from the
+    filtered QR decomposition :func:`filtered_qr` (``R c = −Qᵀ r_k``), which drops the columns
+    that are (nearly) linearly dependent on newer ones. Without any column (the first iteration
+    of the first step, or every step's first one with ``reuse = 0``) the update is the
+    relaxation ``x_{k+1} = x_k + ω r_k``. On a linear map ``H(x) = A x + b`` of dimension n the
+    columns span the Krylov space of GMRES: at most n + 1 updates reach the fixed point.
+    """
+
+    def __init__(self, comm: MPI.Comm, omega: float, reuse: int = 0, threshold: float = 1e-8):
+        if omega <= 0 or reuse < 0 or threshold <= 0:
+            raise ValueError(f"need omega > 0, reuse >= 0, threshold > 0; got {omega}, {reuse}, "
+                             f"{threshold}")
+        self.comm, self.omega, self.threshold = comm, omega, threshold
+        self._old_steps: deque[tuple[list[np.ndarray], list[np.ndarray]]] = deque(maxlen=reuse or 1)
+        self.reuse = reuse
+        self._V: list[np.ndarray] = []  # this step's Δr, newest first
+        self._W: list[np.ndarray] = []  # this step's Δx̃, newest first
+        self._previous: tuple[np.ndarray, np.ndarray] | None = None  # (r_{k−1}, x̃_{k−1})
+        self.columns_used = 0  # after next_input: columns kept by the filter
+        self.columns_dropped = 0  # after next_input: columns removed by the filter
+
+    def start_step(self) -> None:
+        self._V, self._W, self._previous = [], [], None
+
+    def next_input(self, x: np.ndarray, x_tilde: np.ndarray) -> np.ndarray:
+        r = x_tilde - x
+        if self._previous is not None:
+            r_old, x_tilde_old = self._previous
+            self._V.insert(0, r - r_old)
+            self._W.insert(0, x_tilde - x_tilde_old)
+        self._previous = (r.copy(), np.array(x_tilde, dtype=float))
+        V, W = list(self._V), list(self._W)
+        if self.reuse:
+            for V_old, W_old in reversed(self._old_steps):
+                V.extend(V_old)
+                W.extend(W_old)
+        Q, R, kept = filtered_qr(self.comm, V, self.threshold) if V else (None, None, [])
+        self.columns_used, self.columns_dropped = len(kept), len(V) - len(kept)
+        if not kept:
+            return x + self.omega * r
+        c = np.linalg.solve(R, -self.comm.allreduce(Q.T @ r, op=MPI.SUM))
+        return x_tilde + np.column_stack([W[i] for i in kept]) @ c
+
+    def end_step(self) -> None:
+        if self.reuse and self._V:
+            self._old_steps.append((self._V, self._W))
+        self._V, self._W, self._previous = [], [], None
+
+
+def from_config(coupling: Coupling, comm: MPI.Comm) -> Acceleration:
+    """The acceleration named by ``coupling.acceleration`` with the configuration's parameters."""
+    if coupling.acceleration == "constant":
+        return ConstantRelaxation(comm, coupling.initial_relaxation)
+    if coupling.acceleration == "aitken":
+        return Aitken(comm, coupling.initial_relaxation, coupling.max_relaxation)
+    if coupling.acceleration == "iqn-ils":
+        return IQNILS(comm, coupling.initial_relaxation, coupling.iqn_reuse, coupling.iqn_filter)
+    raise ValueError(f"unknown acceleration {coupling.acceleration!r}")
+
+
+# --------------------------------------------------------------------------------------------
+# Predictor
+
+
+PREDICTOR_ORDERS = {"constant": 0, "linear": 1, "quadratic": 2}
+
+
+class Predictor:
+    """The first interface input of a step, extrapolated from the converged interface values of
+    the previous steps by the polynomial of degree ``order`` through the last ``order + 1`` of
+    them (fewer while fewer are known):
+
+        constant  x_{n+1} = x_n
+        linear    x_{n+1} = x_n + (t_{n+1} − t_n)/(t_n − t_{n−1}) (x_n − x_{n−1})
+                  (= 2 x_n − x_{n−1} for equal steps)
+        quadratic the Lagrange polynomial through (t_{n−2}, x_{n−2}), …, (t_n, x_n)
+                  (= 3 x_n − 3 x_{n−1} + x_{n−2} for equal steps)
+
+    Record the initial value first (``record(x_0, t_0)``). Times are optional: if any is
+    missing, the steps are taken as equal.
+    """
+
+    def __init__(self, order: int | str = 1):
+        self.order = PREDICTOR_ORDERS[order] if isinstance(order, str) else int(order)
+        if self.order not in (0, 1, 2):
+            raise ValueError(f"predictor order must be 0, 1 or 2, got {order!r}")
+        self._values: deque[np.ndarray] = deque(maxlen=self.order + 1)
+        self._times: deque[float] = deque(maxlen=self.order + 1)
+
+    def record(self, x: np.ndarray, t: float | None = None) -> None:
+        """Remember the converged interface value at time ``t`` (the end of a step)."""
+        self._values.append(np.array(x, dtype=float))
+        self._times.append(np.nan if t is None else float(t))
+
+    def predict(self, t: float | None = None) -> np.ndarray:
+        """The extrapolated value at time ``t`` (one more equal step when ``t`` is not given)."""
+        if not self._values:
+            raise ValueError("Predictor.predict: record the initial interface value first")
+        values, times = list(self._values), np.array(self._times)
+        m = len(values)
+        if t is None or np.isnan(times).any():
+            times, t = np.arange(m, dtype=float), float(m)
+        weights = [np.prod([(t - times[j]) / (times[i] - times[j]) for j in range(m) if j != i])
+                   for i in range(m)]  # fmt: skip
+        return sum(w * v for w, v in zip(weights, values))
+
+
+def predictor_from_config(coupling: Coupling) -> Predictor:
+    """The predictor named by ``coupling.predictor`` (constant, linear or quadratic)."""
+    return Predictor(coupling.predictor)
+
+
+# --------------------------------------------------------------------------------------------
+# The Dirichlet–Neumann loop
+
+
+class InterfaceSolver(Protocol):
+    """What the coupler needs from the fluid and the solid solver of a partitioned step.
+
+    The fluid's ``solve`` takes the interface displacement and returns the interface traction;
+    the solid's takes the traction and returns the displacement (local slices of distributed
+    vectors in both directions).
+    """
+
+    def save_state(self) -> None:
+        """Checkpoint the state at the start of the step (the previous step's solution)."""
+
+    def restore_state(self) -> None:
+        """Go back to the checkpoint before solving the step again with a new input."""
+
+    def solve(self, interface_input: np.ndarray) -> np.ndarray:
+        """Solve the step for the given interface input; return the interface output."""
+
+    def advance(self) -> None:
+        """Accept the last solve as the step's solution and move to the next step."""
+
+
+class CouplingNotConverged(RuntimeError):
+    """The interface residual stayed above the tolerance for ``max_iterations`` iterations.
+
+    ``step``: the step's number; ``residuals``: the relative residual of every iteration. Both
+    solvers have been restored to the start of the step (their last converged state).
+    """
+
+    def __init__(self, step: int, residuals: Sequence[float], tolerance: float):
+        self.step, self.residuals, self.tolerance = step, list(residuals), tolerance
+        super().__init__(
+            f"coupling did not converge in step {step}: relative interface residual "
+            f"{self.residuals[-1]:.3e} > tolerance {tolerance:.1e} after {len(self.residuals)} "
+            f"iterations (residuals {', '.join(f'{r:.2e}' for r in self.residuals)})")
+
+
+@dataclass
+class StepResult:
+    """The converged step: the interface displacement ``x̃`` and the residual history."""
+
+    displacement: np.ndarray
+    residuals: list[float] = field(default_factory=list)
+
+    @property
+    def iterations(self) -> int:
+        return len(self.residuals)
+
+
+def couple_step(fluid: InterfaceSolver, solid: InterfaceSolver, acceleration: Acceleration,
+                predictor: Predictor, comm: MPI.Comm, *, tolerance: float, max_iterations: int,
+                step: int = 0, t: float | None = None) -> StepResult:
+    """Dirichlet–Neumann iterations of one time step (ending at ``t``) until
+    ``|x̃ − x| / |x̃| <= tolerance``.
+
+    The first input is ``x_0 = predictor.predict(t)``. Iteration k:
+    ``traction = fluid.solve(x_k)``, ``x̃_k = solid.solve(traction)``. Converged: both solvers
+    ``advance()``, the acceleration ends the step, ``x̃_k`` is recorded in the predictor and
+    returned. Otherwise ``x_{k+1} = acceleration.next_input(x_k, x̃_k)`` and both solvers
+    ``restore_state()`` to the checkpoint saved at the start of the step.
+
+    Raises:
+        CouplingNotConverged: after ``max_iterations`` iterations, with the solvers restored to
+            the start of the step (collectively: every rank sees the same global residuals).
+    """
+    x = predictor.predict(t)
+    fluid.save_state()
+    solid.save_state()
+    acceleration.start_step()
+    residuals: list[float] = []
+    for k in range(max_iterations):
+        if k > 0:
+            fluid.restore_state()
+            solid.restore_state()
+        x_tilde = solid.solve(fluid.solve(x))
+        residuals.append(relative_residual(comm, x, x_tilde))
+        log.debug("step %d, coupling iteration %d: residual %.3e", step, k + 1, residuals[-1])
+        if residuals[-1] <= tolerance:
+            fluid.advance()
+            solid.advance()
+            acceleration.end_step()
+            predictor.record(x_tilde, t)
+            return StepResult(x_tilde, residuals)
+        x = acceleration.next_input(x, x_tilde)
+    fluid.restore_state()
+    solid.restore_state()
+    raise CouplingNotConverged(step, residuals, tolerance)

@@ -1,0 +1,134 @@
+"""The Turek–Hron FSI benchmark geometry (../shared/reference/turek_hron.md).
+
+A channel ``[0, length] × [0, height]`` holds a rigid cylinder (centre ``(cx, cy)``, radius
+``r``) with an elastic flag attached behind it: the flag is the part of the strip
+``|y − cy| <= t/2`` (``t = flag_thickness``) outside the cylinder and left of the tip
+``x = cx + r + flag_length``. Its left end is the cylinder arc between the joint points
+``(x_j, cy ± t/2)``, ``x_j = cx + sqrt(r² − t²/4)``. Point A ``(tip, cy)`` is a gmsh point, so a
+mesh vertex on every level.
+
+Tags (geometry/tags.py): regions ``fluid`` (channel minus cylinder minus flag) and ``flag``;
+boundaries ``inlet`` (x = 0), ``outlet`` (x = length), ``rigid_wall`` (y = 0 and y = height),
+``obstacle`` (the cylinder arc wetted by the fluid), ``interface`` (the flag's wetted top,
+tip and bottom) and ``clamped`` (the flag–cylinder joint arc). Fluid and flag share the
+interface curves, so their meshes are conforming.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Protocol, Sequence
+
+from geometry.stenosis import add_physical_groups
+from geometry.tags import Boundary, Region
+
+# The tags this builder writes (mesh.json reports these).
+REGIONS = (Region.FLUID, Region.FLAG)
+BOUNDARIES = (Boundary.INLET, Boundary.OUTLET, Boundary.RIGID_WALL, Boundary.OBSTACLE,
+              Boundary.INTERFACE, Boundary.CLAMPED)
+
+
+class TurekHronParameters(Protocol):
+    length: float
+    height: float
+    cylinder_centre: Sequence[float]
+    cylinder_radius: float
+    flag_length: float
+    flag_thickness: float
+
+
+def tip_x(p: TurekHronParameters) -> float:
+    """x of the flag tip (and of point A): the cylinder's rightmost point plus the flag length."""
+    return p.cylinder_centre[0] + p.cylinder_radius + p.flag_length
+
+
+def point_a(p: TurekHronParameters) -> tuple[float, float]:
+    """Point A, the middle of the flag tip, whose displacement the benchmark reports."""
+    return tip_x(p), p.cylinder_centre[1]
+
+
+def joint_half_angle(p: TurekHronParameters) -> float:
+    """Half the angle θ the clamped arc subtends at the cylinder centre: sin θ = (t/2) / r."""
+    return math.asin(p.flag_thickness / 2 / p.cylinder_radius)
+
+
+def analytic_areas(p: TurekHronParameters) -> dict[str, float]:
+    """Exact region areas (m²).
+
+    flag  = t (tip − x_j) − r² (θ − sin θ cos θ): the strip from the chord ``x = x_j`` to the tip
+    minus the circular segment of the cylinder beyond that chord (x_j = cx + r cos θ);
+    fluid = length × height − π r² − flag.
+    """
+    r, t = p.cylinder_radius, p.flag_thickness
+    theta = joint_half_angle(p)
+    x_j = p.cylinder_centre[0] + r * math.cos(theta)
+    segment = r**2 * (theta - math.sin(theta) * math.cos(theta))
+    flag = t * (tip_x(p) - x_j) - segment
+    fluid = p.length * p.height - math.pi * r**2 - flag
+    return {Region.FLUID.label: fluid, Region.FLAG.label: flag, "total": fluid + flag}
+
+
+def build(p: TurekHronParameters, size: float, local_size: float, grading: float = 0.15) -> None:
+    """Add the benchmark to the current gmsh model (built-in kernel) with physical groups.
+
+    The element size is ``local_size`` on the cylinder and the flag and grows linearly with the
+    distance ``d`` from them, ``h(d) = min(size, local_size + grading·d)``, up to ``size`` (a
+    gmsh Distance + Threshold background field). Meshing is left to the caller.
+    """
+    import gmsh
+
+    geo = gmsh.model.geo
+    L, H = p.length, p.height
+    cx, cy = p.cylinder_centre
+    r, half = p.cylinder_radius, p.flag_thickness / 2
+    x_j = cx + math.sqrt(r**2 - half**2)
+    x_tip = tip_x(p)
+    fine = local_size
+
+    corners = [geo.addPoint(x, y, 0.0, size) for x, y in [(0, 0), (L, 0), (L, H), (0, H)]]
+    bottom, outlet, top, inlet = (geo.addLine(corners[i], corners[(i + 1) % 4]) for i in range(4))
+
+    centre = geo.addPoint(cx, cy, 0.0, fine)
+    joint_bottom, joint_top = (geo.addPoint(x_j, y, 0.0, fine) for y in (cy - half, cy + half))
+    # Built-in circle arcs must be shorter than π: split the wetted arc at the top, left and bottom.
+    north, west, south = (geo.addPoint(x, y, 0.0, fine) for x, y in
+                          [(cx, cy + r), (cx - r, cy), (cx, cy - r)])  # fmt: skip
+    arcs = [(joint_top, north), (north, west), (west, south), (south, joint_bottom)]
+    obstacle = [geo.addCircleArc(start, centre, end) for start, end in arcs]
+    clamped = geo.addCircleArc(joint_bottom, centre, joint_top)
+
+    tip_bottom, a, tip_top = (geo.addPoint(x_tip, y, 0.0, fine) for y in (cy - half, cy, cy + half))
+    flag_bottom, tip_lower, tip_upper, flag_top = (
+        geo.addLine(joint_bottom, tip_bottom), geo.addLine(tip_bottom, a),
+        geo.addLine(a, tip_top), geo.addLine(tip_top, joint_top),
+    )  # fmt: skip
+    interface = [flag_bottom, tip_lower, tip_upper, flag_top]
+
+    flag = geo.addPlaneSurface([geo.addCurveLoop([*interface, -clamped])])
+    outer = geo.addCurveLoop([bottom, outlet, top, inlet])
+    hole = geo.addCurveLoop([*interface, *obstacle])  # joint_bottom -> tip -> joint_top -> around
+    fluid = geo.addPlaneSurface([outer, hole])
+    geo.synchronize()
+
+    field = gmsh.model.mesh.field
+    distance = field.add("Distance")
+    field.setNumbers(distance, "CurvesList", [*obstacle, clamped, *interface])
+    field.setNumber(distance, "NumPointsPerCurve", 200)
+    threshold = field.add("Threshold")
+    field.setNumber(threshold, "InField", distance)
+    field.setNumber(threshold, "SizeMin", fine)
+    field.setNumber(threshold, "SizeMax", size)
+    field.setNumber(threshold, "DistMin", 0.0)
+    field.setNumber(threshold, "DistMax", (size - fine) / grading)
+    field.setAsBackgroundMesh(threshold)
+
+    add_physical_groups({
+        Region.FLUID: [fluid],
+        Region.FLAG: [flag],
+        Boundary.INLET: [inlet],
+        Boundary.OUTLET: [outlet],
+        Boundary.RIGID_WALL: [bottom, top],
+        Boundary.OBSTACLE: obstacle,
+        Boundary.INTERFACE: interface,
+        Boundary.CLAMPED: [clamped],
+    })
