@@ -1,6 +1,8 @@
 """Shared fixtures. The suite runs serially and under ``mpirun -n 2 python -m mpi4py -m pytest``."""
 
 import gc
+import shutil
+import tempfile
 from pathlib import Path
 
 from mpi4py import MPI
@@ -22,6 +24,13 @@ def comm() -> MPI.Comm:
 
 
 @pytest.fixture
-def shared_tmp(tmp_path: Path) -> Path:
-    """A temporary folder that is the same on every rank (rank 0's)."""
-    return Path(MPI.COMM_WORLD.bcast(str(tmp_path), root=0))
+def shared_tmp():
+    """A temporary folder that is the same on every rank. Not pytest's ``tmp_path``: each rank's
+    pytest rotates its own numbered base folders and may delete the one rank 0 handed out."""
+    comm = MPI.COMM_WORLD
+    path = tempfile.mkdtemp(prefix="fsi-test-") if comm.rank == 0 else None
+    path = Path(comm.bcast(path, root=0))
+    yield path
+    comm.barrier()
+    if comm.rank == 0:
+        shutil.rmtree(path, ignore_errors=True)

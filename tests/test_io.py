@@ -17,6 +17,7 @@ def test_metrics_table_flushes_rows_and_restarts(shared_tmp):
         table.write({"step": k, "t": 0.1 * k, "peak_velocity": 1.5 * k})
         comm.barrier()
         assert len(io.read_metrics(path)) == k  # on disk at once, before close
+        comm.barrier()  # every rank has read before rank 0 writes the next row
     table.close()
     comm.barrier()
     table = io.MetricsTable(comm, path, ["step", "t", "peak_velocity"], keep_until_step=2)
