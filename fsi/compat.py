@@ -89,23 +89,7 @@ def read_mesh_with_tags(comm: MPI.Comm, path: str):
 
 
 # --------------------------------------------------------------------------------------------
-# Function spaces, submesh vertex maps, dof layouts and PETSc vectors (added for fsi.solid)
-
-
-def function_space(mesh, family: str, degree: int, shape: tuple[int, ...] = ()):
-    """The ``family`` (e.g. "Lagrange", "DG") space of ``degree`` on ``mesh``: scalar for
-    ``shape == ()``, vector for ``(n,)``, tensor for ``(n, m)``."""
-    if LEGACY:
-        import dolfinx.fem
-
-        if shape == ():
-            return dolfinx.fem.FunctionSpace(mesh, (family, degree))
-        if len(shape) == 1:
-            return dolfinx.fem.VectorFunctionSpace(mesh, (family, degree), dim=shape[0])
-        return dolfinx.fem.TensorFunctionSpace(mesh, (family, degree), shape=shape)
-    import dolfinx.fem
-
-    return dolfinx.fem.functionspace(mesh, (family, degree, shape if shape else None))
+# Submesh vertex maps, dof layouts and PETSc vectors (added for fsi.solid)
 
 
 def create_submesh_with_vertex_map(mesh, dim: int, entities: np.ndarray):
@@ -117,7 +101,7 @@ def create_submesh_with_vertex_map(mesh, dim: int, entities: np.ndarray):
 def interpolation_points(V) -> np.ndarray:
     """Reference points of ``V``'s element for interpolating a :class:`dolfinx.fem.Expression`."""
     points = V.element.interpolation_points
-    return points() if LEGACY else points
+    return points() if callable(points) else points  # a method in 0.5 and 0.9, later a property
 
 
 def cell_dofs(V) -> np.ndarray:

@@ -458,6 +458,31 @@ class Coupling:
 
 
 @dataclass(frozen=True)
+class MeshMotion:
+    """ALE extension of the interface displacement into the fluid (MODEL.md §5;
+    fsi/mesh_motion.py): ``harmonic`` −∇·(k ∇d) = 0 or ``elastic`` −∇·(k σ(d)) = 0 with
+    σ = 2 ε + λ' tr(ε) I, λ' = 2ν/(1 − 2ν) from ``poisson_ratio``. Stiffening k (per cell):
+    ``none`` k = 1; ``jacobian`` k = (J_max/J)^e with J the reference cell area (small cells
+    stiffer); ``distance`` k = (δ_max/δ)^e with δ the centroid's distance to the moving boundary;
+    e = ``stiffening_exponent``. ``min_jacobian_ratio``: the quality guard stops when a cell's
+    area falls below this fraction of its reference area (or the cell inverts).
+    ``petsc_options``: the linear solver's options (prefix ``mesh_``)."""
+
+    method: Literal["harmonic", "elastic"] = "harmonic"
+    stiffening: Literal["none", "jacobian", "distance"] = "jacobian"
+    stiffening_exponent: float = non_negative(1.0)
+    poisson_ratio: float = open_interval(0.3, -1.0, 0.5)
+    min_jacobian_ratio: float = open_interval(0.05, 0.0, 1.0)
+    petsc_options: dict[str, Union[str, int, float]] = field(
+        default_factory=lambda: {
+            "ksp_type": "preonly",
+            "pc_type": "lu",
+            "pc_factor_mat_solver_type": "mumps",
+        }
+    )
+
+
+@dataclass(frozen=True)
 class Output:
     fields: Literal["xdmf", "vtx"] = "xdmf"
     fields_every: int = at_least(1, 1)
@@ -475,6 +500,7 @@ class Case:
     structure: Structure = field(default_factory=Structure)
     time: Time = field(default_factory=Time)
     coupling: Coupling = field(default_factory=Coupling)
+    mesh_motion: MeshMotion = field(default_factory=MeshMotion)
     output: Output = field(default_factory=Output)
 
 

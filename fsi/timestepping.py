@@ -128,14 +128,14 @@ class NewmarkFamily:
         return (eta - eta_n - dt * v_n) / (b * dt * dt) - (1 / (2 * b) - 1) * a_n
 
     def velocity(self, eta, eta_n, v_n, a_n, dt):
-        """``v_{n+1} = v_n + dt ((1 − γ) a_n + γ a_{n+1})``, or ``(η_{n+1} − η_n)/dt`` if quasi-static."""
+        """``v_{n+1} = v_n + dt ((1 − γ) a_n + γ a_{n+1})``; quasi-static ``(η_{n+1} − η_n)/dt``."""
         if not self.dynamic:
             return (eta - eta_n) / dt
         a = self.acceleration(eta, eta_n, v_n, a_n, dt)
         return v_n + dt * ((1 - self.gamma) * a_n + self.gamma * a)
 
     def amplification_matrix(self, omega_dt: float):
-        """The matrix ``A`` with ``x_{n+1} = A x_n``, ``x = (u, dt u̇, dt² ü)``, for ``ü + ω²u = 0``.
+        """The matrix ``A`` of ``x_{n+1} = A x_n``, ``x = (u, dt u̇, dt² ü)``, for ``ü + ω²u = 0``.
 
         Its spectral radius is the per-step amplitude factor of a mode with ``ω dt = omega_dt``.
         """

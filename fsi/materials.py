@@ -1,0 +1,138 @@
+"""Hyperelastic material laws of the structure, as small frozen objects behind a Protocol.
+
+Every law is written for the 2D plane-strain setting of ../shared/MODEL.md §3 in terms of the
+deformation gradient ``F = I + ∇η`` (2×2; the out-of-plane stretch is 1). The parameters may be
+numbers, :class:`dolfinx.fem.Constant` or DG0 fields (per-region values): the laws only build UFL.
+
+* :class:`StVenantKirchhoff` — ``W = λ/2 (tr E)² + μ E:E``, ``E = (FᵀF − I)/2``,
+  ``Σ = λ tr(E) I + 2μ E`` (the study's law);
+* :class:`NeoHookean` — compressible, ``W = μ/2 (I₁ − 2 − 2 ln J) + λ/2 (ln J)²`` with
+  ``I₁ = tr(FᵀF)`` (2D), ``Σ = μ (I − C⁻¹) + λ ln J C⁻¹``. In plane strain this is the usual
+  3D energy ``μ/2 (I₁³ᴰ − 3 − 2 ln J) + λ/2 (ln J)²`` since ``C₃₃ = 1``.
+
+Both linearise to Hooke's law with the same ``λ, μ``; :func:`lame` turns (E, ν) into them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Protocol, Union, runtime_checkable
+
+import ufl
+
+Parameter = Union[float, Any]
+"""A number, a :class:`dolfinx.fem.Constant` or a UFL expression (e.g. a DG0 field)."""
+
+
+def lame(young_modulus: float, poisson_ratio: float) -> tuple[float, float]:
+    """Plane-strain Lamé parameters ``(λ, μ)``:
+    ``λ = Eν/((1 − 2ν)(1 + ν))``, ``μ = E/(2(1 + ν))``."""
+    E, nu = young_modulus, poisson_ratio
+    if not (E > 0 and -1.0 < nu < 0.5):
+        raise ValueError(f"need E > 0 and -1 < nu < 1/2, got E = {E}, nu = {nu}")
+    return E * nu / ((1 - 2 * nu) * (1 + nu)), E / (2 * (1 + nu))
+
+
+def green_lagrange(F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+    """``E = (FᵀF − I)/2``."""
+    return 0.5 * (F.T * F - ufl.Identity(F.ufl_shape[0]))
+
+
+@runtime_checkable
+class HyperelasticLaw(Protocol):
+    """A hyperelastic law in terms of the (plane-strain, 2×2) deformation gradient ``F``."""
+
+    name: str
+
+    def strain_energy(self, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+        """Stored energy ``W(F)`` per unit reference volume (area × unit depth)."""
+        ...
+
+    def second_piola(self, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+        """Second Piola–Kirchhoff stress ``Σ = ∂W/∂E`` (2×2, in-plane)."""
+        ...
+
+    def second_piola_zz(self, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+        """The out-of-plane component ``Σ₃₃`` that keeps the plane-strain constraint."""
+        ...
+
+
+def first_piola(law: HyperelasticLaw, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+    """``P = F Σ(F)``."""
+    return F * law.second_piola(F)
+
+
+def cauchy(law: HyperelasticLaw, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+    """In-plane Cauchy stress on the current configuration, ``σ = J⁻¹ P Fᵀ = J⁻¹ F Σ Fᵀ``."""
+    return F * law.second_piola(F) * F.T / ufl.det(F)
+
+
+def cauchy_zz(law: HyperelasticLaw, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+    """Out-of-plane Cauchy stress ``σ₃₃ = J⁻¹ Σ₃₃`` (``F₃₃ = 1``)."""
+    return law.second_piola_zz(F) / ufl.det(F)
+
+
+@dataclass(frozen=True)
+class StVenantKirchhoff:
+    """St. Venant–Kirchhoff: ``W = λ/2 (tr E)² + μ E:E``, ``Σ = λ tr(E) I + 2μ E``."""
+
+    lmbda: Parameter
+    mu: Parameter
+    name: str = "svk"
+
+    @classmethod
+    def from_young_poisson(cls, young_modulus: float, poisson_ratio: float) -> StVenantKirchhoff:
+        return cls(*lame(young_modulus, poisson_ratio))
+
+    def strain_energy(self, F):
+        E = green_lagrange(F)
+        return 0.5 * self.lmbda * ufl.tr(E) ** 2 + self.mu * ufl.inner(E, E)
+
+    def second_piola(self, F):
+        E = green_lagrange(F)
+        return self.lmbda * ufl.tr(E) * ufl.Identity(F.ufl_shape[0]) + 2 * self.mu * E
+
+    def second_piola_zz(self, F):
+        # E₃₃ = 0 in plane strain, so Σ₃₃ = λ tr(E) with the in-plane trace.
+        return self.lmbda * ufl.tr(green_lagrange(F))
+
+
+@dataclass(frozen=True)
+class NeoHookean:
+    """Compressible neo-Hookean: ``W = μ/2 (tr C − 2 − 2 ln J) + λ/2 (ln J)²``,
+    ``Σ = μ (I − C⁻¹) + λ ln J C⁻¹``, ``C = FᵀF``, ``J = det F``."""
+
+    lmbda: Parameter
+    mu: Parameter
+    name: str = "neo_hookean"
+
+    @classmethod
+    def from_young_poisson(cls, young_modulus: float, poisson_ratio: float) -> NeoHookean:
+        return cls(*lame(young_modulus, poisson_ratio))
+
+    def strain_energy(self, F):
+        J = ufl.det(F)
+        d = F.ufl_shape[0]
+        return (0.5 * self.mu * (ufl.tr(F.T * F) - d - 2 * ufl.ln(J))
+                + 0.5 * self.lmbda * ufl.ln(J) ** 2)
+
+    def second_piola(self, F):
+        J = ufl.det(F)
+        C_inv = ufl.inv(F.T * F)
+        return self.mu * (ufl.Identity(F.ufl_shape[0]) - C_inv) + self.lmbda * ufl.ln(J) * C_inv
+
+    def second_piola_zz(self, F):
+        # C₃₃ = 1: Σ₃₃ = μ (1 − 1) + λ ln J.
+        return self.lmbda * ufl.ln(ufl.det(F))
+
+
+LAWS: dict[str, type] = {"svk": StVenantKirchhoff, "neo_hookean": NeoHookean}
+"""The laws by their configuration name (``structure.<region>.law``)."""
+
+
+def make_law(name: str, lmbda: Parameter, mu: Parameter) -> HyperelasticLaw:
+    """The law called ``name`` with Lamé parameters ``λ, μ``."""
+    try:
+        return LAWS[name](lmbda, mu)
+    except KeyError:
+        raise ValueError(f"unknown material law {name!r} (one of {', '.join(LAWS)})") from None

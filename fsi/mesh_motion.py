@@ -1,0 +1,368 @@
+"""ALE mesh motion of the fluid domain (MODEL.md §5): extend the interface displacement inward.
+
+The mesh displacement ``d`` (vector P1, the geometry's degree) solves, on the reference fluid
+domain Ω̂f, one of
+
+    harmonic:  −∇·(k ∇d) = 0,
+    elastic:   −∇·(k σ(d)) = 0,   σ(d) = 2 ε(d) + λ' tr(ε(d)) I,   ε(d) = sym ∇d,
+
+with ``d = g`` on the moving boundaries (the interface Γw1: the structure's displacement),
+``d = 0`` on the fixed ones (inlet, outlet, rigid wall, obstacle) and zero flux elsewhere. The
+stiffening ``k`` is constant per cell: 1, ``(J_max/J)^e`` with ``J`` the reference cell area
+(small cells move almost rigidly), or ``(δ_max/δ)^e`` with ``δ`` the distance of the cell's
+centroid to the moving boundary. The fluid mesh follows as ``x = X + d(X)`` and the mesh velocity
+is the backward difference ``w = Σ_k a_k d^{n+1−k}`` (:func:`fsi.timestepping.bdf_weights`).
+
+The operator lives on the reference configuration, so it is assembled (and factorised) once; a
+solve is one right-hand side ``b = −A₀ g`` (lifting done algebraically with the unconstrained
+matrix ``A₀``, so it never depends on where the mesh currently is) and one back-substitution.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import dolfinx
+import dolfinx.fem
+import dolfinx.fem.petsc
+import dolfinx.mesh
+import numpy as np
+import ufl
+
+from fsi import compat, config
+from fsi.interface import owned_interface_dofs
+from fsi.mesh import TaggedMesh
+from fsi.timestepping import bdf_weights
+from geometry.stenosis import distance_to_segments
+from geometry.tags import Boundary
+
+PREFIX = "mesh_"
+
+
+class MeshQualityError(RuntimeError):
+    """A fluid cell shrank below the allowed fraction of its reference area, or inverted.
+
+    Attributes: ``ratio`` the smallest J/J_ref, ``where`` that cell's centroid (deformed, m),
+    ``threshold`` the configured ``min_jacobian_ratio``.
+    """
+
+    def __init__(self, ratio: float, where: np.ndarray, threshold: float):
+        self.ratio, self.where, self.threshold = ratio, np.asarray(where), threshold
+        what = "inverted" if ratio <= 0 else "collapsed"
+        super().__init__(
+            f"fluid mesh {what}: a cell's area ratio J/J_ref = {ratio:.4g} at "
+            f"({self.where[0]:.6g}, {self.where[1]:.6g}) m is below the threshold "
+            f"mesh_motion.min_jacobian_ratio = {threshold:g}")
+
+
+@dataclass
+class MeshMotionState:
+    """What :meth:`MeshMotion.restore_state` needs (local arrays, owned and ghost entries)."""
+
+    d: np.ndarray
+    d_n: np.ndarray
+    d_nm1: np.ndarray
+    g: np.ndarray
+    w: np.ndarray
+
+
+def signed_areas(x: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """Signed areas ½ (x₁ − x₀) × (x₂ − x₀) of triangles with vertex rows ``nodes`` (n, 3)."""
+    a = x[nodes[:, 1], :2] - x[nodes[:, 0], :2]
+    b = x[nodes[:, 2], :2] - x[nodes[:, 0], :2]
+    return 0.5 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+
+
+class MeshMotion:
+    """The harmonic or elastic extension of a boundary displacement into the fluid mesh.
+
+    Args:
+        tagged: the fluid (sub)mesh with its facet tags, in its reference configuration.
+        settings: method, stiffening, quality threshold and PETSc options (prefix ``mesh_``).
+        moving: boundaries whose displacement is given (:meth:`set_boundary_displacement`).
+        fixed: boundaries held at d = 0; ``None`` = every other tagged boundary of the mesh.
+            Boundaries in neither set are free (zero flux / zero traction). A dof on both a
+            moving and a fixed boundary takes the moving value (the interface must conform).
+        quadrature_degree: of the operator (its integrand is constant per cell: 0 is exact).
+    """
+
+    def __init__(self, tagged: TaggedMesh, settings: config.MeshMotion | None = None,
+                 moving: Sequence[Boundary] = (Boundary.INTERFACE,),
+                 fixed: Sequence[Boundary] | None = None, quadrature_degree: int = 1):
+        settings = settings or config.MeshMotion()
+        self.settings = settings
+        self.mesh = mesh = tagged.mesh
+        self.comm: MPI.Comm = mesh.comm
+        if mesh.topology.cell_type != dolfinx.mesh.CellType.triangle:
+            raise ValueError("MeshMotion supports affine triangle meshes only")
+        tdim, gdim = mesh.topology.dim, mesh.geometry.dim
+        self.gdim = gdim
+        present = set(np.concatenate(self.comm.allgather(np.unique(tagged.facet_tags.values))))
+        self.moving = tuple(Boundary(b) for b in moving)
+        if fixed is None:
+            fixed = [Boundary(int(b)) for b in sorted(present) if int(b) not in self.moving]
+        self.fixed = tuple(Boundary(b) for b in fixed if b not in self.moving)
+
+        self.V = compat.function_space(mesh, "Lagrange", 1, (gdim,))
+        self.d = dolfinx.fem.Function(self.V, name="mesh_displacement")
+        self.w = dolfinx.fem.Function(self.V, name="mesh_velocity")
+        self.g = dolfinx.fem.Function(self.V, name="mesh_boundary_displacement")
+        self.d_n = np.zeros_like(self.d.x.array)
+        self.d_nm1 = np.zeros_like(self.d.x.array)
+        self._saved: MeshMotionState | None = None
+
+        # Reference geometry, and geometry node -> P1 dof (both follow each cell's vertex order).
+        self.reference = mesh.geometry.x.copy()
+        self._cells = compat.geometry_dofmap(mesh)
+        dofs = compat.cell_dofs(self.V)
+        if self._cells.shape != dofs.shape or self._cells.shape[1] != 3:
+            raise ValueError("MeshMotion needs an affine (P1) triangle geometry")
+        # A submesh may hold a geometry node that no local cell uses (dolfinx 0.5 on several
+        # ranks): it is never moved, and it plays no part in any cell.
+        self._nodes, first = np.unique(self._cells.ravel(), return_index=True)
+        self._node_dofs = dofs.ravel()[first]
+        # Reference coordinates X of the P1 dofs (local: owned, then ghost).
+        self.dof_points = self.V.tabulate_dof_coordinates()[:, :gdim].copy()
+        points = self.dof_points[self._node_dofs]
+        scale = 1.0 + np.abs(self.reference).max(initial=0.0)
+        local_ok = np.allclose(points, self.reference[self._nodes, :gdim], rtol=0,
+                               atol=1e-12 * scale)
+        if not self.comm.allreduce(bool(local_ok), op=MPI.LAND):
+            raise RuntimeError("MeshMotion: P1 dofs and geometry nodes do not coincide")
+        self._n_owned_cells = mesh.topology.index_map(tdim).size_local
+        self.reference_areas = signed_areas(self.reference, self._cells)
+        degenerate = bool(np.any(self.reference_areas[: self._n_owned_cells] == 0))
+        if self.comm.allreduce(degenerate, op=MPI.LOR):
+            raise ValueError("MeshMotion: the reference mesh has a degenerate cell")
+
+        # Dirichlet dofs (block indices, owned and ghost; locate_dofs_topological finds those on
+        # facets another rank holds too).
+        fdim = tdim - 1
+        mesh.topology.create_connectivity(fdim, tdim)
+        self._moving_facets = tagged.facets(*self.moving)
+        self._moving_dofs = dolfinx.fem.locate_dofs_topological(self.V, fdim, self._moving_facets)
+        fixed_dofs = dolfinx.fem.locate_dofs_topological(self.V, fdim, tagged.facets(*self.fixed))
+        # Owned moving-boundary dofs: the rows of an interface vector (as in fsi.interface).
+        self.interface_dofs = owned_interface_dofs(self.V, self._moving_facets)
+        n_moving = self.comm.allreduce(len(self.interface_dofs), op=MPI.SUM)
+        if n_moving == 0:
+            raise ValueError("MeshMotion: no facet carries a moving boundary tag "
+                             f"{[b.label for b in self.moving]}")
+        bs = self.V.dofmap.index_map_bs
+        n_owned = self.V.dofmap.index_map.size_local
+        bc = np.union1d(self._moving_dofs, fixed_dofs)
+        bc = bc[bc < n_owned]
+        self._bc_local = (bc[:, None] * bs + np.arange(bs)).ravel().astype(np.int32)
+        start = self.V.dofmap.index_map.local_range[0]
+        self._bc_rows = (self._bc_local + start * bs).astype(PETSc.IntType)
+
+        self.k = self._stiffness(tagged)
+        self.quadrature_degree = quadrature_degree
+        self.assemblies = 0
+        self._A0, self._A = self._assemble()
+        self._b = self._A.createVecLeft()
+        self._ksp = self._make_solver()
+
+    # ---- setup
+
+    def _stiffness(self, tagged: TaggedMesh):
+        """The cell-wise stiffening k (a DG0 Function, or the Constant 1)."""
+        s = self.settings
+        if s.stiffening == "none":
+            return dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(1.0))
+        Q = compat.function_space(self.mesh, "DG", 0)
+        k = dolfinx.fem.Function(Q, name="mesh_stiffening")
+        owned = slice(0, self._n_owned_cells)
+        if s.stiffening == "jacobian":
+            size = np.abs(self.reference_areas)
+        else:  # distance of each cell's centroid to the moving boundary
+            facets = self._moving_facets
+            facets = facets[facets < self.mesh.topology.index_map(1).size_local]
+            nodes = compat.entities_to_geometry(self.mesh, 1, facets).reshape(-1, 2)
+            local = self.reference[nodes][:, :, :2].reshape(-1, 2, 2)
+            segments = np.concatenate(self.comm.allgather(local)).reshape(-1, 2, 2)
+            centroids = self.reference[self._cells][:, :, :2].mean(axis=1)
+            size = distance_to_segments(centroids, segments[:, 0], segments[:, 1])
+        largest = self.comm.allreduce(float(size[owned].max(initial=0.0)), op=MPI.MAX)
+        cell_dofs = compat.cell_dofs(Q)[:, 0]
+        k.x.array[cell_dofs] = (largest / size) ** s.stiffening_exponent
+        return k
+
+    def _forms(self):
+        u, v = ufl.TrialFunction(self.V), ufl.TestFunction(self.V)
+        dx = ufl.Measure("dx", domain=self.mesh,
+                         metadata={"quadrature_degree": self.quadrature_degree})
+        if self.settings.method == "harmonic":
+            return self.k * ufl.inner(ufl.grad(u), ufl.grad(v)) * dx
+        nu = self.settings.poisson_ratio
+        lam = 2 * nu / (1 - 2 * nu)  # λ/μ with μ = 1
+
+        def eps(z):
+            return ufl.sym(ufl.grad(z))
+
+        sigma = 2 * eps(u) + lam * ufl.tr(eps(u)) * ufl.Identity(self.gdim)
+        return self.k * ufl.inner(sigma, eps(v)) * dx
+
+    def _assemble(self):
+        """A₀ (no boundary conditions) and A (Dirichlet rows and columns → identity)."""
+        self.assemblies += 1
+        A0 = dolfinx.fem.petsc.assemble_matrix(dolfinx.fem.form(self._forms()))
+        A0.assemble()
+        A = A0.duplicate(copy=True)
+        A.zeroRowsColumns(self._bc_rows, diag=1.0)
+        A.setOptionsPrefix(PREFIX)
+        return A0, A
+
+    def _make_solver(self) -> PETSc.KSP:
+        """The KSP (prefix ``mesh_``), set up (factorised, for LU) once, here. The config's
+        options are in the options database only while they are read (the factorisation reads
+        the solver package's own, e.g. ``mat_mumps_icntl_*``), so nothing leaks to others."""
+        options = PETSc.Options(PREFIX)
+        for key, value in self.settings.petsc_options.items():
+            options[key] = value
+        try:
+            ksp = PETSc.KSP().create(self.comm)
+            ksp.setOptionsPrefix(PREFIX)
+            ksp.setOperators(self._A)
+            ksp.setFromOptions()
+            ksp.setUp()
+        finally:
+            for key in self.settings.petsc_options:
+                options.delValue(key)
+        return ksp
+
+    # ---- boundary data
+
+    def set_boundary_displacement(self, values: np.ndarray) -> None:
+        """Set d on the moving boundary from an interface vector: values (n, gdim) at the owned
+        moving dofs :attr:`interface_dofs` (the order of :class:`fsi.interface.InterfaceMap`)."""
+        values = np.asarray(values, dtype=float).reshape(len(self.interface_dofs), self.gdim)
+        self.g.x.array.reshape(-1, self.gdim)[self.interface_dofs] = values
+        self.g.x.scatter_forward()
+
+    def set_boundary_function(self, f: dolfinx.fem.Function | Callable) -> None:
+        """Set d on the moving boundary to ``f`` (a Function on this mesh, or x ↦ values as for
+        ``Function.interpolate``), interpolated into P1."""
+        tmp = dolfinx.fem.Function(self.V)
+        tmp.interpolate(f)
+        tmp.x.scatter_forward()
+        view, source = self.g.x.array.reshape(-1, self.gdim), tmp.x.array.reshape(-1, self.gdim)
+        view[self._moving_dofs] = source[self._moving_dofs]
+        self.g.x.scatter_forward()
+
+    @property
+    def interface_points(self) -> np.ndarray:
+        """Reference coordinates (n, gdim) of the owned moving-boundary dofs, in the order of an
+        interface vector."""
+        return self.dof_points[self.interface_dofs]
+
+    def boundary_vector(self, f: dolfinx.fem.Function | None = None) -> np.ndarray:
+        """The interface vector (values at :attr:`interface_dofs`) of ``f`` (default: d)."""
+        f = self.d if f is None else f
+        return f.x.array.reshape(-1, self.gdim)[self.interface_dofs].copy()
+
+    # ---- solve and move
+
+    def solve(self) -> dolfinx.fem.Function:
+        """d: the extension of the boundary data. Solves A d = −A₀ g (Dirichlet rows: d = g)
+        with the factorisation kept from the first call."""
+        g_vec, d_vec = compat.petsc_vector(self.g), compat.petsc_vector(self.d)
+        self._A0.mult(g_vec, self._b)
+        self._b.scale(-1.0)
+        g_owned = self.g.x.array[self._bc_local]
+        self._b.array[self._bc_local] = g_owned
+        self._ksp.solve(self._b, d_vec)
+        reason = self._ksp.getConvergedReason()
+        if reason < 0:
+            raise RuntimeError(f"mesh motion: the linear solve failed (KSP reason {reason})")
+        self.d.x.array[self._bc_local] = g_owned  # boundary values exactly, not to round-off
+        self.d.x.scatter_forward()
+        return self.d
+
+    def apply(self) -> None:
+        """Move the mesh to x = X + d (X the reference coordinates)."""
+        gdim = self.gdim
+        self.mesh.geometry.x[self._nodes, :gdim] = (
+            self.reference[self._nodes, :gdim]
+            + self.d.x.array.reshape(-1, gdim)[self._node_dofs])
+
+    def reset(self) -> None:
+        """Move the mesh back to its reference coordinates X (d is kept)."""
+        self.mesh.geometry.x[:] = self.reference
+
+    def update(self, values: np.ndarray) -> dolfinx.fem.Function:
+        """One coupling iteration's motion: boundary data, solve, quality check, move."""
+        self.set_boundary_displacement(values)
+        self.solve()
+        self.check_quality()
+        self.apply()
+        return self.d
+
+    # ---- quality
+
+    def jacobian_ratios(self) -> np.ndarray:
+        """J(X + d)/J(X) of the owned cells: signed area over reference area (≤ 0: inverted)."""
+        owned = self._cells[: self._n_owned_cells]
+        return signed_areas(self._deformed(), owned) / self.reference_areas[: self._n_owned_cells]
+
+    def min_jacobian_ratio(self) -> tuple[float, np.ndarray]:
+        """The smallest J/J_ref over all ranks' cells, and that cell's centroid in X + d."""
+        ratios = self.jacobian_ratios()
+        if len(ratios):
+            i = int(np.argmin(ratios))
+            local = (float(ratios[i]), self._deformed()[self._cells[i], :2].mean(axis=0))
+        else:
+            local = (np.inf, np.full(2, np.nan))
+        candidates = self.comm.allgather(local)
+        ratio, where = min(candidates, key=lambda c: c[0])  # first rank wins a tie
+        return ratio, where
+
+    def check_quality(self) -> float:
+        """Raise :class:`MeshQualityError` if min J/J_ref (of X + d, i.e. of the mesh after
+        :meth:`apply`) is below ``min_jacobian_ratio``; return the ratio. Collective."""
+        ratio, where = self.min_jacobian_ratio()
+        if not ratio >= self.settings.min_jacobian_ratio:  # also catches NaN
+            raise MeshQualityError(ratio, where, self.settings.min_jacobian_ratio)
+        return ratio
+
+    def _deformed(self) -> np.ndarray:
+        x = self.reference.copy()
+        x[self._nodes, : self.gdim] += self.d.x.array.reshape(-1, self.gdim)[self._node_dofs]
+        return x
+
+    # ---- time levels
+
+    def mesh_velocity(self, dt: float, order: int = 1,
+                      dt_previous: float | None = None) -> dolfinx.fem.Function:
+        """w = Σ_k a_k d^{n+1−k}: backward Euler (d − d^n)/dt, or variable-step BDF2."""
+        weights = bdf_weights(order, dt, dt_previous)
+        history = (self.d.x.array, self.d_n, self.d_nm1)
+        self.w.x.array[:] = sum(a * h for a, h in zip(weights, history))
+        return self.w
+
+    def advance(self) -> None:
+        """Accept the step: d^{n−1} ← d^n, d^n ← d."""
+        self.d_nm1[:] = self.d_n
+        self.d_n[:] = self.d.x.array
+
+    def save_state(self) -> MeshMotionState:
+        """Snapshot of d, its history, the boundary data and w (kept for restore_state)."""
+        self._saved = MeshMotionState(self.d.x.array.copy(), self.d_n.copy(), self.d_nm1.copy(),
+                                      self.g.x.array.copy(), self.w.x.array.copy())
+        return self._saved
+
+    def restore_state(self, state: MeshMotionState | None = None) -> None:
+        """Return to ``state`` (default: the last save_state) and move the mesh to X + d."""
+        s = state or self._saved
+        if s is None:
+            raise RuntimeError("restore_state before any save_state")
+        self.d.x.array[:] = s.d
+        self.d_n[:] = s.d_n
+        self.d_nm1[:] = s.d_nm1
+        self.g.x.array[:] = s.g
+        self.w.x.array[:] = s.w
+        self.apply()
