@@ -1,6 +1,7 @@
-"""The command line: ``fsi mesh``, ``fsi check`` (``python -m fsi`` is the same).
+"""The command line: ``fsi run``, ``fsi mesh``, ``fsi check`` (``python -m fsi`` is the same).
 
-Exit status: 0 done; 2 the configuration or the command line is wrong (nothing is written).
+Exit status: 0 done; 2 the configuration or the command line is wrong (nothing is written);
+3 the solve failed.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from fsi import config
 
 log = logging.getLogger("fsi")
 
-EXIT_OK, EXIT_USAGE = 0, 2
+EXIT_OK, EXIT_USAGE, EXIT_SOLVE_FAILED = 0, 2, 3
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -29,6 +30,9 @@ def _parser() -> argparse.ArgumentParser:
         p.add_argument("--set", dest="overrides", action="append", default=[],
                        metavar="KEY.PATH=VALUE", help="override a configuration value (repeatable)")
 
+    p = sub.add_parser("run", help="run a case: DIR/metrics.csv, summary.json, fields.xdmf")
+    with_config(p)
+    p.add_argument("--out", type=Path, required=True, metavar="DIR")
     p = sub.add_parser("mesh", help="build the case's mesh: DIR/mesh.xdmf and DIR/mesh.json")
     with_config(p)
     p.add_argument("--out", type=Path, required=True, metavar="DIR")
@@ -63,12 +67,30 @@ def main(argv: Sequence[str] | None = None) -> int:
         if comm.rank == 0:
             print(f"fsi: error: {e}", file=sys.stderr)
         return EXIT_USAGE
-    return {"mesh": _mesh, "check": _check}[args.command](args, case)
+    return {"run": _run, "mesh": _mesh, "check": _check}[args.command](args, case)
 
 
 def _check(args: argparse.Namespace, case: config.Case) -> int:
     log.info("%s: valid (case %r, geometry %s, mesh %s, structure %s)", args.config, case.name,
              case.geometry.kind, case.mesh.level, case.structure.mode)
+    return EXIT_OK
+
+
+def _run(args: argparse.Namespace, case: config.Case) -> int:
+    from fsi import simulation
+
+    reason = simulation.unsupported(case)
+    if reason is not None:
+        if MPI.COMM_WORLD.rank == 0:
+            print(f"fsi: error: {args.config}: {reason}", file=sys.stderr)
+        return EXIT_USAGE
+    try:
+        result = simulation.run(case, args.out, MPI.COMM_WORLD)
+    except simulation.SolveFailed as e:
+        log.error("fsi: solve failed: %s (the finished steps are in %s)", e,
+                  args.out / "metrics.csv")
+        return EXIT_SOLVE_FAILED
+    log.info("done: %d steps in %.1f s; wrote %s", result.steps, result.wall_time_s, args.out)
     return EXIT_OK
 
 

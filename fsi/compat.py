@@ -142,6 +142,8 @@ def eval_expression(expression, mesh, cells: np.ndarray) -> np.ndarray:
     """Values of a ``dolfinx.fem.Expression`` at its reference points on ``cells``, shape
     (len(cells), num_points * value_size)."""
     cells = np.asarray(cells, dtype=np.int32)
+    if len(cells) == 0:
+        return np.zeros((0, 0))
     values = expression.eval(cells) if LEGACY else expression.eval(mesh, cells)
     return np.asarray(values).reshape(len(cells), -1)
 

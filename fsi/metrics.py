@@ -1,0 +1,207 @@
+"""Fluid metrics (MODEL.md §6): peaks, wall shear stress, recirculation, forces, and the shear
+rate and effective viscosity as fields.
+
+Every function here is collective over the mesh's communicator and returns the same value on
+every rank (peaks and forces are reduced, wall samples are gathered).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+from mpi4py import MPI
+
+import dolfinx
+import dolfinx.fem
+import dolfinx.mesh
+import numpy as np
+import ufl
+
+from fsi import compat, rheology
+
+
+def _owned_blocks(u: dolfinx.fem.Function) -> np.ndarray:
+    """The owned nodal values of ``u``, one row per node (block)."""
+    index_map, bs = u.function_space.dofmap.index_map, u.function_space.dofmap.index_map_bs
+    return u.x.array[: index_map.size_local * bs].reshape(-1, bs)
+
+
+def peak_velocity(u: dolfinx.fem.Function) -> float:
+    """max |u| over the velocity nodes (P2: vertices and edge midpoints), over all ranks (m/s)."""
+    values = _owned_blocks(u)
+    local = float(np.linalg.norm(values, axis=1).max(initial=0.0))
+    return u.function_space.mesh.comm.allreduce(local, op=MPI.MAX)
+
+
+def peak_pressure(p: dolfinx.fem.Function) -> float:
+    """max p over the pressure nodes, over all ranks (Pa)."""
+    local = float(_owned_blocks(p).max(initial=-np.inf))
+    return p.function_space.mesh.comm.allreduce(local, op=MPI.MAX)
+
+
+# --------------------------------------------------------------------------------------------
+# Wall shear stress and recirculation
+
+
+@dataclass(frozen=True)
+class WallShearStress:
+    """Samples along a wall (gathered on every rank), ordered by ``s``, the position along the
+    flow ``direction``: points ``x`` (n, 2), ``tau`` the signed wall shear stress (Pa)."""
+
+    s: np.ndarray
+    x: np.ndarray
+    tau: np.ndarray
+
+
+# Two Gauss points per facet of the reference triangle; facet k is opposite vertex k.
+_REFERENCE_VERTICES = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+_GAUSS = np.array([0.5 - 0.5 / np.sqrt(3), 0.5 + 0.5 / np.sqrt(3)])
+
+
+def _facet_points() -> np.ndarray:
+    points = []
+    for k in range(3):
+        a, b = (_REFERENCE_VERTICES[j] for j in range(3) if j != k)
+        points.extend(a + g * (b - a) for g in _GAUSS)
+    return np.array(points)  # (6, 2): facet k's points are rows 2k, 2k + 1
+
+
+def wall_shear_stress(u: dolfinx.fem.Function, p: dolfinx.fem.Function,
+                      law: rheology.ViscosityLaw, facet_tags: dolfinx.mesh.MeshTags,
+                      tags: Sequence[int], direction: Sequence[float] = (1.0, 0.0)
+                      ) -> WallShearStress:
+    """τ_w = t·(σ n) at two Gauss points of every facet of the walls ``tags``.
+
+    ``n`` is the wall's unit normal pointing into the fluid, so σ n is the traction the blood
+    exerts on the wall, and ``t`` the unit tangent with t·direction ≥ 0: τ_w > 0 where the flow
+    next to the wall goes along ``direction``, < 0 where it reverses (recirculation).
+    σ = −p I + 2 μ(s(u)) D(u) is evaluated inside each wall cell (gradients are per cell).
+    """
+    mesh = u.function_space.mesh
+    comm, tdim = mesh.comm, mesh.topology.dim
+    fdim = tdim - 1
+    mesh.topology.create_connectivity(fdim, tdim)
+    mesh.topology.create_connectivity(tdim, fdim)
+    facets = facet_tags.indices[np.isin(facet_tags.values, [int(t) for t in tags])]
+    facets = facets[facets < mesh.topology.index_map(fdim).size_local].astype(np.int32)
+
+    f2c = mesh.topology.connectivity(fdim, tdim)
+    c2f = mesh.topology.connectivity(tdim, fdim)
+    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
+    local_facet = np.array([int(np.flatnonzero(c2f.links(c) == f)[0])
+                            for c, f in zip(cells, facets)], dtype=np.int64)
+
+    x = ufl.SpatialCoordinate(mesh)
+    sigma = rheology.cauchy_stress(u, p, law)
+    values = ufl.as_vector([sigma[0, 0], sigma[0, 1], sigma[1, 0], sigma[1, 1], x[0], x[1]])
+    expression = dolfinx.fem.Expression(values, _facet_points())
+    data = compat.eval_expression(expression, mesh, cells).reshape(len(cells), 6, 6)
+    rows = np.stack([2 * local_facet, 2 * local_facet + 1], axis=1)  # (nf, 2)
+    data = np.take_along_axis(data, rows[:, :, None], axis=1)  # (nf, 2 points, 6)
+
+    # Normal into the fluid: from the facet towards the cell's centroid (affine triangles).
+    nodes = compat.entities_to_geometry(mesh, fdim, facets).reshape(len(facets), 2)
+    ends = mesh.geometry.x[nodes][:, :, :2]
+    tangent = ends[:, 1] - ends[:, 0]
+    tangent /= np.linalg.norm(tangent, axis=1)[:, None]
+    cell_nodes = compat.entities_to_geometry(mesh, tdim, cells).reshape(len(cells), 3)
+    centroid = mesh.geometry.x[cell_nodes][:, :, :2].mean(axis=1)
+    normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])
+    inward = np.sign(np.einsum("ij,ij->i", centroid - ends.mean(axis=1), normal))
+    normal *= inward[:, None]
+    e = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+    tangent *= np.where(tangent @ e >= 0, 1.0, -1.0)[:, None]
+
+    sigma_pts = data[:, :, :4].reshape(-1, 2, 2, 2)  # (nf, point, i, j)
+    traction = np.einsum("fpij,fj->fpi", sigma_pts, normal)
+    tau = np.einsum("fpi,fi->fp", traction, tangent).ravel()
+    points = data[:, :, 4:].reshape(-1, 2)
+    points = np.concatenate(comm.allgather(points))
+    tau = np.concatenate(comm.allgather(tau))
+    s = points @ e
+    order = np.argsort(s, kind="stable")
+    return WallShearStress(s[order], points[order], tau[order])
+
+
+def recirculation_zones(s: np.ndarray, tau: np.ndarray) -> list[tuple[float, float]]:
+    """The intervals of ``s`` where τ_w < 0 (reversed flow), each from its separation point to
+    its reattachment point (zero crossings, linearly interpolated; an interval reaching an end
+    of the samples stops there)."""
+    s, tau = np.asarray(s, dtype=float), np.asarray(tau, dtype=float)
+    negative = tau < 0
+    zones = []
+    i = 0
+    while i < len(s):
+        if not negative[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < len(s) and negative[j + 1]:
+            j += 1
+
+        def crossing(a: int, b: int) -> float:
+            return float(s[a] + (s[b] - s[a]) * tau[a] / (tau[a] - tau[b]))
+
+        start = crossing(i - 1, i) if i > 0 else float(s[0])
+        end = crossing(j, j + 1) if j + 1 < len(s) else float(s[-1])
+        zones.append((start, end))
+        i = j + 1
+    return zones
+
+
+def recirculation_length(s: np.ndarray, tau: np.ndarray) -> float:
+    """Length of the longest reversed-flow zone along the wall (0 if none)."""
+    return max((b - a for a, b in recirculation_zones(s, tau)), default=0.0)
+
+
+def reattachment_point(s: np.ndarray, tau: np.ndarray) -> float | None:
+    """Where the longest reversed-flow zone ends (the flow reattaches), or None."""
+    zones = recirculation_zones(s, tau)
+    return max(zones, key=lambda z: z[1] - z[0])[1] if zones else None
+
+
+# --------------------------------------------------------------------------------------------
+# Forces
+
+
+def surface_force(u: dolfinx.fem.Function, p: dolfinx.fem.Function, law: rheology.ViscosityLaw,
+                  facet_tags: dolfinx.mesh.MeshTags, tags: Sequence[int],
+                  quadrature_degree: int = 4) -> np.ndarray:
+    """(F_x, F_y) = ∫ σ n_b ds over ``tags``, the force of the fluid on a body whose outward
+    normal n_b = −n points into the fluid (Turek–Hron's drag and lift, N/m). The residual-based
+    :meth:`fsi.fluid.FluidSolver.boundary_force` is the more accurate variant."""
+    mesh = u.function_space.mesh
+    ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags,
+                     metadata={"quadrature_degree": quadrature_degree})
+    tags = [int(t) for t in tags]
+    measure = sum((ds(t) for t in tags[1:]), ds(tags[0]))
+    traction = -rheology.cauchy_stress(u, p, law) * ufl.FacetNormal(mesh)
+    force = [dolfinx.fem.assemble_scalar(dolfinx.fem.form(traction[i] * measure))
+             for i in range(mesh.geometry.dim)]
+    return mesh.comm.allreduce(np.array(force, dtype=float), op=MPI.SUM)
+
+
+# --------------------------------------------------------------------------------------------
+# Fields for output
+
+
+def _field(expr, mesh, name: str, degree: int) -> dolfinx.fem.Function:
+    space = compat.function_space(mesh, "DG", degree)
+    f = dolfinx.fem.Function(space, name=name)
+    if isinstance(expr, ufl.constantvalue.ConstantValue):  # e.g. a Newtonian viscosity
+        f.x.array[:] = float(expr)
+    else:
+        f.interpolate(dolfinx.fem.Expression(expr, compat.interpolation_points(space)))
+    return f
+
+
+def shear_rate_field(u: dolfinx.fem.Function, degree: int = 1) -> dolfinx.fem.Function:
+    """s(u) = sqrt(2 D(u):D(u)) (1/s) interpolated into discontinuous P``degree``."""
+    return _field(rheology.shear_rate(u), u.function_space.mesh, "shear_rate", degree)
+
+
+def viscosity_field(u: dolfinx.fem.Function, law: rheology.ViscosityLaw,
+                    degree: int = 1) -> dolfinx.fem.Function:
+    """The effective viscosity μ(s(u)) (Pa s) interpolated into discontinuous P``degree``."""
+    return _field(law.mu(rheology.shear_rate(u)), u.function_space.mesh, "viscosity", degree)
