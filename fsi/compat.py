@@ -89,13 +89,7 @@ def read_mesh_with_tags(comm: MPI.Comm, path: str):
 
 
 # --------------------------------------------------------------------------------------------
-# Submesh vertex maps, dof layouts and PETSc vectors (added for fsi.solid)
-
-
-def create_submesh_with_vertex_map(mesh, dim: int, entities: np.ndarray):
-    """A submesh of ``entities``, its cell → parent cell map and vertex → parent vertex map."""
-    submesh, entity_map, vertex_map, *_ = dolfinx.mesh.create_submesh(mesh, dim, entities)
-    return submesh, np.asarray(entity_map, dtype=np.int32), np.asarray(vertex_map, dtype=np.int32)
+# Dof layouts and PETSc vectors
 
 
 def interpolation_points(V) -> np.ndarray:

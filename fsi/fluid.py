@@ -170,45 +170,6 @@ def inflow_ramp(t: float, ramp_time: float) -> float:
 # Mesh
 
 
-def transfer_facet_tags(tagged, submesh: dolfinx.mesh.Mesh,
-                        parent_cells: np.ndarray) -> dolfinx.mesh.MeshTags:
-    """The parent mesh's facet tags on a cell submesh (``fsi.mesh.extract``'s submesh and
-    parent-cell map). Local facet k of a submesh cell is local facet k of its parent cell (a
-    submesh keeps its cells' vertex order); checked on the facet midpoints. Facets between the
-    region and the rest of the parent (the FSI interface) become boundary facets of the submesh.
-    """
-    parent, tdim = tagged.mesh, tagged.mesh.topology.dim
-    fdim = tdim - 1
-    parent.topology.create_connectivity(tdim, fdim)
-    submesh.topology.create_connectivity(tdim, fdim)
-    submesh.topology.create_connectivity(fdim, tdim)
-    parent_c2f = parent.topology.connectivity(tdim, fdim).array
-    sub_c2f = submesh.topology.connectivity(tdim, fdim).array
-    cell_map = parent.topology.index_map(tdim)
-    facets_per_cell = len(parent_c2f) // (cell_map.size_local + cell_map.num_ghosts)
-    parent_cf = parent_c2f.reshape(-1, facets_per_cell)[parent_cells]
-    sub_cf = sub_c2f.reshape(-1, facets_per_cell)[: len(parent_cells)]
-
-    facet_map = parent.topology.index_map(fdim)
-    tag_of = np.full(facet_map.size_local + facet_map.num_ghosts, -1, dtype=np.int64)
-    tag_of[tagged.facet_tags.indices] = tagged.facet_tags.values
-    tags = tag_of[parent_cf]
-    mask = tags >= 0
-    sub_facets, first = np.unique(sub_cf[mask], return_index=True)
-    parent_facets = parent_cf[mask][first]
-    values = tags[mask][first]
-
-    def midpoints(mesh, facets):
-        nodes = compat.entities_to_geometry(mesh, fdim, facets).reshape(len(facets), -1)
-        return mesh.geometry.x[nodes].mean(axis=1)
-
-    if len(sub_facets) and not np.allclose(midpoints(submesh, sub_facets),
-                                           midpoints(parent, parent_facets), rtol=0, atol=1e-12):
-        raise RuntimeError("transfer_facet_tags: submesh facets do not match the parent's")
-    return dolfinx.mesh.meshtags(submesh, fdim, sub_facets.astype(np.int32),
-                                 values.astype(np.int32))
-
-
 class AleMesh:
     """Moves a (P1-geometry) mesh by a vector P1 displacement d: x = X + d(X).
 
@@ -354,8 +315,8 @@ class FluidSolver:
     """Generalized Navier–Stokes on a (moving) fluid mesh; see the module docstring.
 
     Args:
-        mesh: the fluid mesh (e.g. the fluid submesh of :func:`fsi.mesh.extract`).
-        facet_tags: its boundary tags (:func:`transfer_facet_tags`).
+        mesh: the fluid mesh (e.g. ``fsi.mesh.restrict(tagged, Region.FLUID).mesh``).
+        facet_tags: its boundary tags (``.facet_tags`` of the same).
         fluid: the ``fluid`` section (density, rheology, quadrature, Newton and PETSc options).
         boundaries: which tags get which condition (e.g. :func:`study_boundaries`); tags without
             a condition are traction-free (σ n = 0).

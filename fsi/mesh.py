@@ -129,7 +129,12 @@ def restrict(tagged: TaggedMesh, *regions: Region) -> TaggedMesh:
     keep = (parent_to_sub >= 0) & (facet_values >= 0)
     sub_facets, values = parent_to_sub[keep], facet_values[keep]
     order = np.argsort(sub_facets)
-    facet_tags = dolfinx.mesh.meshtags(submesh, tdim - 1, sub_facets[order], values[order])
+    sub_facets, values = sub_facets[order], values[order]
+    parent_facets = np.flatnonzero(keep)[order].astype(np.int32)
+    if not np.allclose(_midpoints(submesh, sub_facets), _midpoints(mesh, parent_facets),
+                       rtol=0.0, atol=1e-12 * _extent(mesh)):
+        raise RuntimeError("restrict: the submesh's facets do not match the parent's")
+    facet_tags = dolfinx.mesh.meshtags(submesh, tdim - 1, sub_facets, values)
 
     parent_cell_values = np.full(mesh.topology.index_map(tdim).size_local
                                  + mesh.topology.index_map(tdim).num_ghosts, -1, dtype=np.int32)
@@ -139,6 +144,16 @@ def restrict(tagged: TaggedMesh, *regions: Region) -> TaggedMesh:
                                       cell_values)
     cell_tags.name, facet_tags.name = "cell_tags", "facet_tags"
     return TaggedMesh(submesh, cell_tags, facet_tags, parent_cells)
+
+
+def _midpoints(mesh, facets: np.ndarray) -> np.ndarray:
+    nodes = compat.entities_to_geometry(mesh, mesh.topology.dim - 1, facets).reshape(len(facets), -1)
+    return mesh.geometry.x[nodes].mean(axis=1)
+
+
+def _extent(mesh) -> float:
+    x = mesh.geometry.x
+    return float(np.ptp(x, axis=0).max()) if len(x) else 1.0
 
 
 def _cell_facets(mesh, n_cells: int) -> np.ndarray:

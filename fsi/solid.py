@@ -67,56 +67,9 @@ def structure_regions(case: Case) -> tuple[Region, ...]:
     return STRUCTURE_REGIONS if isinstance(case.geometry, StenosisGeometry) else (Region.FLAG,)
 
 
-def transfer_tags(parent: TaggedMesh, submesh: dolfinx.mesh.Mesh, parent_cells: np.ndarray,
-                  parent_vertices: np.ndarray) -> TaggedMesh:
-    """The parent's cell and facet tags on a submesh of its cells.
-
-    A submesh cell takes its parent cell's tag. A submesh facet takes the tag of the parent facet
-    with the same two vertices (matched through the submesh's vertex map), so a facet that is
-    interior in the parent and on the boundary of the submesh (the fluid–structure interface)
-    keeps its tag. Works on the local (owned + ghost) entities; no communication.
-    """
-    tdim = parent.mesh.topology.dim
-    fdim = tdim - 1
-    cell_map = parent.mesh.topology.index_map(tdim)
-    values = np.full(cell_map.size_local + cell_map.num_ghosts, -1, dtype=np.int32)
-    values[parent.cell_tags.indices] = parent.cell_tags.values
-    n_sub_cells = len(parent_cells)
-    cell_tags = dolfinx.mesh.meshtags(submesh, tdim, np.arange(n_sub_cells, dtype=np.int32),
-                                      values[parent_cells])
-
-    parent.mesh.topology.create_connectivity(fdim, 0)
-    submesh.topology.create_connectivity(fdim, 0)
-    submesh.topology.create_connectivity(fdim, tdim)
-    n_parent_vertices = np.int64(parent.mesh.topology.index_map(0).size_local
-                                 + parent.mesh.topology.index_map(0).num_ghosts)
-
-    def keys(facet_vertices: np.ndarray) -> np.ndarray:
-        v = np.sort(facet_vertices.astype(np.int64), axis=1)
-        return v[:, 0] * n_parent_vertices + v[:, 1]
-
-    tagged_facets = parent.facet_tags.indices
-    parent_f2v = parent.mesh.topology.connectivity(fdim, 0).array.reshape(-1, 2)
-    parent_keys = keys(parent_f2v[tagged_facets])
-    order = np.argsort(parent_keys)
-    parent_keys, parent_values = parent_keys[order], parent.facet_tags.values[order]
-
-    sub_f2v = submesh.topology.connectivity(fdim, 0).array.reshape(-1, 2)
-    sub_keys = keys(parent_vertices[sub_f2v])
-    position = np.clip(np.searchsorted(parent_keys, sub_keys), 0, max(len(parent_keys) - 1, 0))
-    found = (parent_keys[position] == sub_keys) if len(parent_keys) else np.zeros(0, bool)
-    sub_facets = np.flatnonzero(found).astype(np.int32)
-    facet_tags = dolfinx.mesh.meshtags(submesh, fdim, sub_facets,
-                                       parent_values[position[found]].astype(np.int32))
-    cell_tags.name, facet_tags.name = "cell_tags", "facet_tags"
-    return TaggedMesh(submesh, cell_tags, facet_tags)
-
-
 def structure_mesh(tagged: TaggedMesh, regions: Sequence[Region]) -> TaggedMesh:
     """The submesh of ``regions`` of the whole system's mesh, with the parent's tags."""
-    submesh, parent_cells, parent_vertices = compat.create_submesh_with_vertex_map(
-        tagged.mesh, tagged.mesh.topology.dim, tagged.cells(*regions))
-    return transfer_tags(tagged, submesh, parent_cells, parent_vertices)
+    return fsi_mesh.restrict(tagged, *regions)
 
 
 # --------------------------------------------------------------------------------------------

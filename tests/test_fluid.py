@@ -23,8 +23,9 @@ def channel(size: float, fluid_section: dict, comm: MPI.Comm = MPI.COMM_WORLD):
     case = config.from_dict({"geometry": {"kind": "channel"}, "structure": {"mode": "rigid"},
                              "mesh": {"size": size, "local_size": size}, "fluid": fluid_section})
     tagged = mesh.build(case, comm)
-    submesh, parent_cells = mesh.extract(tagged, Region.FLUID)
-    return case, submesh, fluid.transfer_facet_tags(tagged, submesh, parent_cells)
+    part = mesh.restrict(tagged, Region.FLUID)
+    submesh = part.mesh
+    return case, submesh, part.facet_tags
 
 
 def unit_square(n: int, comm: MPI.Comm = MPI.COMM_WORLD):
@@ -75,11 +76,12 @@ def pressure_driven(size: float, rheology_section: dict, gradient: float):
 # Mesh and boundary-condition data
 
 
-def test_transfer_facet_tags_keeps_every_fluid_boundary():
+def test_restricted_fluid_mesh_keeps_every_fluid_boundary():
     case = config.from_dict({})
     tagged = mesh.build(case)
-    submesh, parent_cells = mesh.extract(tagged, Region.FLUID)
-    tags = fluid.transfer_facet_tags(tagged, submesh, parent_cells)
+    part = mesh.restrict(tagged, Region.FLUID)
+    submesh = part.mesh
+    tags = part.facet_tags
     counts = mesh.summary(tagged, case)["facets"]
     owned = tags.indices < submesh.topology.index_map(1).size_local
     for boundary in (INLET, OUTLET, Boundary.INTERFACE, WALL):
@@ -553,8 +555,9 @@ def test_study_conditions_on_the_stenosis_give_the_rigid_column_velocity():
     and the direction of the pulse, not the details."""
     case = config.from_dict({})
     tagged = mesh.build(case)
-    submesh, parent_cells = mesh.extract(tagged, Region.FLUID)
-    tags = fluid.transfer_facet_tags(tagged, submesh, parent_cells)
+    part = mesh.restrict(tagged, Region.FLUID)
+    submesh = part.mesh
+    tags = part.facet_tags
     solver = fluid.FluidSolver(submesh, tags, case.fluid, fluid.study_boundaries(case.fluid))
     T = case.fluid.inlet.duration
     for k in range(1, 6):
@@ -588,8 +591,9 @@ def turek_hron_forces(name: str, mean_velocity: float, level: str = "coarse"):
         f"fluid.inlet={{kind: parabolic_velocity, mean_velocity: {mean_velocity}}}",
         f"mesh.level={level}"])
     tagged = mesh.build(case)
-    submesh, parent_cells = mesh.extract(tagged, Region.FLUID)
-    tags = fluid.transfer_facet_tags(tagged, submesh, parent_cells)
+    part = mesh.restrict(tagged, Region.FLUID)
+    submesh = part.mesh
+    tags = part.facet_tags
     wetted = (Boundary.OBSTACLE, Boundary.INTERFACE)
     solver = fluid.FluidSolver(submesh, tags, case.fluid, (
         fluid.Inflow(INLET, case.fluid.inlet), fluid.Outflow(OUTLET, 0.0),
