@@ -4,13 +4,13 @@ import json
 
 from mpi4py import MPI
 
-import dolfinx.mesh
 import numpy as np
 import pytest
 
 from fsi import cli, compat, config, mesh
 from geometry import stenosis
 from geometry.tags import STRUCTURE_REGIONS, Boundary, Region
+from mesh_checks import boundary_vertices
 
 STUDY_COARSE_TRIANGLES = 3272  # MODEL.md §1
 STENOSIS_REGIONS = (Region.FLUID, Region.WALL, Region.CAP, Region.LIPID)
@@ -67,22 +67,12 @@ def test_measured_stenosis_degree_and_cap_thickness(coarse, fine, level, toleran
     assert s["measures"]["min_cap_thickness_m"] <= g.cap_thickness * (1 + 1e-12)
 
 
-def _boundary_vertices(submesh) -> set[tuple[float, float]]:
-    """Coordinates of the vertices on the exterior facets of a submesh, gathered on all ranks."""
-    tdim = submesh.topology.dim
-    submesh.topology.create_connectivity(tdim - 1, tdim)
-    facets = dolfinx.mesh.exterior_facet_indices(submesh.topology)
-    nodes = compat.entities_to_geometry(submesh, tdim - 1, facets).ravel()
-    local = [tuple(x) for x in submesh.geometry.x[nodes, :2]]
-    return set().union(*submesh.comm.allgather(local))
-
-
 def test_fluid_and_structure_meshes_share_the_interface_vertices_exactly(coarse):
     _, tagged, s = coarse
     fluid, _ = mesh.extract(tagged, Region.FLUID)
     solid, _ = mesh.extract(tagged, *STRUCTURE_REGIONS)
     interface = {tuple(x) for x in mesh.facet_segments(tagged, Boundary.INTERFACE).reshape(-1, 2)}
-    on_fluid, on_solid = _boundary_vertices(fluid), _boundary_vertices(solid)
+    on_fluid, on_solid = boundary_vertices(fluid), boundary_vertices(solid)
     assert interface <= on_fluid and interface <= on_solid  # bitwise-equal coordinates
     assert on_fluid & on_solid == interface  # and no other boundary vertex is shared
     assert len(interface) == s["facets"]["interface"] + 1  # one open polyline

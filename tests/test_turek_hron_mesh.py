@@ -5,13 +5,13 @@ import math
 
 from mpi4py import MPI
 
-import dolfinx.mesh
 import numpy as np
 import pytest
 
 from fsi import cli, compat, config, mesh
 from geometry import turek_hron
 from geometry.tags import Boundary, Region
+from mesh_checks import boundary_vertices
 
 CONFIGS = [f"configs/turek_hron_{name}.yaml" for name in
            ("cfd1", "cfd2", "cfd3", "csm1", "csm2", "csm3", "fsi1", "fsi3")]  # fmt: skip
@@ -126,16 +126,6 @@ def test_cylinder_vertices_lie_on_the_circle_and_a_is_a_vertex(request, level):
     assert np.any(np.all(tip == np.array(turek_hron.point_a(g)), axis=1))  # A is on the interface
 
 
-def _boundary_vertices(submesh) -> set[tuple[float, float]]:
-    """Coordinates of the vertices on the exterior facets of a submesh, gathered on all ranks."""
-    tdim = submesh.topology.dim
-    submesh.topology.create_connectivity(tdim - 1, tdim)
-    facets = dolfinx.mesh.exterior_facet_indices(submesh.topology)
-    nodes = compat.entities_to_geometry(submesh, tdim - 1, facets).ravel()
-    local = [tuple(x) for x in submesh.geometry.x[nodes, :2]]
-    return set().union(*submesh.comm.allgather(local))
-
-
 def _vertices(tagged, boundary: Boundary) -> set[tuple[float, float]]:
     return {tuple(x) for x in mesh.facet_segments(tagged, boundary).reshape(-1, 2)}
 
@@ -145,7 +135,7 @@ def test_fluid_and_flag_meshes_share_the_interface_vertices_exactly(coarse):
     fluid, _ = mesh.extract(tagged, Region.FLUID)
     flag, _ = mesh.extract(tagged, Region.FLAG)
     interface = _vertices(tagged, Boundary.INTERFACE)
-    on_fluid, on_flag = _boundary_vertices(fluid), _boundary_vertices(flag)
+    on_fluid, on_flag = boundary_vertices(fluid), boundary_vertices(flag)
     assert interface <= on_fluid and interface <= on_flag  # bitwise-equal coordinates
     assert on_fluid & on_flag == interface  # and no other boundary vertex is shared
     assert len(interface) == s["facets"]["interface"] + 1  # one open polyline, joint to joint
