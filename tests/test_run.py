@@ -43,9 +43,17 @@ def test_serial_and_parallel_runs_agree(shared_tmp):
         assert a["peak_pressure"] == pytest.approx(b["peak_pressure"], rel=1e-8)
 
 
-def test_coupled_modes_are_refused_before_any_work(shared_tmp, capsys):
+@pytest.mark.parametrize("config_file, overrides, message", [
+    # The coupling is wired for the stenosis only (tests/test_partitioned.py runs it).
+    ("configs/turek_hron_fsi1.yaml", [], "available for geometry.kind 'stenosis' only"),
+    # The interface maps pair P2 nodes of the fluid and the structure.
+    (CASE, ["structure.degree=3"], "needs structure.degree 2"),
+])
+def test_unsupported_coupled_cases_are_refused_before_any_work(shared_tmp, capsys, config_file,
+                                                               overrides, message):
     out = shared_tmp / "refused"
-    assert cli.main(["run", CASE, "--out", str(out)]) == 2
+    assert cli.main(["run", config_file, "--out", str(out),
+                     *sum((["--set", s] for s in overrides), [])]) == 2
     assert not out.exists()
     if MPI.COMM_WORLD.rank == 0:
-        assert "structure.mode: 'fixed_wall'" in capsys.readouterr().err
+        assert message in capsys.readouterr().err
