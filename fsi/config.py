@@ -326,13 +326,17 @@ class SolverSettings:
 class Fluid:
     """Blood (MODEL.md §2). ``open_boundary`` is the form of the inlet/outlet traction
     conditions: ``stress`` the study's σ n = −P n (σ the Cauchy stress); ``do_nothing``
-    μ ∇u n − p n = −P n (Heywood, Rannacher & Turek 1996), exact for fully developed flow."""
+    μ ∇u n − p n = −P n (Heywood, Rannacher & Turek 1996), exact for fully developed flow.
+    ``inflow_stabilization`` β ≥ 0 adds −β/2 ρ min(u·n, 0) u to a traction inlet's σ n, so the
+    kinetic energy carried in through the open inlet is balanced (0: the plain condition; the
+    study's case is unstable without it once the pulse has passed)."""
 
     density: float = positive(1060.0, " (kg/m^3)")
     rheology: Rheology = field(default_factory=Newtonian)
     inlet: Inlet = field(default_factory=InletPulse)
     outlet: Outlet = field(default_factory=Outlet)
     open_boundary: Literal["stress", "do_nothing"] = "stress"
+    inflow_stabilization: float = non_negative(1.0)
     quadrature_degree: int = at_least(4, 1)
     solver: SolverSettings = field(default_factory=SolverSettings)
 

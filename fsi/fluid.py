@@ -91,10 +91,12 @@ class Velocity:
 class Inflow:
     """The configured inlet on ``tags``: a normal traction σ n = −P(t) n (``traction_pulse``,
     ``pressure``, ``pressure_table``; in the ``do_nothing`` form μ∇u n − p n = −P n) or a
-    parabolic velocity (``parabolic_velocity``)."""
+    parabolic velocity (``parabolic_velocity``). A traction inlet with
+    ``inflow_stabilization`` β > 0 adds −β/2 ρ min(u·n, 0) u to σ n (as :class:`Outflow`)."""
 
     tags: tuple[int, ...]
     spec: config.Inlet
+    inflow_stabilization: float = 0.0
 
     def __post_init__(self):
         object.__setattr__(self, "tags", _tags(self.tags))
@@ -141,7 +143,7 @@ BoundaryCondition = Union[NoSlip, Velocity, Inflow, Outflow, Slip, Traction]
 
 def study_boundaries(fluid: config.Fluid) -> tuple[BoundaryCondition, ...]:
     """MODEL.md §2: the configured inlet, the outlet, no-slip on Γw2, u = ∂η/∂t on Γw1."""
-    return (Inflow(Boundary.INLET, fluid.inlet),
+    return (Inflow(Boundary.INLET, fluid.inlet, fluid.inflow_stabilization),
             Outflow(Boundary.OUTLET, fluid.outlet.backflow_stabilization),
             Velocity(Boundary.INTERFACE),
             NoSlip(Boundary.RIGID_WALL))
@@ -443,6 +445,12 @@ class FluidSolver:
                 self._updates.append(lambda t, c=pressure, law=law: c.value.fill(law(t)))
                 for term in open_boundary(pressure, bc.tags):
                     F += term
+                if bc.inflow_stabilization > 0:
+                    # The kinetic energy that flows in through an open (traction) inlet would
+                    # otherwise be unbalanced: the study's jet blew up at t ≈ 0.04 s without it.
+                    beta = bc.inflow_stabilization
+                    F -= (beta / 2 * rho * ufl.min_value(ufl.dot(u, n), 0.0) * ufl.dot(u, v)
+                          * ds_of(bc.tags))
             elif isinstance(bc, Outflow):
                 for term in open_boundary(None, bc.tags):
                     F += term

@@ -164,7 +164,7 @@ def fluid_boundaries(case: config.Case) -> tuple:
     """Rigid structure: the configured inlet, a traction-free outlet, no-slip elsewhere."""
     walls = [b for b in mesh.geometry_module(case).BOUNDARIES
              if b in (Boundary.RIGID_WALL, Boundary.INTERFACE, Boundary.OBSTACLE)]
-    return (fluid.Inflow(Boundary.INLET, case.fluid.inlet),
+    return (fluid.Inflow(Boundary.INLET, case.fluid.inlet, case.fluid.inflow_stabilization),
             fluid.Outflow(Boundary.OUTLET, case.fluid.outlet.backflow_stabilization),
             fluid.NoSlip(tuple(walls)))
 

@@ -68,8 +68,10 @@ def test_every_step_converges_and_the_contract_files_are_written(runs, mode):
         assert r["max_sss"] > 0
         # The largest pressure sits at the inlet, where σn = −P(t) n: the accelerating blood's
         # pressure falls along the channel, and the viscous normal stress there is ~1e-3 of P
-        # (measured: within 0.2 %), hence 1 %.
-        assert r["peak_pressure"] == pytest.approx(inlet_pressure(r["t"]), rel=1e-2)
+        # (hence 1 %). The inlet's inflow stabilization lowers it by at most the dynamic
+        # pressure ρ/2 |u|² (≈ 1 % here).
+        P, dynamic = inlet_pressure(r["t"]), 0.5 * 1060 * r["peak_velocity"] ** 2
+        assert P - dynamic - 1e-2 * P <= r["peak_pressure"] <= P * 1.01
     # Added mass: blood and tissue have similar densities, so one pass is not enough.
     assert max(r["coupling_iterations"] for r in rows) >= 3
     # The pulse accelerates the blood while it acts.
