@@ -405,9 +405,13 @@ class Structure:
     (clamped at the wall ends; the Turek–Hron flag at its joint with the cylinder); ``rigid``: no
     structure solve (fluid-only runs). ``flag`` is the Turek–Hron flag's material (CSM1/FSI1
     values by default); ``body_force`` a force per unit mass on the structure (gravity, m/s²);
-    ``degree`` the Lagrange degree of the displacement (P1 locks in bending)."""
+    ``degree`` the Lagrange degree of the displacement (P1 locks in bending).
+    ``interface_load``: ``fluid`` couples the structure to the blood; ``inlet_pressure`` solves
+    the structure alone under the follower pressure P(t) of ``fluid.inlet`` on the interface
+    (no fluid solve); ``none`` solves it alone under ``body_force`` only (Turek–Hron CSM)."""
 
     mode: Literal["fixed_wall", "moving_wall", "rigid"] = "fixed_wall"
+    interface_load: Literal["fluid", "inlet_pressure", "none"] = "fluid"
     wall: WallMaterial = field(default_factory=WallMaterial)
     cap: Material = field(default_factory=Material)
     lipid: Material = field(default_factory=Material)
@@ -693,6 +697,16 @@ def validate(case: Case) -> None:
     elif case.structure.mode != "rigid":
         raise ConfigError("", "structure.mode", f"'rigid' for geometry.kind '{g.kind}'"
                           " (it has no structure)", case.structure.mode)
+    if case.structure.interface_load != "fluid":
+        if case.structure.mode == "rigid":
+            raise ConfigError("", "structure.interface_load", "'fluid' when structure.mode is "
+                              "'rigid' (there is no structure to load)",
+                              case.structure.interface_load)
+        if (case.structure.interface_load == "inlet_pressure"
+                and isinstance(case.fluid.inlet, ParabolicInflow)):
+            raise ConfigError("", "structure.interface_load", "'fluid' or 'none' with a "
+                              "velocity inlet ('inlet_pressure' needs a traction inlet)",
+                              case.structure.interface_load)
     if case.mesh.local_size > case.mesh.size:
         raise ConfigError("", "mesh.local_size", f"at most mesh.size = {case.mesh.size} m",
                           case.mesh.local_size)

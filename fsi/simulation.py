@@ -55,7 +55,7 @@ class RunResult:
 def unsupported(case: config.Case) -> str | None:
     """Why this case cannot run (checked before any computation), or None."""
     mode = case.structure.mode
-    if mode != "rigid":
+    if mode != "rigid" and case.structure.interface_load == "fluid":
         if not isinstance(case.geometry, config.StenosisGeometry):
             return (f"structure.mode: '{mode}' (fluid–structure coupling) is available for "
                     f"geometry.kind 'stenosis' only, not '{case.geometry.kind}'; run the "
@@ -76,6 +76,9 @@ def run(case: config.Case, out: Path, comm: MPI.Comm = MPI.COMM_WORLD) -> RunRes
     Collective."""
     if case.structure.mode == "rigid":
         return run_rigid(case, out, comm)
+    if case.structure.interface_load != "fluid":
+        start = wallclock.perf_counter()
+        return march(case, out, comm, StructureStepper(case, comm), start)
     return run_coupled(case, out, comm)
 
 
@@ -290,3 +293,53 @@ def run_coupled(case: config.Case, out: Path, comm: MPI.Comm = MPI.COMM_WORLD) -
     """Run a fixed_wall/moving_wall case with the partitioned coupling. Collective."""
     start = wallclock.perf_counter()
     return march(case, out, comm, CoupledStepper(case, comm), start)
+
+
+# --------------------------------------------------------------------------------------------
+# The structure alone (structure.interface_load: inlet_pressure or none)
+
+
+class StructureStepper:
+    """The structure alone under a prescribed interface pressure (the inlet's P(t)) or under its
+    body force only; the fluid columns hold the prescribed pressure and no velocity."""
+
+    columns = COLUMNS + ["peak_wall_displacement"]
+
+    def __init__(self, case: config.Case, comm: MPI.Comm):
+        whole = mesh.build(case, comm)
+        self.cells = mesh.summary(whole, case)["cells"]
+        self.pressure = (fluid.inlet_pressure(case.fluid.inlet)
+                         if case.structure.interface_load == "inlet_pressure" else None)
+        self.solver = solid.build(case, whole, comm, self.pressure)
+        self.stenosis = isinstance(case.geometry, config.StenosisGeometry)
+
+    def field_files(self) -> dict[str, tuple[object, list]]:
+        s, stress = self.solver, self.solver.stress.fields
+        return {"solid.xdmf": (s.domain.mesh, [s.eta, stress["sss"], stress["von_mises"]])}
+
+    def step(self, step: Step) -> dict:
+        s = self.solver
+        result = s.step(step.t, step.dt)
+        if not result.converged:
+            raise SolveFailed(f"structure step {step.index} to t = {step.t:g} s failed: "
+                              f"{result.reason} (residual {result.residual:.3g})")
+        s.advance()
+        s.stress.update()
+        return {"peak_velocity": "",
+                "peak_pressure": self.pressure(step.t) if self.pressure else "",
+                "peak_displacement": s.max_displacement(),
+                "peak_wall_displacement": (s.max_displacement([Region.WALL])
+                                           if self.stenosis else ""),
+                "max_sss": s.stress.region_maxima()["all"].max_abs_shear,
+                "coupling_iterations": 0,
+                "newton_iterations": result.iterations, "newton_residual": result.residual}
+
+    def describe(self, row: dict) -> str:
+        return (f"Newton {row['newton_iterations']} (residual {row['newton_residual']:.2e})  "
+                f"|η|max {row['peak_displacement']:.3g} m  SSS {row['max_sss']:.3g} Pa")
+
+    def summary(self) -> dict:
+        V = self.solver.V
+        return {"mean_coupling_iterations": 0.0,
+                "solid_dofs": V.dofmap.index_map.size_global * V.dofmap.index_map_bs,
+                "cells": self.cells}

@@ -4,6 +4,7 @@ import json
 
 from mpi4py import MPI
 
+import numpy as np
 import pytest
 
 from fsi import cli, config, io, simulation
@@ -71,3 +72,32 @@ def test_rigid_stenosis_stays_stable_after_the_pulse(shared_tmp):
     after = [r["peak_velocity"] for r in rows if r["t"] >= 0.01]
     assert rows[-1]["t"] == pytest.approx(0.06)
     assert all(b <= a * 1.001 for a, b in zip(after, after[1:])), "the flow must keep slowing down"
+
+
+def test_structure_alone_under_the_inlet_pressure(shared_tmp):
+    """structure.interface_load: inlet_pressure — the study's structure under P(t), no fluid."""
+    peaks = {}
+    for mode in ("fixed_wall", "moving_wall"):
+        out = shared_tmp / mode
+        overrides = [f"structure.mode={mode}", "structure.interface_load=inlet_pressure",
+                     "time.end=0.003", "time.schedule=[{until: 0.003, dt: 5.0e-4}]"]
+        args = ["run", CASE, "--out", str(out), *sum((["--set", s] for s in overrides), [])]
+        assert cli.main(args) == 0
+        rows = io.read_metrics(out / "metrics.csv")
+        assert len(rows) == 6 and all(r["max_sss"] > 0 for r in rows)
+        assert rows[-1]["peak_pressure"] == pytest.approx(600 * (1 - np.cos(2 * np.pi * 0.6)))
+        peaks[mode] = max(r["peak_displacement"] for r in rows)
+        walls = [r["peak_wall_displacement"] for r in rows]
+        assert (max(walls) == 0.0) == (mode == "fixed_wall")  # the wall is held in fixed_wall
+        assert "sss" in (out / "solid.xdmf").read_text()
+    assert 0 < peaks["fixed_wall"] < peaks["moving_wall"] / 100
+
+
+@pytest.mark.parametrize("overrides,expected", [
+    (["structure.mode=rigid", "structure.interface_load=none"], "no structure to load"),
+    (["fluid.inlet={kind: parabolic_velocity}", "structure.interface_load=inlet_pressure"],
+     "needs a traction inlet"),
+])
+def test_interface_load_needs_a_structure_and_a_pressure(overrides, expected):
+    with pytest.raises(config.ConfigError, match=expected):
+        config.load(CASE, overrides)
