@@ -74,16 +74,23 @@ def run(case: config.Case, out: Path, comm: MPI.Comm = MPI.COMM_WORLD) -> RunRes
 
     Raises :class:`SolveFailed` when a step fails; the finished steps stay in metrics.csv.
     Collective."""
+    start = wallclock.perf_counter()
     if case.structure.mode == "rigid":
-        return run_rigid(case, out, comm)
-    if case.structure.interface_load != "fluid":
-        start = wallclock.perf_counter()
-        return march(case, out, comm, StructureStepper(case, comm), start)
-    return run_coupled(case, out, comm)
+        stepper: Stepper = RigidStepper(case, comm)
+    elif case.structure.interface_load != "fluid":
+        stepper = StructureStepper(case, comm)
+    else:
+        stepper = CoupledStepper(case, comm)
+    return march(case, out, comm, stepper, start)
 
 
 # --------------------------------------------------------------------------------------------
 # The shared loop
+
+
+def global_dofs(V) -> int:
+    """Number of degrees of freedom of a function space over all ranks."""
+    return V.dofmap.index_map.size_global * V.dofmap.index_map_bs
 
 
 class Stepper(Protocol):
@@ -209,14 +216,8 @@ class RigidStepper:
     def summary(self) -> dict:
         W = self.solver.W
         return {"mean_coupling_iterations": 0.0,
-                "fluid_dofs": W.dofmap.index_map.size_global * W.dofmap.index_map_bs,
+                "fluid_dofs": global_dofs(W),
                 "cells": self.cells}
-
-
-def run_rigid(case: config.Case, out: Path, comm: MPI.Comm = MPI.COMM_WORLD) -> RunResult:
-    """Run a rigid-structure case (the fluid alone). Collective."""
-    start = wallclock.perf_counter()
-    return march(case, out, comm, RigidStepper(case, comm), start)
 
 
 # --------------------------------------------------------------------------------------------
@@ -284,15 +285,9 @@ class CoupledStepper:
                 "mean_coupling_iterations": sum(self.iterations) / max(n, 1),
                 "max_coupling_iterations": max(self.iterations, default=0),
                 "solid_newton_iterations": self.solid_newton,
-                "fluid_dofs": W.dofmap.index_map.size_global * W.dofmap.index_map_bs,
-                "solid_dofs": V.dofmap.index_map.size_global * V.dofmap.index_map_bs,
+                "fluid_dofs": global_dofs(W),
+                "solid_dofs": global_dofs(V),
                 "cells": self.cells}
-
-
-def run_coupled(case: config.Case, out: Path, comm: MPI.Comm = MPI.COMM_WORLD) -> RunResult:
-    """Run a fixed_wall/moving_wall case with the partitioned coupling. Collective."""
-    start = wallclock.perf_counter()
-    return march(case, out, comm, CoupledStepper(case, comm), start)
 
 
 # --------------------------------------------------------------------------------------------
@@ -341,5 +336,5 @@ class StructureStepper:
     def summary(self) -> dict:
         V = self.solver.V
         return {"mean_coupling_iterations": 0.0,
-                "solid_dofs": V.dofmap.index_map.size_global * V.dofmap.index_map_bs,
+                "solid_dofs": global_dofs(V),
                 "cells": self.cells}

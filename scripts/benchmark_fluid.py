@@ -83,10 +83,6 @@ def event_totals(comm: MPI.Comm) -> dict[str, tuple[int, float]]:
     return totals
 
 
-def global_dofs(V) -> int:
-    return V.dofmap.index_map.size_global * V.dofmap.index_map_bs
-
-
 def assembly_times(solver: fluid.FluidSolver, repeats: int) -> tuple[np.ndarray, np.ndarray]:
     """Wall times of the Jacobian (into Newton's matrix) and residual evaluations at U."""
     problem, x = solver.problem, compat.petsc_vector(solver.U)
@@ -264,7 +260,7 @@ def main(argv: list[str] | None = None) -> int:
                                        simulation.fluid_boundaries(case),
                                        scheme=case.time.scheme)
             setup = comm.allreduce(time.perf_counter() - tic, op=MPI.MAX)
-            dofs = global_dofs(solver.W)
+            dofs = simulation.global_dofs(solver.W)
             say(f"[{level}/{model}] {dofs} dofs, solver set-up {setup:.1f} s (JIT if not cached);"
                 f" {args.steps} steps of {args.dt:g} s")
             run = run_steps(solver, case)
@@ -278,7 +274,7 @@ def main(argv: list[str] | None = None) -> int:
             del solver
         if "carreau" in args.models and args.degrees:
             case = load_case(level, "carreau", args.steps, args.dt)
-            studies[level] = (global_dofs(compat.mixed_space(
+            studies[level] = (simulation.global_dofs(compat.mixed_space(
                 part.mesh, [("Lagrange", 2, (2,)), ("Lagrange", 1, ())])),
                 degree_study(part, case, args.degrees, args.repeats))
 
