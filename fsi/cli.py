@@ -50,8 +50,17 @@ def _setup_logging(comm: MPI.Comm) -> None:
         logger.addHandler(handler)
         logger.propagate = False
     logger.setLevel(logging.INFO if comm.rank == 0 else logging.WARNING)
-    # The JIT compiler's build steps log at INFO through the root logger: keep them quiet.
-    logging.getLogger().setLevel(logging.WARNING)
+    # The JIT compiler's build steps (setuptools, which also raises the root logger's level and
+    # adds a handler while it compiles) log at INFO through the root logger: keep them quiet.
+    root = logging.getLogger()
+    root.setLevel(logging.WARNING)
+    if not any(isinstance(f, _WarningsOnly) for f in root.filters):
+        root.addFilter(_WarningsOnly())
+
+
+class _WarningsOnly(logging.Filter):
+    def filter(self, record: logging.LogRecord) -> bool:
+        return record.levelno >= logging.WARNING
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -438,10 +438,15 @@ class TimeSegment:
 
 @dataclass(frozen=True)
 class Time:
-    """The step schedule; the default is the study's: 5 ms to 0.4 s, then 10 ms to 0.8 s."""
+    """The step schedule; the default is the study's: 5 ms to 0.4 s, then 10 ms to 0.8 s.
+
+    ``scheme``: the fluid's time scheme. ``steady`` drops ∂u/∂t and the mesh velocity: every
+    step solves the steady equations with the boundary data at its time (a continuation through
+    an inflow ramp); with a ``quasi_static`` structure a coupled step is a steady FSI solve.
+    """
 
     end: float = positive(0.8, " (s)")
-    scheme: Literal["backward_euler", "bdf2"] = "bdf2"
+    scheme: Literal["backward_euler", "bdf2", "steady"] = "bdf2"
     schedule: tuple[TimeSegment, ...] = (TimeSegment(0.4, 5.0e-3), TimeSegment(0.8, 1.0e-2))
 
 
@@ -722,6 +727,12 @@ def validate(case: Case) -> None:
     if schedule[-1].until < case.time.end * (1 - 1e-12):
         raise ConfigError("", f"time.schedule[{len(schedule) - 1}].until",
                           f"at least time.end = {case.time.end} s", schedule[-1].until)
+
+    if (case.time.scheme == "steady" and case.structure.mode != "rigid"
+            and case.structure.time_integration.scheme != "quasi_static"):
+        raise ConfigError("", "structure.time_integration.scheme", "'quasi_static' when "
+                          "time.scheme is 'steady' (a steady fluid cannot load a structure "
+                          "with inertia)", case.structure.time_integration.scheme)
 
     if case.coupling.max_relaxation < case.coupling.initial_relaxation:
         raise ConfigError("", "coupling.max_relaxation", "at least coupling.initial_relaxation ="

@@ -141,12 +141,14 @@ class Traction:
 BoundaryCondition = Union[NoSlip, Velocity, Inflow, Outflow, Slip, Traction]
 
 
-def study_boundaries(fluid: config.Fluid) -> tuple[BoundaryCondition, ...]:
-    """MODEL.md §2: the configured inlet, the outlet, no-slip on Γw2, u = ∂η/∂t on Γw1."""
+def study_boundaries(fluid: config.Fluid, walls: Sequence[Boundary] = (Boundary.RIGID_WALL,)
+                     ) -> tuple[BoundaryCondition, ...]:
+    """MODEL.md §2: the configured inlet, the outlet, no-slip on the rigid ``walls`` (Γw2; in
+    the Turek–Hron benchmark also the cylinder), u = ∂η/∂t on Γw1."""
     return (Inflow(Boundary.INLET, fluid.inlet, fluid.inflow_stabilization),
             Outflow(Boundary.OUTLET, fluid.outlet.backflow_stabilization),
             Velocity(Boundary.INTERFACE),
-            NoSlip(Boundary.RIGID_WALL))
+            NoSlip(tuple(walls)))
 
 
 def inlet_pressure(spec: config.Inlet) -> Callable[[float], float]:

@@ -40,6 +40,21 @@ def peak_pressure(p: dolfinx.fem.Function) -> float:
     return p.function_space.mesh.comm.allreduce(local, op=MPI.MAX)
 
 
+def nodal_value(f: dolfinx.fem.Function, point: Sequence[float]) -> np.ndarray:
+    """The value of a Lagrange function at ``point``, which must be one of its nodes (the
+    Turek–Hron point A is a mesh vertex); the same on every rank. On a submesh of a moving
+    problem ``point`` is in the reference configuration."""
+    V = f.function_space
+    n, bs = V.dofmap.index_map.size_local, V.dofmap.index_map_bs
+    x = V.tabulate_dof_coordinates()[:n, : len(point)]
+    hit = np.flatnonzero(np.linalg.norm(x - np.asarray(point), axis=1) < 1e-10 * (
+        1 + np.linalg.norm(point)))
+    found = np.concatenate(V.mesh.comm.allgather(_owned_blocks(f)[hit])).reshape(-1, bs)
+    if len(found) != 1:
+        raise ValueError(f"{len(found)} nodes of {f.name!r} at {list(point)} (expected one)")
+    return found[0]
+
+
 # --------------------------------------------------------------------------------------------
 # Wall shear stress and recirculation
 

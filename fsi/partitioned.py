@@ -180,17 +180,21 @@ class CoupledProblem:
 
 
 def build_coupled(case: config.Case, comm: MPI.Comm = MPI.COMM_WORLD) -> CoupledProblem:
-    """Build the coupled stenosis problem of ``case`` (structure.mode fixed_wall or moving_wall):
-    one mesh of fluid + wall + cap + lipid, its fluid and structure submeshes (with the parent's
-    tags), the fluid solver with the study's boundaries, the mesh motion, the solid with the
-    mode's Dirichlet conditions, the interface maps, the acceleration and the predictor
-    (initialised with the structure at rest). Collective."""
+    """Build the coupled problem of ``case`` (structure.mode fixed_wall or moving_wall): one mesh
+    of the fluid and the structure (the stenosis' wall + cap + lipid, or the Turek–Hron flag),
+    its fluid and structure submeshes (with the parent's tags), the fluid solver with the
+    study's boundaries (no-slip on the rigid walls and the Turek–Hron cylinder), the mesh
+    motion, the solid with the mode's Dirichlet conditions, the interface maps, the acceleration
+    and the predictor (initialised with the structure at rest). Collective."""
     if case.structure.mode == "rigid":
         raise ValueError("structure.mode 'rigid' has no structure to couple")
     whole = mesh.build(case, comm)
     fluid_mesh = mesh.restrict(whole, Region.FLUID)
+    walls = [b for b in mesh.geometry_module(case).BOUNDARIES
+             if b in (Boundary.RIGID_WALL, Boundary.OBSTACLE)]
     fluid_solver = fluid.FluidSolver(fluid_mesh.mesh, fluid_mesh.facet_tags, case.fluid,
-                                     fluid.study_boundaries(case.fluid), scheme=case.time.scheme)
+                                     fluid.study_boundaries(case.fluid, walls),
+                                     scheme=case.time.scheme)
     # Built before the mesh ever moves: both keep the reference coordinates X.
     motion = MeshMotion(fluid_mesh, case.mesh_motion, moving=(Boundary.INTERFACE,))
     solid_solver = solid.build(case, whole, comm)

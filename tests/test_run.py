@@ -45,8 +45,6 @@ def test_serial_and_parallel_runs_agree(shared_tmp):
 
 
 @pytest.mark.parametrize("config_file, overrides, message", [
-    # The coupling is wired for the stenosis only (tests/test_partitioned.py runs it).
-    ("configs/turek_hron_fsi1.yaml", [], "available for geometry.kind 'stenosis' only"),
     # The interface maps pair P2 nodes of the fluid and the structure.
     (CASE, ["structure.degree=3"], "needs structure.degree 2"),
 ])
