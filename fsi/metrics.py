@@ -14,9 +14,11 @@ from mpi4py import MPI
 
 import dolfinx
 import dolfinx.fem
+import dolfinx.fem.petsc
 import dolfinx.mesh
 import numpy as np
 import ufl
+from petsc4py import PETSc
 
 from fsi import compat, rheology
 
@@ -62,11 +64,16 @@ def nodal_value(f: dolfinx.fem.Function, point: Sequence[float]) -> np.ndarray:
 @dataclass(frozen=True)
 class WallShearStress:
     """Samples along a wall (gathered on every rank), ordered by ``s``, the position along the
-    flow ``direction``: points ``x`` (n, 2), ``tau`` the signed wall shear stress (Pa)."""
+    flow ``direction``: points ``x`` (n, 2), ``tau`` the signed wall shear stress (Pa),
+    ``normal`` the wall's unit normal into the fluid (n, 2)."""
 
     s: np.ndarray
     x: np.ndarray
     tau: np.ndarray
+    normal: np.ndarray
+
+    def where(self, mask: np.ndarray) -> "WallShearStress":
+        return WallShearStress(self.s[mask], self.x[mask], self.tau[mask], self.normal[mask])
 
 
 # Two Gauss points per facet of the reference triangle; facet k is opposite vertex k.
@@ -134,9 +141,27 @@ def wall_shear_stress(u: dolfinx.fem.Function, p: dolfinx.fem.Function,
     points = data[:, :, 4:].reshape(-1, 2)
     points = np.concatenate(comm.allgather(points))
     tau = np.concatenate(comm.allgather(tau))
+    normal = np.concatenate(comm.allgather(np.repeat(normal, 2, axis=0))).reshape(-1, 2)
     s = points @ e
     order = np.argsort(s, kind="stable")
-    return WallShearStress(s[order], points[order], tau[order])
+    return WallShearStress(s[order], points[order], tau[order], normal[order])
+
+
+def lumen_sides(wss: WallShearStress) -> dict[str, WallShearStress]:
+    """The samples of the lower (``bottom``: normal into the fluid pointing up) and upper
+    (``top``) walls of a channel-like lumen, each a graph over x, so that reversed-flow zones
+    are found along one wall at a time."""
+    return {"bottom": wss.where(wss.normal[:, 1] > 0), "top": wss.where(wss.normal[:, 1] < 0)}
+
+
+def wall_shear_summary(wss: WallShearStress) -> dict[str, float]:
+    """``min_wss``, ``max_wss`` (Pa) over the walls and ``recirculation_length`` (m), the
+    longest reversed-flow zone along either wall of the lumen (MODEL.md §6, Figure 9)."""
+    length = max((recirculation_length(side.s, side.tau)
+                  for side in lumen_sides(wss).values() if len(side.s)), default=0.0)
+    return {"min_wss": float(wss.tau.min(initial=np.inf)),
+            "max_wss": float(wss.tau.max(initial=-np.inf)),
+            "recirculation_length": float(length)}
 
 
 def recirculation_zones(s: np.ndarray, tau: np.ndarray) -> list[tuple[float, float]]:
@@ -220,3 +245,64 @@ def viscosity_field(u: dolfinx.fem.Function, law: rheology.ViscosityLaw,
                     degree: int = 1) -> dolfinx.fem.Function:
     """The effective viscosity μ(s(u)) (Pa s) interpolated into discontinuous P``degree``."""
     return _field(law.mu(rheology.shear_rate(u)), u.function_space.mesh, "viscosity", degree)
+
+
+class FluidFields:
+    """The shear rate s(u) (1/s), the effective viscosity μ(s) (Pa s) and the signed wall shear
+    stress τ_w (Pa) of a fluid solution as fields for output; :meth:`update` recomputes them in
+    place (also on a moved mesh).
+
+    s and μ are cell values (DG0, at each cell's midpoint). τ_w is a P1 field that is zero off the
+    walls: at a wall vertex i, τ_i = ∫_Γ τ_w φ_i ds / ∫_Γ φ_i ds (the lumped L² projection onto
+    the walls' P1 nodes) with τ_w = t·(σ m), m = −n the wall's normal into the fluid and t the
+    tangent with t·e_x ≥ 0, the sign convention of :func:`wall_shear_stress`.
+    """
+
+    def __init__(self, u: dolfinx.fem.Function, p: dolfinx.fem.Function,
+                 law: rheology.ViscosityLaw, facet_tags: dolfinx.mesh.MeshTags,
+                 walls: Sequence[int], quadrature_degree: int = 2):
+        mesh = u.function_space.mesh
+        cells = compat.function_space(mesh, "DG", 0)
+        self.shear_rate = dolfinx.fem.Function(cells, name="shear_rate")
+        self.viscosity = dolfinx.fem.Function(cells, name="viscosity")
+        points = compat.interpolation_points(cells)
+        s = rheology.shear_rate(u)
+        mu = law.mu(s)
+        self._expressions = [(self.shear_rate, dolfinx.fem.Expression(s, points))]
+        if isinstance(mu, ufl.constantvalue.ConstantValue):  # Newtonian: set once
+            self.viscosity.x.array[:] = float(mu)
+        else:
+            self._expressions.append((self.viscosity, dolfinx.fem.Expression(mu, points)))
+        self.wall_shear_stress = dolfinx.fem.Function(compat.function_space(mesh, "Lagrange", 1),
+                                                      name="wall_shear_stress")
+        walls = [int(w) for w in walls]
+        ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags,
+                         metadata={"quadrature_degree": quadrature_degree})
+        on_walls = sum((ds(w) for w in walls[1:]), ds(walls[0]))
+        n = ufl.FacetNormal(mesh)
+        along = ufl.as_vector((n[1], -n[0]))
+        t = ufl.conditional(ufl.ge(along[0], 0.0), 1.0, -1.0) * along
+        tau = -ufl.dot(t, ufl.dot(rheology.cauchy_stress(u, p, law), n))
+        v = ufl.TestFunction(self.wall_shear_stress.function_space)
+        self._weighted = dolfinx.fem.form(tau * v * on_walls)
+        self._mass = dolfinx.fem.form(v * on_walls)
+
+    @property
+    def fields(self) -> list[dolfinx.fem.Function]:
+        return [self.viscosity, self.shear_rate, self.wall_shear_stress]
+
+    def update(self) -> None:
+        for target, expression in self._expressions:
+            target.interpolate(expression)
+        weighted, mass = (dolfinx.fem.petsc.assemble_vector(f)
+                          for f in (self._weighted, self._mass))
+        for vec in (weighted, mass):
+            vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        tau = self.wall_shear_stress
+        n = tau.function_space.dofmap.index_map.size_local
+        on_wall = mass.array[:n] > 0
+        tau.x.array[:] = 0.0
+        tau.x.array[:n][on_wall] = weighted.array[:n][on_wall] / mass.array[:n][on_wall]
+        tau.x.scatter_forward()
+        weighted.destroy()
+        mass.destroy()

@@ -36,6 +36,9 @@ COLUMNS = ["step", "t", "dt", "peak_velocity", "peak_pressure", "peak_displaceme
            "wall_time_s"]
 COUPLED_COLUMNS = COLUMNS + ["peak_wall_displacement", "relaxation", "solid_newton_iterations",
                              "mesh_jacobian_ratio"]
+WALL_COLUMNS = ["min_wss", "max_wss", "recirculation_length"]
+"""Channel-like lumens (stenosis, channel): the signed wall shear stress's extremes (Pa) and the
+longest reversed-flow zone along either wall (m) (fsi.metrics.wall_shear_summary)."""
 """``peak_wall_displacement``: max |η| over the vessel wall (0 in the fixed-wall mode);
 ``relaxation``: Aitken's (or the constant) ω of the step's last iteration, empty for IQN-ILS;
 ``newton_iterations``/``solid_newton_iterations``: fluid/solid Newton iterations summed over the
@@ -164,6 +167,37 @@ def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper,
 
 
 # --------------------------------------------------------------------------------------------
+# Fluid outputs shared by the rigid and the coupled runs
+
+
+class FluidOutputs:
+    """The fluid's derived output: viscosity, shear rate and wall shear stress fields (on every
+    no-slip or moving wall) and, for channel-like lumens, the WALL_COLUMNS of the metrics row."""
+
+    def __init__(self, case: config.Case, solver: fluid.FluidSolver):
+        self.solver = solver
+        self.walls = [b for b in mesh.geometry_module(case).BOUNDARIES
+                      if b in (Boundary.RIGID_WALL, Boundary.INTERFACE, Boundary.OBSTACLE)]
+        self.lumen = not isinstance(case.geometry, config.TurekHronGeometry)
+        self.columns = WALL_COLUMNS if self.lumen else []
+        self.derived = metrics.FluidFields(solver.u, solver.p, solver.law, solver.facet_tags,
+                                           self.walls)
+
+    @property
+    def fields(self) -> list:
+        return [self.solver.u, self.solver.p, *self.derived.fields]
+
+    def update(self) -> dict:
+        """Recompute the fields for the current solution; return the row's wall columns."""
+        s = self.solver
+        self.derived.update()
+        if not self.lumen:
+            return {}
+        return metrics.wall_shear_summary(metrics.wall_shear_stress(
+            s.u, s.p, s.law, s.facet_tags, self.walls))
+
+
+# --------------------------------------------------------------------------------------------
 # Rigid structure: the fluid alone
 
 
@@ -188,10 +222,12 @@ class RigidStepper:
         self.obstacle = [b for b in (Boundary.OBSTACLE, Boundary.INTERFACE)
                          if b in mesh.geometry_module(case).BOUNDARIES]
         self.turek_hron = isinstance(case.geometry, config.TurekHronGeometry)
-        self.columns = COLUMNS + (["drag", "lift"] if self.turek_hron else [])
+        self.outputs = FluidOutputs(case, self.solver)
+        self.columns = COLUMNS + self.outputs.columns + (["drag", "lift"] if self.turek_hron
+                                                         else [])
 
     def field_files(self) -> dict[str, tuple[object, list]]:
-        return {"fields.xdmf": (self.part.mesh, [self.solver.u, self.solver.p])}
+        return {"fields.xdmf": (self.part.mesh, self.outputs.fields)}
 
     def step(self, step: Step) -> dict:
         solver = self.solver
@@ -202,7 +238,8 @@ class RigidStepper:
         row = {"peak_velocity": metrics.peak_velocity(solver.u),
                "peak_pressure": metrics.peak_pressure(solver.p),
                "peak_displacement": 0.0, "coupling_iterations": 0,
-               "newton_iterations": result.iterations, "newton_residual": result.residual}
+               "newton_iterations": result.iterations, "newton_residual": result.residual,
+               **self.outputs.update()}
         if self.turek_hron:
             row["drag"], row["lift"] = solver.boundary_force(self.obstacle)
         return row
@@ -232,15 +269,16 @@ class CoupledStepper:
         self.cells = mesh.summary(self.problem.whole, case)["cells"]
         self.point_a = (turek_hron.point_a(case.geometry)
                         if isinstance(case.geometry, config.TurekHronGeometry) else None)
-        self.columns = COUPLED_COLUMNS + (["drag", "lift", "ux_A", "uy_A"]
-                                          if self.point_a else [])
+        self.outputs = FluidOutputs(case, self.problem.fluid)
+        self.columns = COUPLED_COLUMNS + self.outputs.columns + (
+            ["drag", "lift", "ux_A", "uy_A"] if self.point_a else [])
         self.iterations: list[int] = []
         self.solid_newton = 0
 
     def field_files(self) -> dict[str, tuple[object, list]]:
         p = self.problem
         stress = p.solid.stress.fields
-        return {"fields.xdmf": (p.fluid.mesh, [p.fluid.u, p.fluid.p, p.fluid.ale.d]),
+        return {"fields.xdmf": (p.fluid.mesh, [*self.outputs.fields, p.fluid.ale.d]),
                 "solid.xdmf": (p.solid.domain.mesh, [p.solid.eta, stress["sss"],
                                                      stress["von_mises"]])}
 
@@ -260,7 +298,7 @@ class CoupledStepper:
         omega = p.relaxation
         row = self.benchmark_values() if self.point_a else {
             "peak_wall_displacement": p.solid.max_displacement([Region.WALL])}
-        return {**row,
+        return {**row, **self.outputs.update(),
                 "peak_velocity": metrics.peak_velocity(p.fluid.u),
                 "peak_pressure": metrics.peak_pressure(p.fluid.p),
                 "peak_displacement": p.solid.max_displacement(),

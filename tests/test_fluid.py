@@ -197,6 +197,57 @@ def test_reversed_poiseuille_has_negative_wall_shear_stress():
     assert metrics.recirculation_zones(wss.s, wss.tau) == [(wss.s[0], wss.s[-1])]
 
 
+@pytest.mark.parametrize("G", [1.0, -1.0])
+def test_output_fields_on_poiseuille_flow(G):
+    """FluidFields on u = G/(2μ) y (H − y): τ_w = G H/2 at every wall vertex (the lumped
+    projection of a constant traction is exact), 0 off the walls; s at each cell's midpoint is
+    |G (H/2 − y_c)|/μ (to the regularisation ε); μ the Newtonian constant. The wall summary
+    finds no reversed flow forward and reversal along (almost) the whole of both walls
+    backward (the first and last samples are Gauss points, 0.2 h from the ends)."""
+    H, L = 0.007, 0.02
+    _, solver = pressure_driven(1e-3, {"model": "newtonian"}, G)
+    mu = solver.law.viscosity
+    fields = metrics.FluidFields(solver.u, solver.p, solver.law, solver.facet_tags, [WALL])
+    fields.update()
+    tau = fields.wall_shear_stress
+    x = tau.function_space.tabulate_dof_coordinates()
+    on_wall = (np.abs(x[:, 1]) < 1e-12) | (np.abs(x[:, 1] - H) < 1e-12)
+    assert np.abs(tau.x.array[on_wall] - G * H / 2).max() < 1e-9 * H / 2
+    assert np.all(tau.x.array[~on_wall] == 0.0)
+    assert solver.comm.allreduce(int(on_wall.sum())) > 0
+    centroid = fields.shear_rate.function_space.tabulate_dof_coordinates()[:, 1]
+    exact = np.abs(G * (H / 2 - centroid)) / mu
+    assert np.abs(fields.shear_rate.x.array - exact).max() < 1e-6 * abs(G) * H / mu
+    assert np.all(fields.viscosity.x.array == mu)
+
+    summary = metrics.wall_shear_summary(metrics.wall_shear_stress(
+        solver.u, solver.p, solver.law, solver.facet_tags, [WALL]))
+    assert summary["min_wss"] == pytest.approx(G * H / 2, rel=1e-9)
+    assert summary["max_wss"] == pytest.approx(G * H / 2, rel=1e-9)
+    if G > 0:
+        assert summary["recirculation_length"] == 0.0
+    else:
+        assert 0.95 * L < summary["recirculation_length"] < L
+
+
+def test_carreau_viscosity_field_is_the_law_of_the_shear_rate_field():
+    _, solver = pressure_driven(1e-3, {"model": "carreau"}, 100.0)
+    fields = metrics.FluidFields(solver.u, solver.p, solver.law, solver.facet_tags, [WALL])
+    fields.update()
+    s = fields.shear_rate.x.array
+    assert s.max() > 10 * s.min()  # a real range of shear rates
+    assert np.allclose(fields.viscosity.x.array, solver.law.mu(s), rtol=1e-12, atol=0)
+
+
+def test_lumen_sides_split_samples_by_their_normal():
+    _, solver = pressure_driven(1e-3, {"model": "newtonian"}, 1.0)
+    wss = metrics.wall_shear_stress(solver.u, solver.p, solver.law, solver.facet_tags, [WALL])
+    sides = metrics.lumen_sides(wss)
+    assert np.all(np.abs(sides["bottom"].x[:, 1]) < 1e-12)
+    assert np.all(np.abs(sides["top"].x[:, 1] - 0.007) < 1e-12)
+    assert len(sides["bottom"].s) + len(sides["top"].s) == len(wss.s)
+
+
 def test_recirculation_zones_from_samples():
     s = np.linspace(0, 10, 11)
     tau = np.array([1, 1, -1, -3, -1, 1, 2, 2, -1, -1, 1], dtype=float)
