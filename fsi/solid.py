@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable, Mapping, Optional, Sequence, Union
 
 from mpi4py import MPI
@@ -729,7 +729,7 @@ class StressFields:
 
 
 # --------------------------------------------------------------------------------------------
-# Building from a case, and a structure-only run
+# Building from a case
 
 
 def build(case: Case, tagged: Optional[TaggedMesh] = None, comm: MPI.Comm = MPI.COMM_WORLD,
@@ -745,57 +745,5 @@ def build(case: Case, tagged: Optional[TaggedMesh] = None, comm: MPI.Comm = MPI.
                        quadrature_degree=s.quadrature_degree, solver=s.solver)
 
 
-def pressure_pulse(case: Case) -> Callable[[float], float]:
-    """The inlet pulse's shape as an interface pressure: ``(A/2)(1 − cos(2πt/T))``, t ≤ T."""
-    A, T = case.fluid.inlet.amplitude, case.fluid.inlet.duration
-    return lambda t: A / 2 * (1 - math.cos(2 * math.pi * t / T)) if 0 <= t <= T else 0.0
-
-
-@dataclass(frozen=True)
-class StructureRecord:
-    """One step of a structure-only run."""
-
-    step: int
-    t: float
-    dt: float
-    newton_iterations: int
-    residual: float
-    peak_displacement: float
-    region_displacement: dict[str, float] = field(default_factory=dict)
-    max_sss: float = 0.0
-    stresses: dict[str, RegionStress] = field(default_factory=dict)
-
-
 class SolveFailed(RuntimeError):
     """A structure step did not converge (the message names the step and the reason)."""
-
-
-def run_structure_only(case: Case, pressure: Optional[Callable[[float], float]] = None,
-                       comm: MPI.Comm = MPI.COMM_WORLD, end: Optional[float] = None,
-                       tagged: Optional[TaggedMesh] = None) -> list[StructureRecord]:
-    """March the structure alone under a prescribed interface pressure (default: the inlet
-    pulse's shape, :func:`pressure_pulse`) over the case's step schedule (up to ``end``).
-
-    Raises :class:`SolveFailed` naming the step when a solve fails. Collective.
-    """
-    from dataclasses import replace
-
-    from fsi.timestepping import steps
-
-    solver = build(case, tagged, comm, pressure or pressure_pulse(case))
-    time = case.time if end is None else replace(case.time, end=end)
-    records = []
-    for st in steps(time):
-        result = solver.step(st.t, st.dt)
-        if not result.converged:
-            raise SolveFailed(f"structure step {st.index} to t = {st.t:g} s failed: "
-                              f"{result.reason} (residual {result.residual:.3g})")
-        solver.advance()
-        solver.stress.update()
-        stresses = solver.stress.region_maxima()
-        records.append(StructureRecord(
-            st.index, st.t, st.dt, result.iterations, result.residual,
-            solver.max_displacement(),
-            {r.label: solver.max_displacement([r]) for r in solver.regions},
-            stresses["all"].max_abs_shear, stresses))
-    return records
