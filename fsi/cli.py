@@ -1,4 +1,5 @@
-"""The command line: ``fsi run``, ``fsi mesh``, ``fsi check`` (``python -m fsi`` is the same).
+"""The command line: ``fsi run``, ``fsi mesh``, ``fsi check``, ``fsi report`` (``python -m fsi``
+is the same).
 
 Exit status: 0 done; 2 the configuration or the command line is wrong (nothing is written);
 3 the solve failed.
@@ -38,6 +39,13 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, required=True, metavar="DIR")
     p = sub.add_parser("check", help="validate a case without running it")
     with_config(p)
+    p = sub.add_parser("report", help="the study's tables (peaks at the report times, solver "
+                                      "effort) and plots from run folders")
+    p.add_argument("runs", type=Path, nargs="+", metavar="RUN_DIR")
+    p.add_argument("--out", type=Path, metavar="DIR",
+                   help="write DIR/report.md and PNG plots (default: print the tables only)")
+    p.add_argument("--times", type=float, nargs="+", metavar="T",
+                   help="report times in s (default: the first run's output.report_times)")
     return parser
 
 
@@ -70,6 +78,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = _parser().parse_args(argv)
     except SystemExit as e:  # argparse has printed the message; --help exits 0
         return int(e.code or 0)
+    if args.command == "report":
+        return _report(args)
     try:
         case = config.load(args.config, args.overrides)
     except config.ConfigError as e:
@@ -116,6 +126,25 @@ def _mesh(args: argparse.Namespace, case: config.Case) -> int:
         log.info("  %s: %.6g", name, value)
     log.info("wrote %s and %s", args.out / "mesh.xdmf", args.out / "mesh.json")
     return EXIT_OK
+
+
+def _report(args: argparse.Namespace) -> int:
+    from fsi import report
+
+    comm = MPI.COMM_WORLD
+    status = EXIT_OK
+    if comm.rank == 0:  # reading and plotting a few files: rank 0 alone
+        try:
+            runs = [report.load_run(path) for path in args.runs]
+        except report.ReportError as e:
+            print(f"fsi: error: {e}", file=sys.stderr)
+            status = EXIT_USAGE
+        else:
+            print(report.markdown(runs, args.times))
+            if args.out is not None:
+                written = report.write(runs, args.out, args.times)
+                log.info("wrote %s", ", ".join(str(p) for p in written))
+    return comm.bcast(status, root=0)
 
 
 def run_console() -> None:

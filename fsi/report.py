@@ -1,0 +1,142 @@
+"""``fsi report``: the study's tables and plots from finished run folders (MODEL.md §6).
+
+Tables 1–3 are the peak velocity, pressure and displacement at the report times (the rows of
+``metrics.csv`` at those times); a fourth table gives each run's solver effort. The plots show
+a column of ``metrics.csv`` over time, one line per run (Figure 6 is ``max_sss``).
+Reads only the files ``fsi run`` writes: ``config.yaml``, ``metrics.csv``, ``summary.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+from fsi import config, io
+
+TABLES = [("peak_velocity", "Peak velocity (m/s)"), ("peak_pressure", "Peak pressure (Pa)"),
+          ("peak_displacement", "Peak displacement (m)")]
+PLOTS = [("max_sss", "max |σ₁₂| in the structure (Pa)"),
+         ("peak_displacement", "peak displacement (m)"),
+         ("peak_velocity", "peak velocity (m/s)"),
+         ("recirculation_length", "recirculation length (m)"),
+         ("coupling_iterations", "coupling iterations")]
+
+
+class ReportError(ValueError):
+    """A run folder is missing a file or is not a run folder."""
+
+
+@dataclass(frozen=True)
+class Run:
+    path: Path
+    case: config.Case
+    rows: list[dict[str, float]]
+    summary: dict
+
+    @property
+    def label(self) -> str:
+        c = self.case
+        return (f"{self.path.name} ({c.structure.mode}, {c.fluid.rheology.model}, "
+                f"{c.mesh.level})")
+
+
+def load_run(path: Path) -> Run:
+    """A finished (or stopped) run folder; summary.json is absent when the run stopped."""
+    path = Path(path)
+    for name in ("config.yaml", "metrics.csv"):
+        if not (path / name).is_file():
+            raise ReportError(f"{path}: no {name} (not a folder written by fsi run)")
+    try:
+        case = config.load(path / "config.yaml")
+    except config.ConfigError as e:
+        raise ReportError(f"{path}: {e}") from None
+    summary_file = path / "summary.json"
+    summary = json.loads(summary_file.read_text()) if summary_file.is_file() else {}
+    return Run(path, case, io.read_metrics(path / "metrics.csv"), summary)
+
+
+def value_at(rows: Sequence[dict[str, float]], t: float, column: str) -> float | None:
+    """``column`` of the row at time ``t`` (within a thousandth of that step), or None."""
+    for row in rows:
+        if abs(row["t"] - t) <= 1e-3 * row["dt"] and column in row:
+            return row[column]
+    return None
+
+
+def _number(value: float | None) -> str:
+    return "–" if value is None or not math.isfinite(value) else f"{value:.4g}"
+
+
+def peaks_table(runs: Sequence[Run], column: str, title: str,
+                times: Sequence[float] | None = None) -> str:
+    """A markdown table: one row per run, one column per report time (default: the first
+    run's ``output.report_times``); '–' where a run has no step at that time."""
+    times = list(times if times is not None else runs[0].case.output.report_times)
+    head = f"| {title} | " + " | ".join(f"t = {t:g} s" for t in times) + " |"
+    lines = [head, "|---" * (len(times) + 1) + "|"]
+    for run in runs:
+        lines.append(f"| {run.label} | "
+                     + " | ".join(_number(value_at(run.rows, t, column)) for t in times) + " |")
+    return "\n".join(lines)
+
+
+def effort_table(runs: Sequence[Run]) -> str:
+    """Steps, simulated time, coupling iterations per step (mean, max) and wall time."""
+    lines = ["| run | steps | end (s) | coupling its/step (mean, max) | s/step | wall time (s) |",
+             "|---|---|---|---|---|---|"]
+    for run in runs:
+        its = [r["coupling_iterations"] for r in run.rows if "coupling_iterations" in r]
+        wall = [r["wall_time_s"] for r in run.rows if "wall_time_s" in r]
+        end = run.rows[-1]["t"] if run.rows else math.nan
+        mean_its = f"{sum(its) / len(its):.2f}, {max(its):g}" if its else "–"
+        finished = "" if run.summary else " (stopped)"
+        lines.append(f"| {run.label} | {len(run.rows)}{finished} | {_number(end)} | {mean_its} "
+                     f"| {_number(sum(wall) / len(wall) if wall else None)} "
+                     f"| {_number(sum(wall) if wall else None)} |")
+    return "\n".join(lines)
+
+
+def markdown(runs: Sequence[Run], times: Sequence[float] | None = None) -> str:
+    parts = [f"## Table {i + 1}: {title}\n\n{peaks_table(runs, column, title, times)}"
+             for i, (column, title) in enumerate(TABLES)]
+    parts.append(f"## Solver effort\n\n{effort_table(runs)}")
+    return "\n\n".join(parts) + "\n"
+
+
+def plot(runs: Sequence[Run], column: str, ylabel: str, path: Path) -> bool:
+    """``column`` over time, one line per run that has it, as a PNG; False if none has it."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    series = [(run.label, [r["t"] for r in run.rows if column in r],
+               [r[column] for r in run.rows if column in r]) for run in runs]
+    series = [s for s in series if s[1]]
+    if not series:
+        return False
+    fig, ax = plt.subplots(figsize=(7, 4), layout="constrained")
+    for label, t, y in series:
+        ax.plot(t, y, label=label, lw=1.2)
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel(ylabel)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return True
+
+
+def write(runs: Sequence[Run], out: Path, times: Sequence[float] | None = None) -> list[Path]:
+    """``out/report.md`` and one PNG per plotted column; returns the files written."""
+    out.mkdir(parents=True, exist_ok=True)
+    written = [out / "report.md"]
+    written[0].write_text(markdown(runs, times))
+    for column, ylabel in PLOTS:
+        path = out / f"{column}.png"
+        if plot(runs, column, ylabel, path):
+            written.append(path)
+    return written
