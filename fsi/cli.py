@@ -1,8 +1,8 @@
 """The command line: ``fsi run``, ``fsi mesh``, ``fsi check``, ``fsi report`` (``python -m fsi``
 is the same).
 
-Exit status: 0 done; 2 the configuration or the command line is wrong (nothing is written);
-3 the solve failed.
+Exit status: 0 done; 2 the configuration, the command line or the checkpoint to restart from is
+wrong (nothing is written); 3 the solve failed (the last converged step is checkpointed).
 """
 
 from __future__ import annotations
@@ -31,9 +31,14 @@ def _parser() -> argparse.ArgumentParser:
         p.add_argument("--set", dest="overrides", action="append", default=[],
                        metavar="KEY.PATH=VALUE", help="override a configuration value (repeatable)")
 
-    p = sub.add_parser("run", help="run a case: DIR/metrics.csv, summary.json, fields.xdmf")
+    p = sub.add_parser("run", help="run a case: DIR/metrics.csv, summary.json, fields.xdmf, "
+                                   "checkpoint/")
     with_config(p)
     p.add_argument("--out", type=Path, required=True, metavar="DIR")
+    p.add_argument("--restart", type=Path, metavar="DIR",
+                   help="continue from the checkpoint of an earlier run in DIR (DIR/checkpoint; "
+                        "same mesh and structure, any number of ranks; the schedule, the "
+                        "coupling and the solver settings may change)")
     p = sub.add_parser("mesh", help="build the case's mesh: DIR/mesh.xdmf and DIR/mesh.json")
     with_config(p)
     p.add_argument("--out", type=Path, required=True, metavar="DIR")
@@ -103,11 +108,29 @@ def _run(args: argparse.Namespace, case: config.Case) -> int:
         if MPI.COMM_WORLD.rank == 0:
             print(f"fsi: error: {args.config}: {reason}", file=sys.stderr)
         return EXIT_USAGE
+    from fsi import checkpoint
+
+    restart = None
     try:
-        result = simulation.run(case, args.out, MPI.COMM_WORLD)
+        if args.restart is not None:
+            restart = checkpoint.read(args.restart, case, MPI.COMM_WORLD)
+            log.info("restarting from %s: step %d, t = %.6g s", restart.path, restart.step,
+                     restart.t)
+        result = simulation.run(case, args.out, MPI.COMM_WORLD, restart)
+    except checkpoint.CheckpointError as e:
+        if MPI.COMM_WORLD.rank == 0:
+            print(f"fsi: error: --restart: {e}", file=sys.stderr)
+        return EXIT_USAGE
     except simulation.SolveFailed as e:
         log.error("fsi: solve failed: %s (the finished steps are in %s)", e,
                   args.out / "metrics.csv")
+        if e.checkpoint is not None:
+            log.error("fsi: the state after step %d (t = %.6g s), the last converged one, is "
+                      "checkpointed in %s."
+                      " To continue from it, change what failed (e.g. a smaller time step with"
+                      " --set 'time.schedule=[...]', or the coupling or solver settings) and run"
+                      "\n  fsi run %s --out %s --restart %s --set ...", e.step, e.t,
+                      e.checkpoint, args.config, args.out, args.out)
         return EXIT_SOLVE_FAILED
     log.info("done: %d steps in %.1f s; wrote %s", result.steps, result.wall_time_s, args.out)
     return EXIT_OK

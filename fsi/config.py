@@ -308,11 +308,21 @@ class Outlet:
 
 @dataclass(frozen=True)
 class SolverSettings:
-    """Newton tolerances and the PETSc options of one sub-solver (its prefix is fixed)."""
+    """Newton tolerances and the PETSc options of one sub-solver (its prefix is fixed).
+
+    ``jacobian_reuse``: ``none`` assembles (and factorises) the Jacobian at every Newton
+    iteration; ``step`` keeps the last one across the Newton and coupling iterations of a time
+    step, ``run`` also across steps, while it still contracts the residual: it is re-assembled
+    when ``|F(x_k)| > jacobian_reuse_rate · |F(x_{k−1})|`` (modified Newton, fsi/newton.py).
+    The stopping test is unchanged, so is the converged answer (to the solver's tolerance); a
+    failed solve with a reused Jacobian is repeated with fresh ones. ``step`` keeps restarts
+    exact (the path of a step depends only on the state at its start)."""
 
     rtol: float = positive(1.0e-9)
     atol: float = positive(1.0e-10)
     max_iterations: int = at_least(25, 1)
+    jacobian_reuse: Literal["none", "step", "run"] = "none"
+    jacobian_reuse_rate: float = open_interval(0.3, 0.0, 1.0)
     petsc_options: dict[str, Union[str, int, float]] = field(
         default_factory=lambda: {
             "ksp_type": "preonly",

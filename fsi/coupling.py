@@ -117,6 +117,12 @@ class Acceleration(Protocol):
     def end_step(self) -> None:
         """The step converged: keep what the next step reuses."""
 
+    def state(self) -> dict[str, np.ndarray]:
+        """What a later step reuses (between steps), as named local arrays for a checkpoint."""
+
+    def load_state(self, state: dict[str, np.ndarray]) -> None:
+        """Take back :meth:`state` (keys of another acceleration are ignored)."""
+
 
 class ConstantRelaxation:
     """``x_{k+1} = x_k + ω (x̃_k − x_k)``, the same ω in every iteration."""
@@ -133,6 +139,12 @@ class ConstantRelaxation:
         return x + self.omega * (x_tilde - x)
 
     def end_step(self) -> None:
+        pass
+
+    def state(self) -> dict[str, np.ndarray]:
+        return {}  # ω is the configuration's
+
+    def load_state(self, state: dict[str, np.ndarray]) -> None:
         pass
 
 
@@ -173,6 +185,15 @@ class Aitken:
         return x + self.omega * r
 
     def end_step(self) -> None:
+        self._previous_residual = None
+
+    def state(self) -> dict[str, np.ndarray]:
+        """The ω carried into the next step (``aitken.omega``)."""
+        return {"aitken.omega": np.array(self.omega)}
+
+    def load_state(self, state: dict[str, np.ndarray]) -> None:
+        if "aitken.omega" in state:  # else (another acceleration's state): omega_initial
+            self.omega = float(state["aitken.omega"])
         self._previous_residual = None
 
 
@@ -234,6 +255,23 @@ class IQNILS:
             self._old_steps.append((self._V, self._W))
         self._V, self._W, self._previous = [], [], None
 
+    def state(self) -> dict[str, np.ndarray]:
+        """The columns kept from past steps: ``iqn.V.i``/``iqn.W.i`` (local rows × columns,
+        newest column first) of the i-th kept step, oldest step first; ``iqn.steps`` their
+        number. The current step's columns are not part of it (it is taken between steps)."""
+        arrays = {"iqn.steps": np.array(len(self._old_steps))}
+        for i, (V, W) in enumerate(self._old_steps):
+            arrays[f"iqn.V.{i}"], arrays[f"iqn.W.{i}"] = np.column_stack(V), np.column_stack(W)
+        return arrays
+
+    def load_state(self, state: dict[str, np.ndarray]) -> None:
+        """Past steps' columns (the newest ``reuse`` of them); none from another acceleration."""
+        self._old_steps.clear()
+        for i in range(int(state.get("iqn.steps", 0))):
+            V, W = state[f"iqn.V.{i}"], state[f"iqn.W.{i}"]
+            self._old_steps.append(([c.copy() for c in V.T], [c.copy() for c in W.T]))
+        self._V, self._W, self._previous = [], [], None
+
 
 def from_config(coupling: Coupling, comm: MPI.Comm) -> Acceleration:
     """The acceleration named by ``coupling.acceleration`` with the configuration's parameters."""
@@ -291,6 +329,22 @@ class Predictor:
         weights = [np.prod([(t - times[j]) / (times[i] - times[j]) for j in range(m) if j != i])
                    for i in range(m)]  # fmt: skip
         return sum(w * v for w, v in zip(weights, values))
+
+    def state(self) -> dict[str, np.ndarray]:
+        """The recorded values (``values``: local interface entries × recorded steps, oldest
+        first) and their times (``times``; empty if any was not given)."""
+        times = np.array(self._times, dtype=float)
+        return {"values": (np.column_stack(list(self._values)) if self._values
+                           else np.zeros((0, 0))),
+                "times": times if not np.isnan(times).any() else np.zeros(0)}
+
+    def load_state(self, state: dict[str, np.ndarray]) -> None:
+        """Take back :meth:`state`; of more values than this order needs, the newest count."""
+        values, times = state["values"].T, state["times"]
+        self._values.clear()
+        self._times.clear()
+        for i, x in enumerate(values):
+            self.record(x, float(times[i]) if len(times) == len(values) else None)
 
 
 def predictor_from_config(coupling: Coupling) -> Predictor:

@@ -42,6 +42,7 @@ import numpy as np
 import ufl
 
 from fsi import compat, config, rheology
+from fsi.newton import NewtonCallbacks
 from fsi.timestepping import bdf_weights
 from geometry.tags import Boundary
 
@@ -531,6 +532,9 @@ class FluidSolver:
             options[key] = value
         ksp.setFromOptions()
         newton.A.setOptionsPrefix("fluid_")
+        # Residual and Jacobian through one object: Jacobian (and LU) reuse, counters.
+        self.newton_callbacks = NewtonCallbacks(self.problem, newton, settings.jacobian_reuse,
+                                                settings.jacobian_reuse_rate)
         return newton
 
     # ---- the coupler's interface
@@ -582,7 +586,8 @@ class FluidSolver:
         before = self.U.x.array.copy()
         message = ""
         try:
-            iterations, converged = self.newton.solve(self.U)
+            iterations, converged = self.newton_callbacks.solve(self.newton, self.U,
+                                                                  step=self.accepted_steps)
         except RuntimeError as e:  # PETSc errors surface here
             iterations, converged, message = self.newton.max_it, False, f"PETSc: {e}"
         residual = self.newton.b.norm()
@@ -642,6 +647,11 @@ class FluidSolver:
     def _sync_outputs(self) -> None:
         _copy_from_mixed(self.u, self.U, self._V_to_W)
         _copy_from_mixed(self.p, self.U, self._Q_to_W)
+
+    def mixed_dofs(self) -> tuple[np.ndarray, np.ndarray]:
+        """The local dof of ``U`` (space W) behind each local (unrolled) dof of ``u`` (V) and of
+        ``p`` (Q), −1 where there is none (for checkpoints: which W value is which node's)."""
+        return self._V_to_W, self._Q_to_W
 
     # ---- forces
 

@@ -40,19 +40,24 @@ def write_mesh(out: Path, tagged: TaggedMesh, summary: dict) -> None:
 
 class MetricsTable:
     """``metrics.csv``: one row per time step, written by rank 0 and flushed at every row, so a
-    run that stops keeps every finished step. On restart the rows after ``keep_until_step`` are
-    dropped and new rows are appended."""
+    run that stops keeps every finished step. On restart the rows up to ``keep_until_step`` of
+    ``source`` (default: ``path`` itself) are kept, the later ones dropped, and new rows are
+    appended; :attr:`kept` holds the kept rows as numbers (on every rank)."""
 
     def __init__(self, comm: MPI.Comm, path: Path, columns: list[str],
-                 keep_until_step: int | None = None):
+                 keep_until_step: int | None = None, source: Path | None = None):
         self.comm, self.path, self.columns = comm, path, list(columns)
         self._file = None
+        self.kept: list[dict] = []
+        source = path if source is None else source
+        rows: list[dict] = []
+        if comm.rank == 0 and keep_until_step is not None and source.exists():
+            with source.open(newline="") as f:
+                rows = [r for r in csv.DictReader(f) if int(r["step"]) <= keep_until_step]
+        self.kept = comm.bcast([{k: _parse(v) for k, v in r.items() if v not in ("", None)}
+                                for r in rows], root=0)
         if comm.rank != 0:
             return
-        rows: list[dict] = []
-        if keep_until_step is not None and path.exists():
-            with path.open(newline="") as f:
-                rows = [r for r in csv.DictReader(f) if int(r["step"]) <= keep_until_step]
         self._file = path.open("w", newline="")
         self._writer = csv.DictWriter(self._file, fieldnames=self.columns, extrasaction="raise")
         self._writer.writeheader()
@@ -75,10 +80,44 @@ def _format(value) -> str:
     return f"{value:.10g}" if isinstance(value, float) else str(value)
 
 
+def _parse(text: str) -> int | float | str:
+    """A metrics value as written by :func:`_format`: int, float, or the text itself."""
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
 def read_metrics(path: Path) -> list[dict[str, float]]:
     """The rows of a ``metrics.csv`` as numbers."""
     with Path(path).open(newline="") as f:
         return [{k: float(v) for k, v in row.items() if v != ""} for row in csv.DictReader(f)]
+
+
+def field_segment(name: str, first_step: int | None) -> str:
+    """The field file of a run segment: ``name`` itself for a run from t = 0, and
+    ``<stem>.restart<k><suffix>`` (``fields.restart40.xdmf``) for the segment that restarts
+    from the checkpoint of step k, so a restart never touches the files it continues."""
+    if first_step is None:
+        return name
+    path = Path(name)
+    return f"{path.stem}.restart{first_step}{path.suffix}"
+
+
+def remove_later_segments(out: Path, names: list[str], first_step: int) -> list[Path]:
+    """Delete the field files (XDMF and HDF5) of segments that restarted after step
+    ``first_step`` (their steps are dropped with the metrics rows). Returns what was deleted."""
+    removed = []
+    for name in names:
+        stem = Path(name).stem
+        for path in out.glob(f"{stem}.restart*.*"):
+            k = path.name[len(stem) + len(".restart"):].split(".")[0]
+            if k.isdigit() and int(k) > first_step and path.suffix in (".xdmf", ".h5"):
+                path.unlink()
+                removed.append(path)
+    return removed
 
 
 class FieldWriter:

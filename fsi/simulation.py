@@ -22,8 +22,9 @@ from typing import Protocol
 from mpi4py import MPI
 
 import dolfinx
+import numpy as np
 
-from fsi import config, coupling, fluid, io, mesh, metrics, partitioned, solid
+from fsi import checkpoint, config, coupling, fluid, io, mesh, metrics, partitioned, solid
 from fsi.mesh_motion import MeshQualityError
 from fsi.timestepping import Step, steps
 from geometry import turek_hron
@@ -46,7 +47,13 @@ step's coupling iterations; ``mesh_jacobian_ratio``: the fluid mesh's smallest J
 
 
 class SolveFailed(RuntimeError):
-    """A sub-solver did not converge; the run stops with exit status 3."""
+    """A sub-solver did not converge; the run stops with exit status 3. :func:`march` sets
+    ``checkpoint`` (the folder it wrote, or None if it could not) and ``step``, ``t`` (the last
+    converged step, whose state that checkpoint holds)."""
+
+    checkpoint: Path | None = None
+    step: int | None = None
+    t: float | None = None
 
 
 @dataclass
@@ -69,11 +76,14 @@ def unsupported(case: config.Case) -> str | None:
     return None
 
 
-def run(case: config.Case, out: Path, comm: MPI.Comm = MPI.COMM_WORLD) -> RunResult:
-    """Run a case (rigid structure or coupled), writing ``out``'s files (see the README).
+def run(case: config.Case, out: Path, comm: MPI.Comm = MPI.COMM_WORLD,
+        restart: checkpoint.Checkpoint | None = None) -> RunResult:
+    """Run a case (rigid structure or coupled), writing ``out``'s files (see the README), from
+    t = 0 or from the checkpoint ``restart`` (:func:`fsi.checkpoint.read`).
 
-    Raises :class:`SolveFailed` when a step fails; the finished steps stay in metrics.csv.
-    Collective."""
+    Raises :class:`SolveFailed` when a step fails (the finished steps stay in metrics.csv, the
+    last converged one is checkpointed), :class:`fsi.checkpoint.CheckpointError` when
+    ``restart``'s arrays do not fit the case (before anything is written). Collective."""
     start = wallclock.perf_counter()
     if case.structure.mode == "rigid":
         stepper: Stepper = RigidStepper(case, comm)
@@ -81,7 +91,7 @@ def run(case: config.Case, out: Path, comm: MPI.Comm = MPI.COMM_WORLD) -> RunRes
         stepper = StructureStepper(case, comm)
     else:
         stepper = CoupledStepper(case, comm)
-    return march(case, out, comm, stepper, start)
+    return march(case, out, comm, stepper, start, restart)
 
 
 # --------------------------------------------------------------------------------------------
@@ -111,59 +121,137 @@ class Stepper(Protocol):
     def summary(self) -> dict:
         """Totals and sizes for summary.json."""
 
+    def state(self) -> dict[str, np.ndarray]:
+        """Everything the next steps depend on, as named local arrays (a checkpoint): the
+        solvers' state and history, the coupling's memory, the counters of :meth:`summary`."""
 
-def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper,
-          start: float) -> RunResult:
+    def layouts(self) -> dict[str, checkpoint.Layout]:
+        """Where the rows of the distributed arrays of :meth:`state` live (array name or name
+        prefix → layout; the others are global). Taken from the reference configuration:
+        :func:`march` asks before the first step and before any :meth:`load_state`."""
+
+    def load_state(self, state: dict[str, np.ndarray]) -> None:
+        """Continue from :meth:`state`'s arrays (on this run's dofs, :func:`fsi.checkpoint.
+        localize`); the output fields are brought up to date."""
+
+
+def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start: float,
+          restart: checkpoint.Checkpoint | None = None) -> RunResult:
     """Step ``stepper`` through the schedule: ``out/config.yaml``, a metrics row per step
-    (flushed at once), fields every ``output.fields_every`` steps and at the end, and
-    ``out/summary.json`` once every step is done. Collective."""
+    (flushed at once), fields every ``output.fields_every`` steps and at the end, a checkpoint
+    (fsi/checkpoint.py) every ``output.checkpoint_every`` steps, at the end and when a step
+    fails, and ``out/summary.json`` (over all rows of metrics.csv) once every step is done.
+
+    With ``restart`` the checkpoint's arrays are placed on this run's dofs and checked
+    (:func:`fsi.checkpoint.localize`) before anything is written, then loaded into the stepper,
+    and the schedule goes on after the checkpoint's step k: the metrics
+    rows up to k are kept (copied from the checkpoint's run folder if ``out`` is another one),
+    and the fields go to new files (``fields.restart<k>.xdmf``, :func:`fsi.io.field_segment`).
+
+    A failed step leaves the solvers anywhere (the coupler keeps its last iterates as initial
+    guesses; a sub-solver's exception skips the restore), so the checkpoint written then is
+    the snapshot of the stepper's state taken after the last converged step, and the
+    :class:`SolveFailed` raised says where it is. Collective."""
+    first = None if restart is None else restart.step
+    t0 = 0.0 if restart is None else restart.t
+    layouts = stepper.layouts()
+    if restart is not None:  # before any file is touched
+        loaded = checkpoint.localize(restart, layouts, stepper.state(), comm)
+    files = stepper.field_files()
     if comm.rank == 0:
         out.mkdir(parents=True, exist_ok=True)
         config.dump(case, out / "config.yaml")
+        if first is not None:
+            io.remove_later_segments(out, list(files), first)
     comm.barrier()
-    table = io.MetricsTable(comm, out / "metrics.csv", stepper.columns)
-    files = stepper.field_files()
-    # The writers store the mesh now, in its reference configuration (the runs start at rest).
-    writers = [(io.FieldWriter(comm, out / name, m), fields) for name, (m, fields) in files.items()]
-    schedule = list(steps(case.time))
+    source = None
+    if restart is not None and restart.run_dir.resolve() != out.resolve():
+        source = restart.run_dir / "metrics.csv"
+    table = io.MetricsTable(comm, out / "metrics.csv", stepper.columns, keep_until_step=first,
+                            source=source)
+    # The writers store the mesh now, in its reference configuration (the state, which may
+    # move the fluid mesh, is loaded after).
+    writers = [(io.FieldWriter(comm, out / io.field_segment(name, first), m), fields)
+               for name, (m, fields) in files.items()]
+    if restart is not None:
+        stepper.load_state(loaded)
+    schedule = list(steps(case.time, t0, first or 0))
+    last = schedule[-1].index if schedule else first or 0
+    good = _Snapshot(first or 0, t0, None if restart is None else restart.dt, stepper.state())
+    saved: Path | None = None
     rows: list[dict] = []
     try:
         for writer, fields in writers:
-            writer.write(0.0, fields)
+            writer.write(t0, fields)
         for k, step in enumerate(schedule):
             tic = wallclock.perf_counter()
-            row = {"step": step.index, "t": step.t, "dt": step.dt, **stepper.step(step)}
-            row["wall_time_s"] = wallclock.perf_counter() - tic
-            bad = [key for key, v in row.items() if isinstance(v, float) and not math.isfinite(v)]
-            if bad:  # never write a NaN: a step that produced one failed
-                raise SolveFailed(f"step {step.index} to t = {step.t:g} s gave non-finite "
-                                  f"{', '.join(bad)}")
+            try:
+                row = {"step": step.index, "t": step.t, "dt": step.dt, **stepper.step(step)}
+                row["wall_time_s"] = wallclock.perf_counter() - tic
+                bad = [key for key, v in row.items()
+                       if isinstance(v, float) and not math.isfinite(v)]
+                if bad:  # never write a NaN: a step that produced one failed
+                    raise SolveFailed(f"step {step.index} to t = {step.t:g} s gave non-finite "
+                                      f"{', '.join(bad)}")
+            except SolveFailed as e:
+                e.checkpoint, e.step, e.t = good.write(out, comm, case, layouts), good.step, good.t
+                raise
             table.write(row)
             rows.append(row)
+            good = _Snapshot(step.index, step.t, step.dt, stepper.state())
+            if step.index % case.output.checkpoint_every == 0 or k == len(schedule) - 1:
+                saved = good.write(out, comm, case, layouts) or saved
             if step.index % case.output.fields_every == 0 or k == len(schedule) - 1:
                 for writer, fields in writers:
                     writer.write(step.t, fields)
             elapsed = wallclock.perf_counter() - start
             left = elapsed / (k + 1) * (len(schedule) - k - 1)
             log.info("step %d/%d  t = %.5g s  dt = %.3g s  %s  %.2f s/step  ~%.0f s left",
-                     step.index, len(schedule), step.t, step.dt, stepper.describe(row),
+                     step.index, last, step.t, step.dt, stepper.describe(row),
                      row["wall_time_s"], left)
+        if not schedule:  # restarted at (or past) the end: the checkpoint goes to out as well
+            saved = good.write(out, comm, case, layouts)
     finally:
         table.close()
         for writer, _ in writers:
             writer.close()
-    newton = sum(r.get("newton_iterations", 0) for r in rows)
+    every = table.kept + rows  # a restart's summary covers the kept rows too
+    newton = sum(r.get("newton_iterations", 0) for r in every)
     summary = {
-        "case": case.name, "structure_mode": case.structure.mode, "steps": len(schedule),
-        "end_time_s": schedule[-1].t if schedule else 0,
+        "case": case.name, "structure_mode": case.structure.mode, "steps": len(every),
+        "end_time_s": schedule[-1].t if schedule else t0,
         "wall_time_s": wallclock.perf_counter() - start,
-        "mean_step_time_s": sum(r["wall_time_s"] for r in rows) / max(len(rows), 1),
-        "newton_iterations": newton, "mean_newton_iterations": newton / max(len(rows), 1),
+        "mean_step_time_s": sum(r.get("wall_time_s", 0.0) for r in every) / max(len(every), 1),
+        "newton_iterations": newton, "mean_newton_iterations": newton / max(len(every), 1),
         "ranks": comm.size, "dolfinx": dolfinx.__version__, "python": platform.python_version(),
         **stepper.summary(),
+        "checkpoint": None if saved is None else str(saved),
     }
+    if restart is not None:
+        summary["restarted_from"] = {"checkpoint": str(restart.path), "step": restart.step,
+                                     "t": restart.t}
     io.write_json(comm, out / "summary.json", summary)
     return RunResult(len(schedule), summary["wall_time_s"], summary)
+
+
+@dataclass(frozen=True)
+class _Snapshot:
+    """The stepper's state after step ``step`` (time ``t``, step size ``dt``)."""
+
+    step: int
+    t: float
+    dt: float | None
+    state: dict
+
+    def write(self, out: Path, comm: MPI.Comm, case: config.Case,
+              layouts: dict[str, checkpoint.Layout]) -> Path | None:
+        """Write it as ``out/checkpoint``; on failure log why and return None. Collective."""
+        try:
+            return checkpoint.write(out, comm, self.state, layouts,
+                                    checkpoint.metadata(case, comm, self.step, self.t, self.dt))
+        except checkpoint.CheckpointError as e:
+            log.error("fsi: no checkpoint of step %d: %s", self.step, e)
+            return None
 
 
 # --------------------------------------------------------------------------------------------
@@ -253,6 +341,18 @@ class RigidStepper:
                 "fluid_dofs": global_dofs(W),
                 "cells": self.cells}
 
+    def state(self) -> dict[str, np.ndarray]:
+        return checkpoint.to_arrays("fluid.", self.solver.save_state())
+
+    def layouts(self) -> dict[str, checkpoint.Layout]:
+        if not hasattr(self, "_layouts"):
+            self._layouts = fluid_layouts(self.solver)
+        return self._layouts
+
+    def load_state(self, state: dict[str, np.ndarray]) -> None:
+        self.solver.restore_state(checkpoint.from_arrays(fluid.FluidState, "fluid.", state))
+        self.outputs.update()
+
 
 # --------------------------------------------------------------------------------------------
 # The coupled modes: partitioned fluid–structure interaction
@@ -337,6 +437,37 @@ class CoupledStepper:
                 "solid_dofs": global_dofs(V),
                 "cells": self.cells}
 
+    def state(self) -> dict[str, np.ndarray]:
+        """The fluid's (solution, BDF history, mesh displacement history, step counter) and the
+        solid's (η, Newmark/generalized-α history, loads) states, the acceleration's memory
+        (Aitken's ω, IQN-ILS's columns of past steps), the predictor's history, the counters."""
+        p = self.problem
+        return {**checkpoint.to_arrays("fluid.", p.fluid.save_state()),
+                **checkpoint.to_arrays("solid.", p.solid.save_state()),
+                **{f"coupling.{k}": v for k, v in p.acceleration.state().items()},
+                **{f"predictor.{k}": v for k, v in p.predictor.state().items()},
+                "counters.coupling_iterations": np.array(self.iterations, dtype=np.int64),
+                "counters.solid_newton_iterations": np.array(self.solid_newton)}
+
+    def layouts(self) -> dict[str, checkpoint.Layout]:
+        if not hasattr(self, "_layouts"):
+            p = self.problem
+            interface = checkpoint.interface_layout("interface", p.solid.interface_points, 2)
+            self._layouts = {**fluid_layouts(p.fluid), **structure_layouts(p.solid),
+                             "coupling.iqn.V": interface, "coupling.iqn.W": interface,
+                             "predictor.values": interface}
+        return self._layouts
+
+    def load_state(self, state: dict[str, np.ndarray]) -> None:
+        p = self.problem
+        p.fluid.restore_state(checkpoint.from_arrays(fluid.FluidState, "fluid.", state))
+        _load_solid(p.solid, state)
+        p.acceleration.load_state(checkpoint.subset("coupling.", state))
+        p.predictor.load_state(checkpoint.subset("predictor.", state))
+        self.iterations = [int(n) for n in state["counters.coupling_iterations"]]
+        self.solid_newton = int(state["counters.solid_newton_iterations"])
+        self.outputs.update()
+
 
 # --------------------------------------------------------------------------------------------
 # The structure alone (structure.interface_load: inlet_pressure or none)
@@ -386,3 +517,52 @@ class StructureStepper:
         return {"mean_coupling_iterations": 0.0,
                 "solid_dofs": global_dofs(V),
                 "cells": self.cells}
+
+    def state(self) -> dict[str, np.ndarray]:
+        return checkpoint.to_arrays("solid.", self.solver.save_state())
+
+    def layouts(self) -> dict[str, checkpoint.Layout]:
+        if not hasattr(self, "_layouts"):
+            self._layouts = structure_layouts(self.solver)
+        return self._layouts
+
+    def load_state(self, state: dict[str, np.ndarray]) -> None:
+        _load_solid(self.solver, state)
+
+
+# --------------------------------------------------------------------------------------------
+# Checkpoint layouts of the solvers' states
+
+
+def fluid_layouts(solver: fluid.FluidSolver) -> dict[str, checkpoint.Layout]:
+    """The rows of :class:`fsi.fluid.FluidState`'s arrays: ``U`` on the mixed space (velocity
+    and pressure nodes), ``u_n``/``u_nm1`` on the velocity's P2 nodes, the mesh displacement
+    history and ``w`` on the P1 vertices. Call it before the mesh moves."""
+    velocity = checkpoint.space_layout("fluid_velocity", solver.V)
+    pressure = checkpoint.space_layout("fluid_pressure", solver.Q)
+    V_to_W, Q_to_W = solver.mixed_dofs()
+    mixed = checkpoint.mixed_layout("fluid_mixed", solver.W, [(V_to_W, velocity),
+                                                             (Q_to_W, pressure)])
+    vertices = checkpoint.space_layout("fluid_vertices", solver.ale.space)
+    return {"fluid.U": mixed, "fluid.u_n": velocity, "fluid.u_nm1": velocity,
+            **{f"fluid.{name}": vertices for name in ("d", "d_n", "d_nm1", "w")}}
+
+
+def structure_layouts(solver: solid.SolidSolver) -> dict[str, checkpoint.Layout]:
+    """The rows of :class:`fsi.solid.SolidState`'s arrays: η and its history, the tractions on
+    the displacement space's nodes; the nodal interface forces, arrays (n, 2), on the owned
+    interface nodes (one row each)."""
+    nodes = checkpoint.space_layout("solid", solver.V)
+    forces = checkpoint.interface_layout("interface_nodes", solver.interface_points, 1)
+    return {**{f"solid.{name}": nodes for name in ("eta", "eta_n", "v_n", "a_n", "traction",
+                                                   "traction_n")},
+            "solid.forces": forces, "solid.forces_n": forces}
+
+
+def _load_solid(solver: solid.SolidSolver, state: dict[str, np.ndarray]) -> None:
+    """The solid's state from ``solid.*`` arrays; the rates of the last step η̇, η̈ (outputs,
+    recomputed by every step) as :meth:`fsi.solid.SolidSolver.advance` leaves them; stresses."""
+    solver.restore_state(checkpoint.from_arrays(solid.SolidState, "solid.", state))
+    solver.v.x.array[:] = solver.v_n.x.array
+    solver.a.x.array[:] = solver.a_n.x.array
+    solver.stress.update()

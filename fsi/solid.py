@@ -49,6 +49,7 @@ from fsi import mesh as fsi_mesh
 from fsi.config import Case, Material, SolverSettings, StenosisGeometry
 from fsi.materials import HyperelasticLaw, cauchy, cauchy_zz, lame, make_law
 from fsi.mesh import TaggedMesh
+from fsi.newton import NewtonCallbacks
 from fsi.timestepping import NewmarkFamily, structural_scheme
 from geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 
@@ -411,6 +412,9 @@ class SolidSolver:
         ksp.setOptionsPrefix(self.prefix)
         ksp.setFromOptions()
         self.newton = newton
+        # Residual and Jacobian through one object: Jacobian (and LU) reuse, counters.
+        self.newton_callbacks = NewtonCallbacks(self.problem, newton, settings.jacobian_reuse,
+                                                settings.jacobian_reuse_rate)
         self._petsc_options = dict(settings.petsc_options)
 
     # -- loads ----------------------------------------------------------------------------
@@ -452,7 +456,8 @@ class SolidSolver:
             g.x.scatter_forward()  # a ghost dof may lie in no local cell of a submesh
         guess = self.eta.x.array.copy()
         try:
-            iterations, converged = self.newton.solve(self.eta)
+            iterations, converged = self.newton_callbacks.solve(self.newton, self.eta,
+                                                                  step=self.t)
             reason = "" if converged else "Newton did not converge"
         except RuntimeError as e:  # a linear solver failure is raised on every rank
             iterations, converged, reason = self.newton.max_it, False, f"solver error: {e}"

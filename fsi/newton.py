@@ -1,0 +1,119 @@
+"""Newton callbacks with an optionally reused Jacobian (modified Newton) for dolfinx's
+NewtonSolver, shared by the fluid and the solid.
+
+Newton's iteration for ``F(x) = 0`` is ``x_{k+1} = x_k − J̃⁻¹ F(x_k)``. With reuse ``none``
+``J̃ = J(x_k)`` at every iteration (Newton). Otherwise ``J̃`` is the Jacobian assembled last — at
+an earlier iterate or coupling iteration of the step (reuse ``step``), or also of an earlier
+step (reuse ``run``) — for as long as it still contracts the residual: it is assembled anew at
+``x_k`` when
+
+    |F(x_k)| > max_rate · |F(x_{k−1})|      (the last iteration did not reduce F enough),
+
+when there is none yet, and (reuse ``step``) at the first iteration of every time step. A matrix
+that is not re-assembled keeps its PETSc object state, so the linear solver's ``PCSetUp`` keeps
+its LU factorisation: a reused iteration costs one residual assembly and one pair of triangular
+solves instead of an assembly, a factorisation and the solves.
+
+With ``step`` the path of a step depends only on the state at its start, so a run restarted
+from a checkpoint repeats the uninterrupted run's arithmetic; with ``run`` the restarted run
+starts with a fresh Jacobian where the uninterrupted one had an older Jacobian (the same answer
+to the solver's tolerance, not to the bit).
+
+Only the path changes, not the answer: the solver's own stopping test (dolfinx's: |F(x_k)|, or
+the increment |δx_k|, below ``atol`` or below ``rtol`` times the first increment |δx_1|) decides
+convergence as with Newton's Jacobians. Should a solve with a reused Jacobian fail, it is
+repeated from the same initial guess with a fresh Jacobian at every iteration (plain Newton), so
+reuse never turns a solvable step into a failure.
+"""
+
+from __future__ import annotations
+
+from typing import Hashable, Literal
+
+from petsc4py import PETSc
+
+import dolfinx.fem
+
+Reuse = Literal["none", "step", "run"]
+
+
+class NewtonCallbacks:
+    """The residual and Jacobian callbacks of ``newton`` (registered here), with the reuse policy
+    of the module docstring.
+
+    Args:
+        problem: the nonlinear problem (its ``F(x, b)`` and ``J(x, A)`` are looked up at every
+            call, so a wrapper set on the instance is used).
+        newton: the dolfinx NewtonSolver built for ``problem``.
+        reuse: ``none``, ``step`` or ``run``: how long a Jacobian (and its factorisation) may
+            be kept while it contracts the residual (see the module docstring).
+        max_rate: the largest accepted ratio |F(x_k)| / |F(x_{k−1})| of a reused Jacobian.
+
+    Counters: ``jacobian_assemblies``, ``residual_evaluations`` (since construction),
+    ``retries`` (solves repeated with fresh Jacobians).
+    """
+
+    def __init__(self, problem, newton, reuse: Reuse = "none", max_rate: float = 0.3):
+        if reuse not in ("none", "step", "run"):
+            raise ValueError(f"reuse must be 'none', 'step' or 'run', got {reuse!r}")
+        if not 0 < max_rate < 1:
+            raise ValueError(f"max_rate must be in (0, 1), got {max_rate}")
+        self.problem, self.reuse, self.max_rate = problem, reuse, float(max_rate)
+        self.jacobian_assemblies = 0
+        self.residual_evaluations = 0
+        self.retries = 0
+        self._have_jacobian = False
+        self._fresh = reuse == "none"
+        self._step: Hashable = None
+        self._norms: list[float] = []
+        newton.setF(self.F, newton.b)
+        newton.setJ(self.J, newton.A)
+
+    def F(self, x: PETSc.Vec, b: PETSc.Vec) -> None:
+        self.problem.F(x, b)
+        self.residual_evaluations += 1
+        if not self._fresh:
+            self._norms.append(b.norm())  # a global norm: every rank decides alike
+
+    def J(self, x: PETSc.Vec, A: PETSc.Mat) -> None:
+        if not self._fresh and self._have_jacobian and self._contracting():
+            return  # A and its factorisation stay as they are
+        self.problem.J(x, A)
+        self.jacobian_assemblies += 1
+        self._have_jacobian = True
+
+    def _contracting(self) -> bool:
+        """The last iteration (if any in this solve) reduced |F| by at least ``max_rate``."""
+        if len(self._norms) < 2:
+            return True
+        previous, current = self._norms[-2], self._norms[-1]
+        return current <= self.max_rate * previous
+
+    def solve(self, newton, u: dolfinx.fem.Function, step: Hashable = None) -> tuple[int, bool]:
+        """``newton.solve(u)``; with reuse, if that fails, again from the same initial guess with
+        a fresh Jacobian at every iteration. ``step`` identifies the time step (anything that
+        changes when the solver advances): with reuse ``step`` a new value means a fresh
+        Jacobian. Returns (iterations of both attempts, converged)."""
+        self._norms = []
+        if self.reuse == "none":
+            return newton.solve(u)
+        if self.reuse == "step" and step != self._step:
+            self._have_jacobian = False
+        self._step = step
+        start = u.x.array.copy()
+        try:
+            iterations, converged = newton.solve(u)
+        except RuntimeError:  # a PETSc error, raised on every rank: try plain Newton
+            iterations, converged = newton.max_it, False
+        if converged:
+            return iterations, converged
+        self.retries += 1
+        u.x.array[:] = start
+        u.x.scatter_forward()
+        self._fresh = True
+        try:
+            more, converged = newton.solve(u)
+        finally:
+            self._fresh = False
+            self._norms = []
+        return iterations + more, converged

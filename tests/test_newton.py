@@ -1,0 +1,256 @@
+"""Jacobian reuse (modified Newton, fsi/newton.py) in the fluid and the solid solvers.
+
+Reuse changes the path of Newton's iterations, not the answer: on the study's moving-wall Carreau
+stenosis (coarse, steps of 0.25 ms inside the inlet pulse) the fluid alone, the structure alone
+and the coupled problem give, with ``jacobian_reuse`` ``step`` or ``run``, the solution of plain
+Newton to the solvers' tolerance, with fewer Jacobian assemblies and one LU factorisation per
+assembly. ``step`` makes a step depend only on the state at its start (restarts stay exact); a
+solve that fails with a reused Jacobian is repeated with fresh ones.
+
+Tolerance of "the same solution". The solvers stop on dolfinx's test (|F| or the increment below
+atol, or below rtol × the first increment), so each answer is off the exact discrete solution U*
+by about its Newton correction c = |J(U)⁻¹ F(U)| (the step one more fresh Newton iteration would
+take; to second order, |U − U*| = c). Hence |U_reuse − U_newton| <= c_reuse + c_newton, checked
+with 10 % for the second-order terms plus round-off (1e-12 |U|), from the same state at the start
+of each step. Measured (1 rank): fluid |ΔU| 8e-6–3e-3 (|U| 5e2–8e3: pressures in Pa), 0.45–0.96 of
+c_reuse + c_newton; structure |Δη| 5e-17–2e-12 m (|η| 1e-5–8e-4 m), 0.98–1.00 of it (plain Newton
+is exact to ~1e-18 m there, so the bound is the reused solve's own correction). The coupled runs
+stop on the interface residual (coupling.tolerance 1e-6): their answers agree to that (measured
+≤ 1e-8 relative).
+"""
+
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import dolfinx.fem.petsc
+import numpy as np
+import pytest
+
+from fsi import compat, config, fluid, mesh, simulation, solid
+from fsi.timestepping import steps
+from geometry.tags import Region
+
+CASE = "configs/stenosis_moving_carreau.yaml"
+SHORT = ["time.end=0.001", "time.schedule=[{until: 0.001, dt: 0.00025}]"]  # 4 steps
+
+
+def case_with(*overrides: str) -> config.Case:
+    return config.load(CASE, [*SHORT, *overrides])
+
+
+@pytest.fixture(scope="module")
+def whole():
+    return mesh.build(case_with(), MPI.COMM_WORLD)
+
+
+def global_norm(comm: MPI.Comm, a: np.ndarray) -> float:
+    return float(np.sqrt(comm.allreduce(float(a @ a), op=MPI.SUM)))
+
+
+def newton_correction(problem, u) -> float:
+    """|J(u)⁻¹ F(u)|: the size of one more (fresh) Newton step from u."""
+    comm = u.function_space.mesh.comm
+    x = compat.petsc_vector(u)
+    b = dolfinx.fem.petsc.create_vector(problem.L)
+    A = dolfinx.fem.petsc.create_matrix(problem.a)
+    problem.F(x, b)
+    problem.J(x, A)
+    ksp = PETSc.KSP().create(comm)
+    ksp.setOperators(A)
+    ksp.setType("preonly")
+    ksp.getPC().setType("lu")
+    ksp.getPC().setFactorSolverType("mumps")
+    dx = A.createVecRight()
+    ksp.solve(b, dx)
+    size = dx.norm()
+    for obj in (ksp, A, b, dx):
+        obj.destroy()
+    return size
+
+
+def lu_factorisations() -> int:
+    """Numeric LU factorisations on this rank so far (PETSc's MatLUFactorNum event)."""
+    return int(PETSc.Log.Event("MatLUFactorNum").getPerfInfo()["count"])
+
+
+def owned(solver_function) -> np.ndarray:
+    """Owned entries (no ghosts) of a Function's array."""
+    V = solver_function.function_space
+    return solver_function.x.array[: V.dofmap.index_map.size_local * V.dofmap.index_map_bs]
+
+
+def gathered_by_position(comm: MPI.Comm, points: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """All ranks' interface values, sorted by their points (the same on every rank)."""
+    points = np.concatenate(comm.allgather(np.asarray(points)[:, :2]))
+    values = np.concatenate(comm.allgather(np.asarray(values)))
+    return values[np.lexsort((points[:, 1].round(12), points[:, 0].round(12)))]
+
+
+def assert_equal_arrays(a: np.ndarray, b: np.ndarray, comm: MPI.Comm) -> None:
+    """Equal to the bit on one rank; on several, to round-off: there two plain Newton solves of
+    the same step by two solver objects differ by ~1e-16 relative (measured 2 ranks: 1.2e-16 of
+    max |U|, MUMPS's parallel order of operations), hence 1e-13."""
+    if comm.size == 1:
+        assert np.array_equal(a, b)
+    else:
+        assert np.allclose(a, b, rtol=0, atol=1e-13 * np.abs(b).max())
+
+
+def assert_same_solution(a, b, problems, comm, what):
+    """|a − b| <= 1.1 (c_a + c_b) + 1e-12 |b| (see the module docstring)."""
+    corrections = [newton_correction(p, f) for p, f in problems]
+    difference = global_norm(comm, owned(a) - owned(b))
+    bound = 1.1 * sum(corrections) + 1e-12 * global_norm(comm, owned(b))
+    assert difference <= bound, f"{what}: |Δ| {difference:.3e} > {bound:.3e} ({corrections})"
+
+
+# --------------------------------------------------------------------------------------------
+
+
+def test_fluid_with_reused_jacobians_finds_newtons_solution(whole):
+    """Rigid-wall Carreau stenosis: at every step, from Newton's state at its start, the
+    solvers with reuse step and run reach Newton's solution, assembling fewer Jacobians than
+    they take iterations and factorising exactly once per assembly."""
+    comm = whole.comm
+    PETSc.Log.begin()
+    part = mesh.restrict(whole, Region.FLUID)
+    solvers = {}
+    for reuse in ("none", "step", "run"):
+        case = case_with("structure.mode=rigid", f"fluid.solver.jacobian_reuse={reuse}")
+        solvers[reuse] = fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid,
+                                           simulation.fluid_boundaries(case))
+    newton = solvers["none"]
+    iterations = {"step": 0, "run": 0}
+    for st in steps(case_with().time):
+        state = newton.save_state()
+        assert newton.step(st.t, st.dt).converged
+        for reuse in ("step", "run"):
+            s = solvers[reuse]
+            s.restore_state(state)
+            jacobians, factorisations = s.newton_callbacks.jacobian_assemblies, lu_factorisations()
+            result = s.step(st.t, st.dt)
+            assert result.converged
+            iterations[reuse] += result.iterations
+            # An unchanged matrix keeps its factorisation: one LU per assembled Jacobian.
+            assert (lu_factorisations() - factorisations
+                    == s.newton_callbacks.jacobian_assemblies - jacobians)
+            assert_same_solution(s.U, newton.U, [(s.problem, s.U), (newton.problem, newton.U)],
+                                 comm, f"{reuse}, step {st.index}")
+        for s in solvers.values():
+            s.advance()
+    for reuse in ("step", "run"):
+        callbacks = solvers[reuse].newton_callbacks
+        assert callbacks.retries == 0
+        # Measured over the 4 steps: step 7 assemblies for 14 iterations, run 5 for 15.
+        assert callbacks.jacobian_assemblies < iterations[reuse]
+    assert solvers["run"].newton_callbacks.jacobian_assemblies <= \
+        solvers["step"].newton_callbacks.jacobian_assemblies
+
+
+def test_structure_with_reused_jacobians_finds_newtons_solution(whole):
+    """The moving wall and plaque alone under the inlet pulse as a follower pressure."""
+    comm = whole.comm
+    pressure = fluid.inlet_pressure(case_with().fluid.inlet)
+    solvers = {reuse: solid.build(case_with("structure.interface_load=inlet_pressure",
+                                            f"structure.solver.jacobian_reuse={reuse}"),
+                                  whole, comm, pressure)
+               for reuse in ("none", "step", "run")}
+    newton = solvers["none"]
+    iterations = {"step": 0, "run": 0}
+    for st in steps(case_with().time):
+        state = newton.save_state()
+        assert newton.step(st.t, st.dt).converged
+        for reuse in ("step", "run"):
+            s = solvers[reuse]
+            s.restore_state(state)
+            result = s.step(st.t, st.dt)
+            assert result.converged
+            iterations[reuse] += result.iterations
+            assert_same_solution(s.eta, newton.eta, [(s.problem, s.eta),
+                                                     (newton.problem, newton.eta)],
+                                 comm, f"{reuse}, step {st.index}")
+        for s in solvers.values():
+            s.advance()
+    # Measured: step 4 assemblies for 14 iterations, run 2 for 14 (Newton: 12 for 12).
+    for reuse in ("step", "run"):
+        assert solvers[reuse].newton_callbacks.jacobian_assemblies < iterations[reuse]
+
+
+def test_coupled_run_with_reuse_matches_plain_newton():
+    """Moving-wall Carreau, IQN-ILS, 3 steps: the same peaks and interface displacement to the
+    coupling tolerance (measured ≤ 1e-8 relative)."""
+    comm = MPI.COMM_WORLD
+    steppers, rows = {}, {}
+    for reuse in ("none", "step"):
+        case = case_with("time.end=0.00075", "coupling.acceleration=iqn-ils",
+                         f"fluid.solver.jacobian_reuse={reuse}",
+                         f"structure.solver.jacobian_reuse={reuse}")
+        steppers[reuse] = simulation.CoupledStepper(case, comm)
+        rows[reuse] = [steppers[reuse].step(st) for st in steps(case.time)]
+    tolerance = case.coupling.tolerance
+    for a, b in zip(rows["step"], rows["none"]):
+        for key in ("peak_velocity", "peak_pressure", "peak_displacement", "max_sss"):
+            assert a[key] == pytest.approx(b[key], rel=tolerance), key
+    # Each run built its own mesh (on several ranks, another partition): compare by position.
+    x = {r: gathered_by_position(comm, s.problem.solid.interface_points,
+                                 s.problem.solid.interface_displacement())
+         for r, s in steppers.items()}
+    assert np.linalg.norm(x["step"] - x["none"]) <= tolerance * np.linalg.norm(x["none"])
+    # The point of it: far fewer fluid Jacobians (and factorisations) than Newton iterations.
+    fluid_side = steppers["step"].problem.fluid
+    newton_iterations = sum(r["newton_iterations"] for r in rows["step"])
+    assert fluid_side.newton_callbacks.jacobian_assemblies < newton_iterations / 2
+
+
+def test_step_reuse_makes_a_step_depend_only_on_its_start(whole):
+    """With reuse ``step`` a solver that starts from the state after step 2 solves step 3 with
+    the very arithmetic of the solver that ran steps 1–3 (what makes restarts exact; on several
+    ranks up to MUMPS's round-off, see :func:`assert_equal_arrays`)."""
+    part = mesh.restrict(whole, Region.FLUID)
+    case = case_with("structure.mode=rigid", "fluid.solver.jacobian_reuse=step")
+    schedule = list(steps(case.time))
+    runs = [fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid,
+                              simulation.fluid_boundaries(case)) for _ in range(2)]
+    through, restarted = runs
+    for st in schedule[:2]:
+        assert through.step(st.t, st.dt).converged
+        through.advance()
+    restarted.restore_state(through.save_state())
+    for s in runs:
+        assert s.step(schedule[2].t, schedule[2].dt).converged
+    assert_equal_arrays(through.U.x.array, restarted.U.x.array, whole.comm)
+
+
+def test_a_failed_solve_with_a_reused_jacobian_is_repeated_with_fresh_ones(whole):
+    """Step 1 from rest with at most 4 iterations: modified Newton does not get there (measured
+    on 1 and 2 ranks), plain Newton does (in 4). The repeat is plain Newton from the same guess,
+    so the answer is Newton's (to the bit on one rank) and both attempts' iterations count."""
+    part = mesh.restrict(whole, Region.FLUID)
+    solvers = {}
+    for reuse in ("none", "run"):
+        case = case_with("structure.mode=rigid", "fluid.solver.max_iterations=4",
+                         f"fluid.solver.jacobian_reuse={reuse}")
+        solvers[reuse] = fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid,
+                                           simulation.fluid_boundaries(case))
+    st = next(iter(steps(case.time)))
+    results = {reuse: s.step(st.t, st.dt) for reuse, s in solvers.items()}
+    assert results["none"].converged and results["run"].converged
+    assert solvers["run"].newton_callbacks.retries == 1
+    assert results["run"].iterations == 4 + results["none"].iterations
+    assert_equal_arrays(solvers["run"].U.x.array, solvers["none"].U.x.array, whole.comm)
+
+
+@pytest.mark.parametrize("key, value, expected", [
+    ("fluid.solver.jacobian_reuse", "true", "one of 'none', 'step', 'run'"),
+    ("structure.solver.jacobian_reuse", "yes", "one of 'none', 'step', 'run'"),
+    ("fluid.solver.jacobian_reuse_rate", "1.0", "a number in (0.0, 1.0)"),
+    ("structure.solver.jacobian_reuse_rate", "0", "a number in (0.0, 1.0)"),
+])
+def test_reuse_settings_are_checked(key, value, expected):
+    with pytest.raises(config.ConfigError, match=key.replace(".", r"\.")) as e:
+        config.load(CASE, [f"{key}={value}"])
+    assert expected in str(e.value)
+    reused = config.load(CASE, ["fluid.solver.jacobian_reuse=run",
+                                "structure.solver.jacobian_reuse_rate=0.5"])
+    assert reused.fluid.solver.jacobian_reuse == "run"
+    assert reused.structure.solver.jacobian_reuse_rate == 0.5

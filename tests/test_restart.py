@@ -1,0 +1,472 @@
+"""Checkpoints and ``fsi run --restart`` (fsi/checkpoint.py, fsi.simulation.march).
+
+A run stopped after step k and restarted from its checkpoint continues like the uninterrupted
+run: rigid stenosis (BDF2 across a change of dt), coupled moving wall with Aitken and with
+IQN-ILS reusing the columns of past steps, also on another number of ranks. A failed step exits
+3 with the last converged step checkpointed, from which a run with a working setting finishes
+like the uninterrupted one. A checkpoint that does not fit the run (mesh, structure, a damaged
+file) is refused with exit status 2 before anything is written.
+
+Tolerances. On 1 rank: none. The restarted run reads back the float64 bits of every array the
+next step depends on and rebuilds the same operators from the same mesh; the direct solves
+(MUMPS) repeat their arithmetic for the same matrix. So metrics rows (10 digits) and the final
+checkpoints' arrays must be *equal*: any difference means a piece of state was missed (without
+the IQN history step 2 takes 6 coupling iterations instead of 7 and its values change in the 2nd
+digit). On 2 ranks SCOTCH partitions the mesh differently in every run (measured: 865/867 vs
+866/866 vertices per rank), so two runs differ in round-off even without a restart: arrays and
+metrics to 1e-9 relative (measured ≤ 4e-12; the residual norms, themselves ~1e-8 of their
+scale, to 1e-12 absolute), iteration counts equal.
+"""
+
+import csv
+import json
+import logging
+import re
+import shutil
+import tempfile
+from pathlib import Path
+
+from mpi4py import MPI
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from fsi import checkpoint, cli, config, simulation
+
+RIGID = "configs/stenosis_fixed_newtonian.yaml"
+COUPLED = "configs/stenosis_moving_newtonian.yaml"
+# BDF2 with dt 1 ms then 0.5 ms: the restart after step 2 needs dt_previous and u^{n-1}.
+RIGID_SET = ["structure.mode=rigid",
+             "time.schedule=[{until: 0.002, dt: 0.001}, {until: 0.004, dt: 0.0005}]"]
+COUPLED_SET = ["time.schedule=[{until: 0.002, dt: 0.001}]"]
+ACCELERATIONS = {"aitken": ["coupling.acceleration=aitken"],
+                 "iqn-ils": ["coupling.acceleration=iqn-ils", "coupling.iqn_reuse=2"]}
+SERIAL = MPI.COMM_WORLD.size == 1
+
+
+def fsi_run(case: str, out: Path, overrides, restart: Path | None = None) -> int:
+    args = ["run", case, "--out", str(out), *sum((["--set", s] for s in overrides), [])]
+    return cli.main(args + ([] if restart is None else ["--restart", str(restart)]))
+
+
+@pytest.fixture
+def fsi_log(caplog):
+    """The 'fsi' logger does not propagate to the root: hand its records to caplog too."""
+    logger = logging.getLogger("fsi")
+    logger.addHandler(caplog.handler)
+    yield caplog
+    logger.removeHandler(caplog.handler)
+
+
+def stderr(capsys) -> str:
+    """What rank 0 printed (only rank 0 prints), on every rank: asserts stay collective."""
+    return MPI.COMM_WORLD.bcast(capsys.readouterr().err if MPI.COMM_WORLD.rank == 0 else None)
+
+
+def rows(run: Path) -> list[dict]:
+    """metrics.csv as written (10 significant digits), without the wall time."""
+    with (run / "metrics.csv").open(newline="") as f:
+        return [{k: v for k, v in r.items() if k != "wall_time_s"} for r in csv.DictReader(f)]
+
+
+def assert_same_rows(a: Path, b: Path) -> None:
+    ra, rb = rows(a), rows(b)
+    assert [r["step"] for r in ra] == [r["step"] for r in rb]
+    if SERIAL:
+        assert ra == rb
+        return
+    for x, y in zip(ra, rb):
+        for key in x:
+            if key.endswith("iterations") or x[key] == "":
+                assert x[key] == y[key], key
+            else:
+                assert float(x[key]) == pytest.approx(float(y[key]), rel=1e-9, abs=1e-12), key
+
+
+def stored(run: Path) -> dict[str, tuple]:
+    """Every rank file of ``run``'s checkpoint: per array (keys of its rows or None, values)."""
+    folder = run / "checkpoint"
+    meta = json.loads((folder / "checkpoint.json").read_text())
+    files = []
+    for name in meta["files"]:
+        with np.load(folder / name) as data:
+            files.append({k: data[k] for k in data.files})
+    return {key: (None, files[0][key]) if layout is None else
+            (np.concatenate([f[f"keys.{layout}"] for f in files]),
+             np.concatenate([f[key] for f in files]))
+            for key, layout in meta["layouts"].items()}
+
+
+def differences(a: Path, b: Path) -> dict[str, float]:
+    """max |a − b| / max |a| per array of two runs' checkpoints (rows paired by their keys);
+    inf for arrays that are missing or of another shape. Computed on rank 0."""
+    result = None
+    if MPI.COMM_WORLD.rank == 0:
+        sa, sb = stored(a), stored(b)
+        result = {k: np.inf for k in set(sa) ^ set(sb)}
+        for key in set(sa) & set(sb):
+            (keys_a, x), (keys_b, y) = sa[key], sb[key]
+            if keys_a is not None and len(keys_a) == len(keys_b) and len(keys_a):
+                distance, index = cKDTree(keys_b).query(keys_a)
+                y = y[index] if distance.max() < 1e-12 else y[:0]
+            if x.shape != y.shape:
+                result[key] = np.inf
+            elif x.dtype == bool or not x.size:
+                result[key] = 0.0 if np.array_equal(x, y) else np.inf
+            else:
+                scale = np.abs(x).max() or 1.0
+                result[key] = float(np.abs(x.astype(float) - y).max() / scale)
+    return MPI.COMM_WORLD.bcast(result, root=0)
+
+
+def assert_same_state(a: Path, b: Path) -> None:
+    bound = 0.0 if SERIAL else 1e-9
+    different = {k: d for k, d in differences(a, b).items() if d > bound}
+    assert not different, different
+
+
+def step_of(run: Path) -> int:
+    return json.loads((run / "checkpoint" / "checkpoint.json").read_text())["step"]
+
+
+def summary(run: Path) -> dict:
+    return json.loads((run / "summary.json").read_text())
+
+
+# --------------------------------------------------------------------------------------------
+# Rigid structure: the fluid alone
+
+
+@pytest.fixture(scope="module")
+def rigid():
+    """6 steps straight; 2 steps, then a restart in the same folder up to step 6."""
+    comm = MPI.COMM_WORLD
+    path = Path(comm.bcast(tempfile.mkdtemp(prefix="fsi-test-") if comm.rank == 0 else None))
+    straight, split = path / "straight", path / "split"
+    codes = [fsi_run(RIGID, straight, [*RIGID_SET, "time.end=0.004"]),
+             fsi_run(RIGID, split, [*RIGID_SET, "time.end=0.002"])]
+    before = (split / "fields.xdmf").read_text()
+    codes.append(fsi_run(RIGID, split, [*RIGID_SET, "time.end=0.004"], restart=split))
+    yield {"codes": codes, "straight": straight, "split": split, "fields_before": before}
+    comm.barrier()
+    if comm.rank == 0:
+        shutil.rmtree(path, ignore_errors=True)
+
+
+def test_rigid_restart_continues_like_the_uninterrupted_run(rigid):
+    assert rigid["codes"] == [0, 0, 0]
+    straight, split = rigid["straight"], rigid["split"]
+    assert [r["step"] for r in rows(split)] == ["1", "2", "3", "4", "5", "6"]
+    assert_same_rows(split, straight)
+    assert step_of(split) == step_of(straight) == 6
+    assert_same_state(split, straight)
+    s, r = summary(straight), summary(split)
+    for key in ("steps", "newton_iterations", "end_time_s"):
+        assert r[key] == s[key], key
+    assert r["restarted_from"]["step"] == 2
+
+
+def test_restart_writes_a_new_field_file_and_keeps_the_old_one(rigid):
+    split = rigid["split"]
+    # fields.xdmf (t = 0 … 2 ms) is untouched; the restart's fields (t = 2 … 4 ms) are new.
+    assert (split / "fields.xdmf").read_text() == rigid["fields_before"]
+    text = (split / "fields.restart2.xdmf").read_text()
+    times = [float(t) for t in re.findall(r'Time Value="([^"]+)"', text)]
+    assert times[0] == 0.002 and times[-1] == pytest.approx(0.004) and len(set(times)) == 5
+
+
+def test_checkpoints_every_n_steps_and_at_the_end(shared_tmp, monkeypatch):
+    written = []
+    original = checkpoint.write
+
+    def spy(out, comm, state, layouts, meta):
+        written.append(meta["step"])
+        return original(out, comm, state, layouts, meta)
+
+    monkeypatch.setattr(checkpoint, "write", spy)
+    out = shared_tmp / "every"
+    assert fsi_run(RIGID, out, [*RIGID_SET, "time.end=0.0025",
+                                "output.checkpoint_every=2"]) == 0
+    assert written == [2, 3]
+    assert step_of(out) == 3
+    assert summary(out)["checkpoint"] == str(out / "checkpoint")
+
+
+def test_a_checkpoint_restarts_on_another_number_of_ranks(rigid, shared_tmp):
+    """The checkpoint of step 2 (written by every rank of the world) continued by each rank
+    alone; compared with the uninterrupted run on all ranks."""
+    comm = MPI.COMM_WORLD
+    case = config.load(RIGID, [*RIGID_SET, "time.end=0.004"])
+    source = shared_tmp / "source"
+    assert fsi_run(RIGID, source, [*RIGID_SET, "time.end=0.002"]) == 0
+    alone = shared_tmp / f"alone{comm.rank}"
+    found = checkpoint.read(source, case, MPI.COMM_SELF)
+    assert found.meta["ranks"] == comm.size and found.step == 2
+    simulation.run(case, alone, MPI.COMM_SELF, found)
+    reference = rows(rigid["straight"])
+    mine = rows(alone)
+    problems = [] if [r["step"] for r in mine] == [r["step"] for r in reference] else ["steps"]
+    for x, y in zip(mine, reference):  # another partition: round-off only (see the top)
+        problems += [(x["step"], key, x[key], y[key]) for key in
+                     ("peak_velocity", "peak_pressure", "max_wss", "min_wss")
+                     if float(x[key]) != pytest.approx(float(y[key]), rel=1e-9)]
+    assert not any(comm.allgather(problems)), comm.allgather(problems)  # every rank ran alone
+
+
+# --------------------------------------------------------------------------------------------
+# Coupled moving wall
+
+
+@pytest.fixture(scope="module")
+def coupled():
+    """Per acceleration: 2 steps straight; 1 step, then a restart into a new folder."""
+    comm = MPI.COMM_WORLD
+    path = Path(comm.bcast(tempfile.mkdtemp(prefix="fsi-test-") if comm.rank == 0 else None))
+    runs = {}
+    for name, overrides in ACCELERATIONS.items():
+        straight, first, second = (path / name / n for n in ("straight", "first", "second"))
+        codes = [fsi_run(COUPLED, straight, [*COUPLED_SET, *overrides, "time.end=0.002"]),
+                 fsi_run(COUPLED, first, [*COUPLED_SET, *overrides, "time.end=0.001"])]
+        first_state = stored(first)
+        codes.append(fsi_run(COUPLED, second, [*COUPLED_SET, *overrides, "time.end=0.002"],
+                             restart=first))
+        runs[name] = {"codes": codes, "straight": straight, "first": first, "second": second,
+                      "first_state": first_state}
+    yield runs
+    comm.barrier()
+    if comm.rank == 0:
+        shutil.rmtree(path, ignore_errors=True)
+
+
+@pytest.mark.parametrize("acceleration", list(ACCELERATIONS))
+def test_coupled_restart_continues_like_the_uninterrupted_run(coupled, acceleration):
+    run = coupled[acceleration]
+    assert run["codes"] == [0, 0, 0]
+    assert [r["step"] for r in rows(run["second"])] == ["1", "2"]  # row 1 copied over
+    assert_same_rows(run["second"], run["straight"])
+    assert_same_state(run["second"], run["straight"])
+    s, r = summary(run["straight"]), summary(run["second"])
+    for key in ("steps", "coupling_iterations", "max_coupling_iterations",
+                "solid_newton_iterations", "newton_iterations"):
+        assert r[key] == s[key], key
+    # What step 2 reuses was in the checkpoint: Aitken's ω; IQN-ILS: step 1's columns.
+    saved = run["first_state"]
+    if acceleration == "aitken":
+        assert 0 < float(saved["coupling.aitken.omega"][1]) <= 1
+    else:
+        assert int(saved["coupling.iqn.steps"][1]) == 1
+        keys, columns = saved["coupling.iqn.V.0"]
+        assert columns.shape[:2] == (len(keys), 2)  # (interface nodes, x/y, columns)
+        assert columns.shape[2] >= 3  # step 1 takes ≥ 4 iterations (measured 6)
+
+
+@pytest.mark.parametrize("failure, checkpointed", [
+    # The mesh guard raises inside the coupling iteration of step 2 (solvers not restored).
+    ("mesh_motion.min_jacobian_ratio=0.998", 1),
+    # One coupling iteration is too few for step 1: the checkpoint is the initial state.
+    ("coupling.max_iterations=1", 0),
+])
+def test_failed_step_is_checkpointed_and_a_restart_finishes_it(coupled, shared_tmp, fsi_log,
+                                                               failure, checkpointed):
+    out = shared_tmp / "failed"
+    overrides = [*COUPLED_SET, *ACCELERATIONS["aitken"], "time.end=0.002"]
+    assert fsi_run(COUPLED, out, [*overrides, failure]) == 3
+    assert step_of(out) == checkpointed
+    assert len(rows(out)) == checkpointed
+    assert not (out / "summary.json").exists()
+    if checkpointed == 1:  # the state after step 1, not the failed step's iterates
+        assert_same_state(out, coupled["aitken"]["first"])
+    text = MPI.COMM_WORLD.bcast(fsi_log.text)  # rank 0 logs
+    assert f"checkpointed in {out / 'checkpoint'}" in text
+    assert f"--out {out} --restart {out}" in text
+    # The same folder, the failing setting dropped: finishes like the uninterrupted run.
+    assert fsi_run(COUPLED, out, overrides, restart=out) == 0
+    assert_same_rows(out, coupled["aitken"]["straight"])
+    assert_same_state(out, coupled["aitken"]["straight"])
+
+
+def test_structure_alone_restart_continues_like_the_uninterrupted_run(shared_tmp):
+    """The structure under the inlet pressure (the generalized-α history η, η̇, η̈, loads)."""
+    overrides = ["structure.interface_load=inlet_pressure", *COUPLED_SET]
+    straight, split = shared_tmp / "straight", shared_tmp / "split"
+    assert fsi_run(COUPLED, straight, [*overrides, "time.end=0.002"]) == 0
+    assert fsi_run(COUPLED, split, [*overrides, "time.end=0.001"]) == 0
+    assert fsi_run(COUPLED, split, [*overrides, "time.end=0.002"], restart=split) == 0
+    assert_same_rows(split, straight)
+    assert_same_state(split, straight)
+    assert (split / "solid.restart1.xdmf").exists()
+
+
+# --------------------------------------------------------------------------------------------
+# Checkpoints that do not fit are refused before any work (exit 2)
+
+
+def copy_checkpoint(rigid, shared_tmp) -> Path:
+    source = shared_tmp / "source"
+    if MPI.COMM_WORLD.rank == 0:
+        shutil.copytree(rigid["split"] / "checkpoint", source / "checkpoint")
+    MPI.COMM_WORLD.barrier()
+    return source
+
+
+@pytest.mark.parametrize("overrides, expected", [
+    (["mesh.level=fine"], "mesh.level: the checkpoint has 'coarse', the configuration 'fine'"),
+    (["structure.mode=moving_wall"], "structure.mode: the checkpoint has 'rigid'"),
+    (["geometry.stenosis_degree=0.6"], "geometry.stenosis_degree: the checkpoint has 0.5"),
+])
+def test_a_checkpoint_of_another_setup_is_refused(rigid, shared_tmp, capsys, overrides,
+                                                  expected):
+    out = shared_tmp / "refused"
+    split = rigid["split"]
+    assert fsi_run(RIGID, out, [*RIGID_SET, "time.end=0.004", *overrides], restart=split) == 2
+    assert not out.exists()
+    err = stderr(capsys)
+    assert expected in err
+    assert str(split / "checkpoint" / "checkpoint.json") in err
+
+
+def test_a_missing_or_damaged_checkpoint_is_refused(rigid, shared_tmp, capsys):
+    comm = MPI.COMM_WORLD
+    out = shared_tmp / "refused"
+    overrides = [*RIGID_SET, "time.end=0.004"]
+    assert fsi_run(RIGID, out, overrides, restart=shared_tmp / "nowhere") == 2
+    assert str(shared_tmp / "nowhere" / "checkpoint" / "checkpoint.json") in stderr(capsys)
+    # A rank file cut short: every rank stops, naming it.
+    source = copy_checkpoint(rigid, shared_tmp)
+    damaged = source / "checkpoint" / checkpoint.rank_file(comm.size - 1)
+    if comm.rank == 0:
+        damaged.write_bytes(damaged.read_bytes()[:1000])
+    comm.barrier()
+    assert fsi_run(RIGID, out, overrides, restart=source) == 2
+    assert f"{damaged}: unreadable checkpoint" in stderr(capsys)
+    assert not out.exists()
+
+
+def test_a_checkpoint_of_another_mesh_is_refused_before_writing(rigid, shared_tmp, capsys):
+    """checkpoint.json agrees, the keys of the velocity nodes do not (as for another mesh):
+    caught while the state is given to this run's dofs, before any file is written."""
+    comm = MPI.COMM_WORLD
+    source = copy_checkpoint(rigid, shared_tmp)
+    if comm.rank == 0:
+        path = source / "checkpoint" / checkpoint.rank_file(0)
+        with np.load(path) as data:
+            arrays = {k: data[k] for k in data.files}
+        arrays["keys.fluid_velocity"] = arrays["keys.fluid_velocity"] + 1e-7  # 0.1 µm
+        with path.open("wb") as f:
+            np.savez(f, **arrays)
+    comm.barrier()
+    out = shared_tmp / "refused"
+    assert fsi_run(RIGID, out, [*RIGID_SET, "time.end=0.004"], restart=source) == 2
+    assert not out.exists()
+    err = stderr(capsys)
+    assert "fluid_velocity: " in err and "dofs of this run are not in the checkpoint" in err
+
+
+# --------------------------------------------------------------------------------------------
+# The files: atomic replacement
+
+
+def test_a_checkpoint_is_replaced_atomically(shared_tmp):
+    comm = MPI.COMM_WORLD
+    case = config.load(RIGID, [*RIGID_SET, "time.end=0.004"])
+    out = shared_tmp / "atomic"
+    if comm.rank == 0:
+        out.mkdir()
+    comm.barrier()
+    # One row per rank, keyed by the rank: after reading, each rank finds its own value.
+    layouts = {"x": checkpoint.Layout("ranks", np.array([[float(comm.rank)]]), 1, 1)}
+
+    def save(step: int) -> None:
+        checkpoint.write(out, comm, {"x": np.array([step + comm.rank / 10])}, layouts,
+                         checkpoint.metadata(case, comm, step, 1e-3 * step, 1e-3))
+
+    def load() -> list:
+        """(run folder right, step, value) of every rank: the asserts stay collective."""
+        found = checkpoint.read(out, case, comm)
+        value = float(checkpoint.localize(found, layouts, {}, comm)["x"][0])
+        return comm.allgather((found.run_dir == out, found.step, value))
+
+    def expected(step: int) -> list:
+        return [(True, step, step + rank / 10) for rank in range(comm.size)]
+
+    def listing() -> list:
+        return comm.allgather(sorted(p.name for p in out.iterdir()))
+
+    save(1)
+    assert load() == expected(1)
+    # Killed while writing the next one: the half-written folder is ignored, then replaced.
+    if comm.rank == 0:
+        (out / "checkpoint.partial").mkdir()
+        (out / "checkpoint.partial" / "rank0000.npz").write_bytes(b"PK\x03\x04 cut")
+    comm.barrier()
+    assert load() == expected(1)
+    save(2)
+    assert load() == expected(2)
+    assert listing() == [["checkpoint"]] * comm.size
+    # Killed between the two renames: the previous complete checkpoint is used.
+    if comm.rank == 0:
+        (out / "checkpoint").rename(out / "checkpoint.previous")
+    comm.barrier()
+    assert load() == expected(2)
+    # A non-finite value is never written.
+    with pytest.raises(checkpoint.CheckpointError, match="non-finite x"):
+        checkpoint.write(out, comm, {"x": np.array([np.nan])}, layouts,
+                         checkpoint.metadata(case, comm, 3, 3e-3, 1e-3))
+    assert load() == expected(2)
+    assert listing() == [["checkpoint.previous"]] * comm.size
+
+
+def test_state_dataclasses_round_trip_through_arrays():
+    from fsi.fluid import FluidState
+
+    s = FluidState(0.25, None, 3, *(np.arange(4.0) + i for i in range(7)), True)
+    back = checkpoint.from_arrays(FluidState, "fluid.", checkpoint.to_arrays("fluid.", s))
+    assert back.dt_previous is None and back.time == 0.25 and back.accepted_steps == 3
+    assert back.mesh_velocity_given is True and np.array_equal(back.w, s.w)
+    s2 = FluidState(0.5, 1e-3, 4, *(np.arange(4.0) for _ in range(7)), False)
+    assert checkpoint.from_arrays(FluidState, "", checkpoint.to_arrays("", s2)).dt_previous == 1e-3
+
+
+@pytest.mark.parametrize("acceleration", ["aitken", "iqn-ils"])
+def test_coupling_memory_carries_over_through_its_arrays(acceleration):
+    """Aitken's ω, IQN-ILS's past columns and the predictor's history, saved after step 2 of a
+    linear fixed-point problem x = A x + b(t) and loaded into fresh objects: step 3 repeats bit
+    for bit (and without them it takes another path)."""
+    from fsi import coupling
+
+    comm = MPI.COMM_SELF
+    rng = np.random.default_rng(1)
+    A = -0.9 * np.eye(8) + 0.05 * rng.standard_normal((8, 8))  # added-mass-like: |λ| ≈ 0.9
+
+    def build():
+        if acceleration == "aitken":
+            return coupling.Aitken(comm, 0.5), coupling.Predictor(2)
+        return coupling.IQNILS(comm, 0.5, reuse=2), coupling.Predictor(2)
+
+    def step(acc, predictor, t):
+        x, history = predictor.predict(t), []
+        acc.start_step()
+        for _ in range(100):
+            x_tilde = A @ x + np.sin(t + np.arange(8))
+            history.append(x_tilde)
+            if coupling.relative_residual(comm, x, x_tilde) < 1e-10:
+                acc.end_step()
+                predictor.record(x_tilde, t)
+                return history
+            x = acc.next_input(x, x_tilde)
+        raise AssertionError("no convergence")
+
+    acc, predictor = build()
+    predictor.record(np.zeros(8), 0.0)
+    for t in (0.1, 0.2):
+        step(acc, predictor, t)
+    saved = {**acc.state(), **{f"p.{k}": v for k, v in predictor.state().items()}}
+    again, fresh = build(), build()
+    again[0].load_state(saved)
+    again[1].load_state(checkpoint.subset("p.", saved))
+    fresh[1].load_state(checkpoint.subset("p.", saved))
+    expected, repeated, without = (step(*pair, 0.3) for pair in ((acc, predictor), again, fresh))
+    assert len(expected) == len(repeated) and all(
+        np.array_equal(a, b) for a, b in zip(expected, repeated))
+    assert len(without) != len(expected) or not np.array_equal(without[1], expected[1])
