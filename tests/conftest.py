@@ -1,6 +1,7 @@
 """Shared fixtures. The suite runs serially and under ``mpirun -n 2 python -m mpi4py -m pytest``."""
 
 import gc
+import logging
 import shutil
 import tempfile
 from pathlib import Path
@@ -34,3 +35,12 @@ def shared_tmp():
     comm.barrier()
     if comm.rank == 0:
         shutil.rmtree(path, ignore_errors=True)
+
+
+@pytest.fixture
+def fsi_log(caplog):
+    """The 'fsi' logger does not propagate to the root: hand its records to caplog too."""
+    logger = logging.getLogger("fsi")
+    logger.addHandler(caplog.handler)
+    yield caplog
+    logger.removeHandler(caplog.handler)

@@ -3,7 +3,6 @@
 failures (coupling, mesh quality) exit 3 and keep the finished rows."""
 
 import json
-import logging
 import math
 import shutil
 import tempfile
@@ -41,15 +40,6 @@ def runs():
     comm.barrier()
     if comm.rank == 0:
         shutil.rmtree(path, ignore_errors=True)
-
-
-@pytest.fixture
-def fsi_log(caplog):
-    """The 'fsi' logger does not propagate to the root: hand its records to caplog too."""
-    logger = logging.getLogger("fsi")
-    logger.addHandler(caplog.handler)
-    yield caplog
-    logger.removeHandler(caplog.handler)
 
 
 @pytest.mark.parametrize("mode", MODES)

@@ -20,7 +20,6 @@ scale, to 1e-12 absolute), iteration counts equal.
 
 import csv
 import json
-import logging
 import re
 import shutil
 import tempfile
@@ -48,15 +47,6 @@ SERIAL = MPI.COMM_WORLD.size == 1
 def fsi_run(case: str, out: Path, overrides, restart: Path | None = None) -> int:
     args = ["run", case, "--out", str(out), *sum((["--set", s] for s in overrides), [])]
     return cli.main(args + ([] if restart is None else ["--restart", str(restart)]))
-
-
-@pytest.fixture
-def fsi_log(caplog):
-    """The 'fsi' logger does not propagate to the root: hand its records to caplog too."""
-    logger = logging.getLogger("fsi")
-    logger.addHandler(caplog.handler)
-    yield caplog
-    logger.removeHandler(caplog.handler)
 
 
 def stderr(capsys) -> str:
