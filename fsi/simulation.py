@@ -127,8 +127,8 @@ class Stepper(Protocol):
 
     def layouts(self) -> dict[str, checkpoint.Layout]:
         """Where the rows of the distributed arrays of :meth:`state` live (array name or name
-        prefix → layout; the others are global). Taken from the reference configuration:
-        :func:`march` asks before the first step and before any :meth:`load_state`."""
+        prefix → layout; the others are global), taken from the reference configuration when
+        the stepper is built."""
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
         """Continue from :meth:`state`'s arrays (on this run's dofs, :func:`fsi.checkpoint.
@@ -311,6 +311,7 @@ class RigidStepper:
                          if b in mesh.geometry_module(case).BOUNDARIES]
         self.turek_hron = isinstance(case.geometry, config.TurekHronGeometry)
         self.outputs = FluidOutputs(case, self.solver)
+        self._layouts = fluid_layouts(self.solver)
         self.columns = COLUMNS + self.outputs.columns + (["drag", "lift"] if self.turek_hron
                                                          else [])
 
@@ -345,8 +346,6 @@ class RigidStepper:
         return checkpoint.to_arrays("fluid.", self.solver.save_state())
 
     def layouts(self) -> dict[str, checkpoint.Layout]:
-        if not hasattr(self, "_layouts"):
-            self._layouts = fluid_layouts(self.solver)
         return self._layouts
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
@@ -370,6 +369,12 @@ class CoupledStepper:
         self.point_a = (turek_hron.point_a(case.geometry)
                         if isinstance(case.geometry, config.TurekHronGeometry) else None)
         self.outputs = FluidOutputs(case, self.problem.fluid)
+        # Before the mesh ever moves: the checkpoint keys are reference coordinates.
+        p = self.problem
+        interface = checkpoint.interface_layout("interface", p.solid.interface_points, 2)
+        self._layouts = {**fluid_layouts(p.fluid), **structure_layouts(p.solid),
+                         "coupling.iqn.V": interface, "coupling.iqn.W": interface,
+                         "predictor.values": interface}
         self.columns = COUPLED_COLUMNS + self.outputs.columns + (
             ["drag", "lift", "ux_A", "uy_A"] if self.point_a else [])
         self.iterations: list[int] = []
@@ -450,12 +455,6 @@ class CoupledStepper:
                 "counters.solid_newton_iterations": np.array(self.solid_newton)}
 
     def layouts(self) -> dict[str, checkpoint.Layout]:
-        if not hasattr(self, "_layouts"):
-            p = self.problem
-            interface = checkpoint.interface_layout("interface", p.solid.interface_points, 2)
-            self._layouts = {**fluid_layouts(p.fluid), **structure_layouts(p.solid),
-                             "coupling.iqn.V": interface, "coupling.iqn.W": interface,
-                             "predictor.values": interface}
         return self._layouts
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
@@ -486,6 +485,7 @@ class StructureStepper:
                          if case.structure.interface_load == "inlet_pressure" else None)
         self.solver = solid.build(case, whole, comm, self.pressure)
         self.stenosis = isinstance(case.geometry, config.StenosisGeometry)
+        self._layouts = structure_layouts(self.solver)
 
     def field_files(self) -> dict[str, tuple[object, list]]:
         s, stress = self.solver, self.solver.stress.fields
@@ -522,8 +522,6 @@ class StructureStepper:
         return checkpoint.to_arrays("solid.", self.solver.save_state())
 
     def layouts(self) -> dict[str, checkpoint.Layout]:
-        if not hasattr(self, "_layouts"):
-            self._layouts = structure_layouts(self.solver)
         return self._layouts
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
