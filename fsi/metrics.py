@@ -1,8 +1,8 @@
-"""Fluid metrics (MODEL.md §6): peaks, wall shear stress, recirculation, forces, and the shear
-rate and effective viscosity as fields.
+"""Fluid metrics (MODEL.md §6): peaks, wall shear stress, recirculation, forces, flow rates, and
+the shear rate and effective viscosity as fields.
 
 Every function here is collective over the mesh's communicator and returns the same value on
-every rank (peaks and forces are reduced, wall samples are gathered).
+every rank (peaks, forces and flow rates are reduced, wall samples are gathered).
 """
 
 from __future__ import annotations
@@ -220,6 +220,28 @@ def surface_force(u: dolfinx.fem.Function, p: dolfinx.fem.Function, law: rheolog
     force = [dolfinx.fem.assemble_scalar(dolfinx.fem.form(traction[i] * measure))
              for i in range(mesh.geometry.dim)]
     return mesh.comm.allreduce(np.array(force, dtype=float), op=MPI.SUM)
+
+
+# --------------------------------------------------------------------------------------------
+# Flow rates
+
+
+def flow_rate(u: dolfinx.fem.Function, facet_tags: dolfinx.mesh.MeshTags,
+              tags: Sequence[int], sign: float = 1.0, quadrature_degree: int = 2) -> float:
+    """Q = sign ∫_Γ u·n ds over the facets ``tags`` of ``u``'s mesh, n the outward unit normal:
+    the volume flow rate per unit depth (m²/s) through Γ, on the mesh as it is now (moved or
+    not). ``sign`` = +1 counts outflow as positive (an outlet), −1 inflow (an inlet), so that
+    Q_in = −∫_inlet u·n ds and Q_out = ∫_outlet u·n ds are both positive downstream.
+
+    The default degree 2 integrates a P2 velocity exactly on straight facets (n is constant).
+    The same value on every rank (assembled over owned facets, summed over the ranks)."""
+    mesh = u.function_space.mesh
+    ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags,
+                     metadata={"quadrature_degree": quadrature_degree})
+    tags = [int(t) for t in tags]
+    measure = sum((ds(t) for t in tags[1:]), ds(tags[0]))
+    form = dolfinx.fem.form(ufl.dot(u, ufl.FacetNormal(mesh)) * measure)
+    return sign * mesh.comm.allreduce(dolfinx.fem.assemble_scalar(form), op=MPI.SUM)
 
 
 # --------------------------------------------------------------------------------------------

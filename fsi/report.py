@@ -2,7 +2,9 @@
 
 Tables 1–3 are the peak velocity, pressure and displacement at the report times (the rows of
 ``metrics.csv`` at those times); a fourth table gives each run's solver effort. The plots show
-a column of ``metrics.csv`` over time, one line per run (Figure 6 is ``max_sss``).
+a column of ``metrics.csv`` over time, one line per run (Figure 6 is ``max_sss``), and the inlet
+and outlet flow rates together, one line per run and boundary. A run without a column (an older
+run folder, a structure-only run) is left out of that plot and shows '–' in the tables.
 Reads only the files ``fsi run`` writes: ``config.yaml``, ``metrics.csv``, ``summary.json``.
 """
 
@@ -23,6 +25,8 @@ PLOTS = [("max_sss", "max |σ₁₂| in the structure (Pa)"),
          ("peak_velocity", "peak velocity (m/s)"),
          ("recirculation_length", "recirculation length (m)"),
          ("coupling_iterations", "coupling iterations")]
+FLOW_RATES = [("inlet_flow_rate", "inlet", "-"), ("outlet_flow_rate", "outlet", "--")]
+FLOW_RATE_UNIT = ("cm²/s = mL/s per cm of depth", 1.0e4)  # metrics.csv holds m²/s
 
 
 class ReportError(ValueError):
@@ -108,19 +112,37 @@ def markdown(runs: Sequence[Run], times: Sequence[float] | None = None) -> str:
 
 def plot(runs: Sequence[Run], column: str, ylabel: str, path: Path) -> bool:
     """``column`` over time, one line per run that has it, as a PNG; False if none has it."""
+    series = [(run.label, [r["t"] for r in run.rows if column in r],
+               [r[column] for r in run.rows if column in r]) for run in runs]
+    return _figure([(label, t, y, "-", None) for label, t, y in series], ylabel, path)
+
+
+def flow_rate_plot(runs: Sequence[Run], path: Path) -> bool:
+    """The inlet (solid) and outlet (dashed, same colour) flow rates per unit depth over time,
+    in cm²/s, as a PNG; False if no run has them."""
+    unit, scale = FLOW_RATE_UNIT
+    series = []
+    for k, run in enumerate(runs):
+        for column, boundary, style in FLOW_RATES:
+            rows = [r for r in run.rows if column in r]
+            series.append((f"{run.label} {boundary}", [r["t"] for r in rows],
+                           [scale * r[column] for r in rows], style, f"C{k % 10}"))
+    return _figure(series, f"flow rate ({unit})", path)
+
+
+def _figure(series: Sequence[tuple], ylabel: str, path: Path) -> bool:
+    """One line per (label, t, y, linestyle, colour) that has points; False if none has."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    series = [(run.label, [r["t"] for r in run.rows if column in r],
-               [r[column] for r in run.rows if column in r]) for run in runs]
     series = [s for s in series if s[1]]
     if not series:
         return False
     fig, ax = plt.subplots(figsize=(7, 4), layout="constrained")
-    for label, t, y in series:
-        ax.plot(t, y, label=label, lw=1.2)
+    for label, t, y, style, colour in series:
+        ax.plot(t, y, style, label=label, lw=1.2, color=colour)
     ax.set_xlabel("t (s)")
     ax.set_ylabel(ylabel)
     ax.grid(alpha=0.3)
@@ -131,7 +153,8 @@ def plot(runs: Sequence[Run], column: str, ylabel: str, path: Path) -> bool:
 
 
 def write(runs: Sequence[Run], out: Path, times: Sequence[float] | None = None) -> list[Path]:
-    """``out/report.md`` and one PNG per plotted column; returns the files written."""
+    """``out/report.md``, one PNG per plotted column and ``flow_rate.png`` (the inlet and outlet
+    flow rates); returns the files written."""
     out.mkdir(parents=True, exist_ok=True)
     written = [out / "report.md"]
     written[0].write_text(markdown(runs, times))
@@ -139,4 +162,6 @@ def write(runs: Sequence[Run], out: Path, times: Sequence[float] | None = None) 
         path = out / f"{column}.png"
         if plot(runs, column, ylabel, path):
             written.append(path)
+    if flow_rate_plot(runs, out / "flow_rate.png"):
+        written.append(out / "flow_rate.png")
     return written

@@ -44,6 +44,9 @@ longest reversed-flow zone along either wall (m) (fsi.metrics.wall_shear_summary
 ``relaxation``: Aitken's (or the constant) ω of the step's last iteration, empty for IQN-ILS;
 ``newton_iterations``/``solid_newton_iterations``: fluid/solid Newton iterations summed over the
 step's coupling iterations; ``mesh_jacobian_ratio``: the fluid mesh's smallest J/J_ref."""
+FLOW_COLUMNS = ["inlet_flow_rate", "outlet_flow_rate"]
+"""Every fluid mesh with an inlet and an outlet: the volume flow rate per unit depth (m²/s)
+through each, positive downstream, on the current mesh (fsi.metrics.flow_rate)."""
 
 
 class SolveFailed(RuntimeError):
@@ -260,14 +263,18 @@ class _Snapshot:
 
 class FluidOutputs:
     """The fluid's derived output: viscosity, shear rate and wall shear stress fields (on every
-    no-slip or moving wall) and, for channel-like lumens, the WALL_COLUMNS of the metrics row."""
+    no-slip or moving wall), for channel-like lumens the WALL_COLUMNS of the metrics row and,
+    where the fluid mesh has an inlet and an outlet, the FLOW_COLUMNS."""
 
     def __init__(self, case: config.Case, solver: fluid.FluidSolver):
         self.solver = solver
-        self.walls = [b for b in mesh.geometry_module(case).BOUNDARIES
+        boundaries = mesh.geometry_module(case).BOUNDARIES
+        self.walls = [b for b in boundaries
                       if b in (Boundary.RIGID_WALL, Boundary.INTERFACE, Boundary.OBSTACLE)]
         self.lumen = not isinstance(case.geometry, config.TurekHronGeometry)
-        self.columns = WALL_COLUMNS if self.lumen else []
+        self.open = Boundary.INLET in boundaries and Boundary.OUTLET in boundaries
+        self.columns = ((WALL_COLUMNS if self.lumen else [])
+                        + (FLOW_COLUMNS if self.open else []))
         self.derived = metrics.FluidFields(solver.u, solver.p, solver.law, solver.facet_tags,
                                            self.walls)
 
@@ -276,13 +283,18 @@ class FluidOutputs:
         return [self.solver.u, self.solver.p, *self.derived.fields]
 
     def update(self) -> dict:
-        """Recompute the fields for the current solution; return the row's wall columns."""
+        """Recompute the fields for the current solution; return the row's wall and flow
+        columns."""
         s = self.solver
         self.derived.update()
-        if not self.lumen:
-            return {}
-        return metrics.wall_shear_summary(metrics.wall_shear_stress(
-            s.u, s.p, s.law, s.facet_tags, self.walls))
+        row = {}
+        if self.lumen:
+            row.update(metrics.wall_shear_summary(metrics.wall_shear_stress(
+                s.u, s.p, s.law, s.facet_tags, self.walls)))
+        if self.open:
+            row["inlet_flow_rate"] = metrics.flow_rate(s.u, s.facet_tags, [Boundary.INLET], -1.0)
+            row["outlet_flow_rate"] = metrics.flow_rate(s.u, s.facet_tags, [Boundary.OUTLET])
+        return row
 
 
 # --------------------------------------------------------------------------------------------

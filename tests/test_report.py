@@ -1,5 +1,6 @@
 """``fsi report``: the study's tables and plots from run folders."""
 
+import csv
 import shutil
 import tempfile
 from pathlib import Path
@@ -49,8 +50,38 @@ def test_cli_writes_report_and_plots(run_dir, capsys):
         assert "Table 1: Peak velocity" in text and "Table 3: Peak displacement" in text
         assert text == report.markdown([report.load_run(run_dir)] * 2)
         assert (out / "peak_velocity.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert (out / "flow_rate.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert not (out / "max_sss.png").exists()  # a rigid run has no structure stress
         assert "Table 2: Peak pressure" in capsys.readouterr().out
+
+
+def test_an_old_run_folder_without_flow_rates_still_reports(run_dir, capsys):
+    """Run folders written before the flow-rate columns existed: the tables and the other
+    plots as before, no flow-rate plot (and no error)."""
+    comm = MPI.COMM_WORLD
+    old = run_dir.parent / "old"
+    if comm.rank == 0:
+        shutil.copytree(run_dir, old, dirs_exist_ok=True)
+        with (run_dir / "metrics.csv").open(newline="") as f:
+            rows = list(csv.DictReader(f))
+        columns = [c for c in rows[0] if c not in ("inlet_flow_rate", "outlet_flow_rate")]
+        with (old / "metrics.csv").open("w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=columns, extrasaction="ignore")
+            writer.writeheader()
+            writer.writerows(rows)
+    comm.barrier()
+    assert "inlet_flow_rate" not in report.load_run(old).rows[0]
+    out = run_dir.parent / f"old_report{comm.rank}"
+    assert cli.main(["report", str(old), str(run_dir), "--out", str(out)]) == 0
+    assert report.flow_rate_plot([report.load_run(old)], out / "none.png") is False
+    if comm.rank == 0:
+        lines = (out / "report.md").read_text().splitlines()
+        old_rows = [i for i, line in enumerate(lines) if line.startswith("| old (")]
+        assert len(old_rows) == 4  # Tables 1–3 and the solver effort
+        for i in old_rows:  # the same numbers as the run it was copied from
+            assert lines[i].replace("| old (", f"| {run_dir.name} (") == lines[i + 1]
+        assert (out / "flow_rate.png").exists()  # the new run's lines
+        assert not (out / "none.png").exists()
 
 
 def test_a_folder_that_is_not_a_run_is_refused(shared_tmp, capsys):

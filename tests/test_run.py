@@ -33,6 +33,18 @@ def test_rigid_run_writes_the_contract_files(shared_tmp):
         assert f'Name="{name}"' in fields, name
     # Forward flow along the walls while the pulse acts: τ_w > 0 at the throat, no reversal.
     assert all(r["max_wss"] > 0 and r["recirculation_length"] >= 0 for r in rows)
+    # Flow rates (m²/s per unit depth, positive downstream): the pulse drives the blood
+    # forward, and with rigid no-slip walls what enters leaves. Taylor–Hood conserves mass
+    # only weakly (∫ q div u dx = 0 for the P1 q, not div u = 0 pointwise), but q = 1 is one
+    # of those q, so Q_out − Q_in = ∫ div u dx = 0 up to the linear solve: these rows are
+    # linear in u, so every Newton iterate meets them whatever the momentum residual left.
+    # Measured: equal to all 10 digits metrics.csv keeps (1 and 2 ranks). 1e-8 relative
+    # allows the CSV's rounding and an iterative linear solver, not a leak.
+    for r in rows:
+        assert np.isfinite(r["inlet_flow_rate"]) and np.isfinite(r["outlet_flow_rate"])
+        assert r["inlet_flow_rate"] > 0
+        assert abs(r["inlet_flow_rate"] - r["outlet_flow_rate"]) < 1e-8 * r["inlet_flow_rate"]
+    assert rows[0]["inlet_flow_rate"] < rows[1]["inlet_flow_rate"] < rows[3]["inlet_flow_rate"]
 
 
 def test_serial_and_parallel_runs_agree(shared_tmp):
