@@ -337,6 +337,14 @@ class Fluid:
     """Blood (MODEL.md §2). ``open_boundary`` is the form of the inlet/outlet traction
     conditions: ``stress`` the study's σ n = −P n (σ the Cauchy stress); ``do_nothing``
     μ ∇u n − p n = −P n (Heywood, Rannacher & Turek 1996), exact for fully developed flow.
+    ``normal_flow``: the velocity on a traction inlet is normal to it (u·t = 0, strongly; the
+    "normal flow" pressure inlet of commercial CFD codes), and only the normal traction is
+    prescribed there. ``grad_div`` γ ≥ 0 (Pa·s) adds γ (∇·u, ∇·v) to the
+    momentum equation (grad-div stabilization, consistent: zero for a divergence-free u).
+    ``supg``: streamline-upwind/Petrov–Galerkin stabilization of the momentum equation
+    (Brooks & Hughes 1982; τ of Tezduyar & Osawa 2000), consistent: it adds a multiple of the
+    strong residual, so an exact discrete solution (Poiseuille flow) is unchanged.
+    docs/boundary-conditions.md compares the options.
     ``inflow_stabilization`` β ≥ 0 adds −β/2 ρ min(u·n, 0) u to a traction inlet's σ n, so the
     kinetic energy carried in through the open inlet is balanced (0: the plain condition; the
     study's case is unstable without it once the pulse has passed)."""
@@ -346,6 +354,9 @@ class Fluid:
     inlet: Inlet = field(default_factory=InletPulse)
     outlet: Outlet = field(default_factory=Outlet)
     open_boundary: Literal["stress", "do_nothing"] = "stress"
+    normal_flow: bool = False
+    grad_div: float = non_negative(0.0, " (Pa s)")
+    supg: bool = False
     inflow_stabilization: float = non_negative(1.0)
     quadrature_degree: int = at_least(4, 1)
     solver: SolverSettings = field(default_factory=SolverSettings)
@@ -358,12 +369,16 @@ class Fluid:
 @dataclass(frozen=True)
 class Material:
     """Hyperelastic material of one structure region (MODEL.md §3; fsi/materials.py): the
-    study's St. Venant–Kirchhoff ``svk`` or a compressible ``neo_hookean``, plane strain."""
+    study's St. Venant–Kirchhoff ``svk`` or a compressible ``neo_hookean``, plane strain.
+    ``viscous_relaxation_time`` τ (s) adds the Kelvin–Voigt viscous stress
+    ``S_v = τ (λ tr Ė I + 2μ Ė)`` (docs/wall-damping.md): every small-amplitude mode of
+    angular frequency ω gets the damping ratio ζ = ωτ/2; 0 (the default) is purely elastic."""
 
     law: Literal["svk", "neo_hookean"] = "svk"
     density: float = positive(1200.0, " (kg/m^3)")
     young_modulus: float = positive(1.6e6, " (Pa)")
     poisson_ratio: float = open_interval(0.45, -1.0, 0.5)
+    viscous_relaxation_time: float = non_negative(0.0, " (s)")
 
 
 @dataclass(frozen=True)
@@ -410,11 +425,26 @@ StructuralTimeIntegration = Union[GeneralizedAlpha, Newmark, QuasiStatic]
 
 
 @dataclass(frozen=True)
+class TissueSupport:
+    """The surrounding tissue as a spring–dashpot on the wall's exterior ΓN (Moireau et al.
+    2012; docs/wall-damping.md), normal direction only: ``P N = −(k_s η·N + c_s η̇·N) N``
+    per unit reference length, with ``stiffness`` k_s (Pa/m) and ``damping`` c_s (Pa·s/m).
+    0 and 0 (the defaults): a traction-free exterior. Acts where ΓN is free (``moving_wall``;
+    inert in ``fixed_wall``, where the wall is held); the Turek–Hron flag has no ΓN and
+    ignores it (with a warning)."""
+
+    stiffness: float = non_negative(0.0, " (Pa/m)")
+    damping: float = non_negative(0.0, " (Pa s/m)")
+
+
+@dataclass(frozen=True)
 class Structure:
     """``fixed_wall``: vessel wall held, plaque deforms; ``moving_wall``: wall and plaque deform
     (clamped at the wall ends; the Turek–Hron flag at its joint with the cylinder); ``rigid``: no
     structure solve (fluid-only runs). ``flag`` is the Turek–Hron flag's material (CSM1/FSI1
-    values by default); ``body_force`` a force per unit mass on the structure (gravity, m/s²);
+    values by default); ``support`` the surrounding tissue on the stenosis wall's exterior ΓN
+    (:class:`TissueSupport`; ignored by the Turek–Hron flag, which has no ΓN);
+    ``body_force`` a force per unit mass on the structure (gravity, m/s²);
     ``degree`` the Lagrange degree of the displacement (P1 locks in bending).
     ``interface_load``: ``fluid`` couples the structure to the blood; ``inlet_pressure`` solves
     the structure alone under the follower pressure P(t) of ``fluid.inlet`` on the interface
@@ -426,6 +456,7 @@ class Structure:
     cap: Material = field(default_factory=Material)
     lipid: Material = field(default_factory=Material)
     flag: FlagMaterial = field(default_factory=FlagMaterial)
+    support: TissueSupport = field(default_factory=TissueSupport)
     body_force: tuple[float, ...] = _check(
         (0.0, 0.0), lambda v: len(v) == 2, "a list of two numbers [gx, gy] (m/s^2)")
     time_integration: StructuralTimeIntegration = field(default_factory=GeneralizedAlpha)

@@ -423,6 +423,12 @@ class FluidSolver:
              + 2 * mu * ufl.inner(D(u), D(v)) - p * ufl.div(v) - q * ufl.div(u)) * dx
         if body_force is not None:
             F -= ufl.dot(body_force(x, self.t), v) * dx
+        if cfg.supg:
+            F += self._supg(u, p, v, mu, dudt, h, body_force, x) * dx
+        if cfg.grad_div > 0:
+            # Consistent (zero for a divergence-free u); damps the discretely divergent modes
+            # that the open boundaries otherwise feed (docs/boundary-conditions.md).
+            F += cfg.grad_div * ufl.div(u) * ufl.div(v) * dx
 
         def ds_of(tags):
             return sum((ds(t) for t in tags[1:]), ds(tags[0]))
@@ -454,8 +460,9 @@ class FluidSolver:
                 self._updates.append(lambda t, c=pressure, law=law: c.value.fill(law(t)))
                 for term in open_boundary(pressure, bc.tags):
                     F += term
-                # Without it the study's jet blew up at t ≈ 0.04 s (energy in through the inlet).
                 F += inflow_energy_balance(bc.inflow_stabilization, bc.tags)
+                if cfg.normal_flow:  # first, so that walls and the interface win at corners
+                    self._bcs.insert(0, self._normal_flow(bc.tags))
             elif isinstance(bc, Outflow):
                 for term in open_boundary(None, bc.tags):
                     F += term
@@ -476,6 +483,50 @@ class FluidSolver:
             if isinstance(bc, NoSlip):
                 self._bcs.append(self._dirichlet(zero, bc.tags))
         return F
+
+    def _supg(self, u, p, v, mu, dudt, h, body_force, x):
+        """SUPG: τ ((u − w)·∇)v · R with the strong momentum residual
+
+            R = ρ (∂u/∂t + ((u − w)·∇)u) + ∇p − ∇·(2 μ(s) D(u)) − f
+
+        (zero for the exact solution: the method is consistent; P2 velocities make the viscous
+        term exact for Poiseuille flow, which stays a discrete solution) and
+        τ = ((2 a₀)² + (2|u − w|/h)² + (4 μ/(ρ h²))²)^(−1/2) (Tezduyar & Osawa 2000; a₀ the
+        BDF weight of u^{n+1}, 1/Δt for backward Euler, 0 when steady). It adds the streamline
+        diffusion ≈ ρ|u − w|h/2 that the Galerkin form lacks where the cell Reynolds number is
+        large, in particular in the cells of an open inlet (docs/boundary-conditions.md)."""
+        rho, w = self._rho, self.ale.w
+        a = u - w
+        residual = (rho * dudt + rho * ufl.grad(u) * a + ufl.grad(p)
+                    - ufl.div(2 * mu * rheology.strain_rate(u)))
+        if body_force is not None:
+            residual -= body_force(x, self.t)
+        # τ from the last accepted step's velocity (a stabilization parameter, not part of the
+        # residual: lagging it keeps the method consistent and Newton's Jacobian simple)
+        a_n = self.u_n - w
+        mu_n = self.law.mu(rheology.shear_rate(self.u_n))
+        speed = ufl.sqrt(ufl.dot(a_n, a_n))
+        tau = ((2 * self._a[0]) ** 2 + (2 * speed / h) ** 2
+               + (4 * mu_n / (rho * h**2)) ** 2) ** -0.5
+        return tau * ufl.dot(ufl.grad(v) * a, residual)
+
+    def _normal_flow(self, tags: Sequence[int]):
+        """u·t = 0 on the open boundary ``tags``, which must be a straight segment parallel to a
+        coordinate axis (every inlet and outlet of the shipped geometries): the velocity
+        component along it is 0, the normal one stays free."""
+        fdim = self.mesh.topology.dim - 1
+        facets = self._facets(tags)
+        nodes = compat.entities_to_geometry(self.mesh, fdim, facets).ravel()
+        points = np.concatenate(self.comm.allgather(self.mesh.geometry.x[nodes, :2]))
+        extent = points.max(axis=0) - points.min(axis=0)
+        normal_axis = int(np.argmin(extent))
+        if extent[normal_axis] > 1e-9 * extent.max():
+            raise ValueError(f"fluid.normal_flow needs straight open boundaries parallel to an "
+                             f"axis; boundary {list(tags)} spans {extent[0]:g} x {extent[1]:g} m")
+        component = self.W.sub(0).sub(1 - normal_axis)
+        dofs = dolfinx.fem.locate_dofs_topological(component, fdim, facets)
+        zero = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(0.0))
+        return dolfinx.fem.dirichletbc(zero, dofs, component)
 
     def _parabolic_inflow(self, bc: Inflow):
         """u = ramp(t) 1.5 Ū 4 s (H − s)/H² (−n) on a straight inlet of width H."""

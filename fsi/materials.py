@@ -11,6 +11,12 @@ numbers, :class:`dolfinx.fem.Constant` or DG0 fields (per-region values): the la
   3D energy ``μ/2 (I₁³ᴰ − 3 − 2 ln J) + λ/2 (ln J)²`` since ``C₃₃ = 1``.
 
 Both linearise to Hooke's law with the same ``λ, μ``; :func:`lame` turns (E, ν) into them.
+
+* :class:`KelvinVoigt` — the viscous part of a Kelvin–Voigt solid, added to any of these:
+  ``S_v = λ_v tr(Ė) I + 2 μ_v Ė`` with the rate of the Green–Lagrange strain
+  ``Ė = sym(Fᵀ ∇η̇)``. With ``λ_v = τλ, μ_v = τμ`` (stiffness-proportional, one relaxation
+  time τ) the linearised damping operator is τ times the stiffness: every small-amplitude mode
+  of angular frequency ω has the damping ratio ζ = ωτ/2 (docs/wall-damping.md).
 """
 
 from __future__ import annotations
@@ -124,6 +130,42 @@ class NeoHookean:
     def second_piola_zz(self, F):
         # C₃₃ = 1: Σ₃₃ = μ (1 − 1) + λ ln J.
         return self.lmbda * ufl.ln(ufl.det(F))
+
+
+def green_lagrange_rate(F: ufl.core.expr.Expr, grad_v: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+    """``Ė = sym(Fᵀ ∇η̇)``, the material time derivative of ``E = (FᵀF − I)/2`` (``Ḟ = ∇η̇``).
+
+    Objective: a rigid spin superposed on any motion, ``∇η̇ = W F`` with ``W`` skew, gives
+    ``Fᵀ W F`` skew and ``Ė = 0``."""
+    return ufl.sym(F.T * grad_v)
+
+
+@dataclass(frozen=True)
+class KelvinVoigt:
+    """Viscous second Piola stress ``S_v = λ_v tr(Ė) I + 2 μ_v Ė``, ``Ė = sym(Fᵀ ∇η̇)``
+    (Pa; ``λ_v, μ_v`` in Pa·s). Its first Piola stress ``F S_v`` is added to the elastic one.
+
+    :meth:`stiffness_proportional` makes ``λ_v = τλ, μ_v = τμ``: linearised about the
+    reference state the viscous force is τ K η̇ with K the elastic stiffness, so the modes of
+    ``M η̈ + τ K η̇ + K η = 0`` are those of the elastic problem and a mode of angular
+    frequency ω decays as ``exp(−ζωt)`` with ``ζ = ωτ/2``. The stress power
+    ``S_v : Ė = λ_v (tr Ė)² + 2 μ_v Ė:Ė`` is ≥ 0 for ``μ_v ≥ 0, λ_v + μ_v ≥ 0`` (2D)."""
+
+    lmbda: Parameter
+    mu: Parameter
+    name: str = "kelvin_voigt"
+
+    @classmethod
+    def stiffness_proportional(cls, relaxation_time: Parameter, lmbda: Parameter,
+                               mu: Parameter) -> KelvinVoigt:
+        """``λ_v = τλ, μ_v = τμ`` for the relaxation time τ (s)."""
+        return cls(relaxation_time * lmbda, relaxation_time * mu)
+
+    def second_piola(self, F: ufl.core.expr.Expr, grad_v: ufl.core.expr.Expr
+                     ) -> ufl.core.expr.Expr:
+        """``S_v(F, ∇η̇)``."""
+        rate = green_lagrange_rate(F, grad_v)
+        return self.lmbda * ufl.tr(rate) * ufl.Identity(F.ufl_shape[0]) + 2 * self.mu * rate
 
 
 LAWS: dict[str, type] = {"svk": StVenantKirchhoff, "neo_hookean": NeoHookean}

@@ -3,12 +3,17 @@
 On the structure's reference configuration Ω₀ (wall + cap + lipid of the stenosis, or the
 Turek–Hron flag) find the displacement η with::
 
-    ρ η̈ − ∇·P(F) = ρ b            in Ω₀,     F = I + ∇η,  P = F Σ(F)
+    ρ η̈ − ∇·P = ρ b               in Ω₀,     F = I + ∇η,  P = F (Σ(F) + S_v)
     η = 0 (or a given η)           on ΓD       (clamped; every wall dof in the fixed-wall mode)
     P N = t₀ + nodal forces − p J F⁻ᵀ N  on the interface Γw1
-    P N = 0                        on ΓN       (traction-free exterior)
+    P N = −(k_s η·N + c_s η̇·N) N   on ΓN       (tissue support; 0 and 0: traction-free)
 
-with per-region hyperelastic laws (fsi/materials.py), a traction ``t₀`` per unit *reference*
+with per-region hyperelastic laws (fsi/materials.py), the per-region Kelvin–Voigt viscous
+stress ``S_v = τ (λ tr Ė I + 2μ Ė)``, ``Ė = sym(Fᵀ ∇η̇)`` (relaxation time τ ≥ 0, 0 by default;
+a small-amplitude mode of angular frequency ω then has the damping ratio ωτ/2), the external
+tissue's spring–dashpot support of Moireau et al. (2012) on the exterior ΓN, normal direction
+only (stiffness k_s, Pa/m, and damping c_s, Pa·s/m, per unit reference length; see
+docs/wall-damping.md), a traction ``t₀`` per unit *reference*
 length (first Piola traction; a fluid's Cauchy traction σ n on the deformed interface is
 ``t₀ = J σ F⁻ᵀ N``), nodal interface forces (a fluid's residual-based reaction forces) and an
 optional follower pressure ``p``. Discretised with vector Lagrange elements (P2 by default) and
@@ -19,7 +24,22 @@ marched in time by the Newmark family of fsi/timestepping.py, in the energy-mome
 with ``Σ_{n+1-αf} = (1 − αf) Σ(F_{n+1}) + αf Σ(F_n)`` (Kuhl & Ramm's generalized
 energy-momentum method): for St. Venant–Kirchhoff and αf = 1/2 (the trapezoidal rule) the
 stress work equals the stored-energy increment exactly, so the discrete energy is conserved;
-for linear problems this is the classical Newmark/Chung–Hulbert scheme.
+for linear problems this is the classical Newmark/Chung–Hulbert scheme. The damping terms
+enter at the same point::
+
+    ... + ∫ F_{n+1-αf} S_v(F̄, ∇η̇_{n+1-αf}) : ∇δη dx
+        + ∫_ΓN (k_s η_{n+1-αf}·N + c_s η̇_{n+1-αf}·N)(δη·N) ds
+
+with ``η̇_{n+1}`` the scheme's velocity of η_{n+1} (so the Jacobian holds their derivatives,
+and linearised this is the Chung–Hulbert scheme for ``M a + C v + K η = f``) and the strain
+rate pulled back with the mid-step ``F̄ = (F_{n+1} + F_n)/2``: whenever ``η̇_{n+1-αf}`` is the
+difference quotient ``(η_{n+1} − η_n)/dt`` — the trapezoidal rule, and the quasi-static scheme,
+whose velocity is that backward difference — ``sym(F̄ᵀ ∇η̇) = (E_{n+1} − E_n)/dt`` exactly, so
+a rigid motion of any size makes no viscous stress and (trapezoidal rule) the viscous work of a
+step, ``∫ S_v : (E_{n+1} − E_n) dx``, is ≥ 0: the energy-momentum scheme stays exact, energy
+only leaves through the dampers. In the quasi-static scheme (no inertia, balance at t_{n+1})
+the viscous stress is backward Euler's ``τ C : (E_{n+1} − E_n)/dt``: a creep law, negligible
+when τ ≪ dt.
 
 Newton's method is dolfinx's NonlinearProblem/NewtonSolver (options prefix ``solid_``). The
 coupler drives a :class:`SolidSolver` through ``step`` / ``advance`` / ``save_state`` /
@@ -47,7 +67,7 @@ import ufl
 from fsi import compat
 from fsi import mesh as fsi_mesh
 from fsi.config import Case, Material, SolverSettings, StenosisGeometry
-from fsi.materials import HyperelasticLaw, cauchy, cauchy_zz, lame, make_law
+from fsi.materials import HyperelasticLaw, KelvinVoigt, cauchy, cauchy_zz, lame, make_law
 from fsi.mesh import TaggedMesh
 from fsi.newton import NewtonCallbacks
 from fsi.timestepping import NewmarkFamily, structural_scheme
@@ -103,13 +123,32 @@ Dirichlet = Union[Clamp, HoldRegions, PrescribedDisplacement]
 
 
 @dataclass(frozen=True)
+class Support:
+    """The surrounding tissue as a spring–dashpot on ``boundaries`` (a Robin condition,
+    Moireau et al. 2012), normal direction only::
+
+        P N = −(k_s η·N + c_s η̇·N) N     (first Piola traction, per reference length)
+
+    ``stiffness`` k_s (Pa/m), ``damping`` c_s (Pa·s/m), N the reference outward normal.
+    Normal only: the tissue around an artery resists its radial motion (it is compressed or
+    pulled), while the wall slides along it almost freely; the axial motion is in any case
+    held by the clamped ends here. It is also what svMultiPhysics' "apply along normal
+    direction" Robin condition does."""
+
+    stiffness: float = 0.0
+    damping: float = 0.0
+    boundaries: tuple[Boundary, ...] = (Boundary.EXTERIOR,)
+
+
+@dataclass(frozen=True)
 class SolidBoundaryConditions:
     """Dirichlet conditions, the interface where the fluid's loads act, and the loads.
 
     ``body_force``: force per unit mass (gravity), m/s². ``pressure(t)``: a follower pressure on
     the interface (Pa; its traction is ``−p J F⁻ᵀ N`` per reference length). ``source(x)``: a
     force per unit reference volume as a UFL expression of the spatial coordinate (for
-    manufactured solutions). Everything not named is traction-free.
+    manufactured solutions). ``support``: the tissue's spring–dashpot on the exterior.
+    Everything not named is traction-free.
     """
 
     dirichlet: tuple[Dirichlet, ...] = (Clamp(),)
@@ -117,20 +156,33 @@ class SolidBoundaryConditions:
     body_force: tuple[float, float] = (0.0, 0.0)
     pressure: Optional[Callable[[float], float]] = None
     source: Optional[Callable[[ufl.SpatialCoordinate], ufl.core.expr.Expr]] = None
+    support: Optional[Support] = None
 
 
 def boundary_conditions(case: Case, pressure: Optional[Callable[[float], float]] = None
                         ) -> SolidBoundaryConditions:
     """The case's conditions: ``moving_wall`` clamps ΓD (the wall ends, or the flag's joint);
-    ``fixed_wall`` also holds every dof of the vessel wall, so only the plaque moves."""
+    ``fixed_wall`` also holds every dof of the vessel wall, so only the plaque moves.
+
+    ``structure.support`` (if not 0 and 0) supports the stenosis wall's exterior ΓN; in the
+    fixed-wall mode ΓN belongs to the held wall and the term has no effect. The Turek–Hron
+    flag has no ΓN: there it is ignored, with a warning."""
     s = case.structure
     if s.mode == "rigid":
         raise ValueError("structure.mode 'rigid' has no structure to solve")
     dirichlet: tuple[Dirichlet, ...] = (Clamp((Boundary.CLAMPED,)),)
-    if s.mode == "fixed_wall" and isinstance(case.geometry, StenosisGeometry):
+    stenosis = isinstance(case.geometry, StenosisGeometry)
+    if s.mode == "fixed_wall" and stenosis:
         dirichlet += (HoldRegions((Region.WALL,)),)
+    support = None
+    if s.support.stiffness > 0 or s.support.damping > 0:
+        if stenosis:
+            support = Support(s.support.stiffness, s.support.damping, (Boundary.EXTERIOR,))
+        else:
+            log.warning("structure.support is ignored: geometry.kind '%s' has no exterior "
+                        "boundary", case.geometry.kind)
     return SolidBoundaryConditions(dirichlet=dirichlet, body_force=tuple(s.body_force),
-                                   pressure=pressure)
+                                   pressure=pressure, support=support)
 
 
 def region_materials(case: Case) -> dict[Region, Material]:
@@ -218,7 +270,8 @@ class SolidSolver:
 
     Args:
         domain: the structure's mesh with its cell tags (regions) and facet tags (boundaries).
-        materials: the material of each region present (density, E, ν, law).
+        materials: the material of each region present (density, E, ν, law and the
+            Kelvin–Voigt relaxation time τ; the viscous stress is left out when every τ is 0).
         bcs: Dirichlet conditions, interface and loads.
         scheme: the time scheme (newmark, generalized-α or quasi-static).
         degree: Lagrange degree of η (2: P1 locks in bending).
@@ -298,6 +351,13 @@ class SolidSolver:
                 (dg0({r: 1.0 for r, m in mats.items() if m.law == name}, f"chi_{name}"),
                  make_law(name, lmbda, mu)) for name in laws)
             self.law = RegionwiseLaw(parts)
+        # Kelvin–Voigt, stiffness-proportional per region: λ_v = τλ, μ_v = τμ (DG0). Left out
+        # of the forms when every τ is 0, so the elastic residual is unchanged bit for bit.
+        tau = {r: m.viscous_relaxation_time for r, m in mats.items()}
+        self.viscous: Optional[KelvinVoigt] = None
+        if any(value > 0 for value in tau.values()):
+            self.viscous = KelvinVoigt.stiffness_proportional(
+                dg0(tau, "viscous_relaxation_time"), lmbda, mu)
         self.Q0 = Q
         self._cell_region = np.full(len(dofs), -1, dtype=np.int32)
         self._cell_region[tags.indices] = tags.values
@@ -369,6 +429,14 @@ class SolidSolver:
         F_new, F_old = I + ufl.grad(self.eta), I + ufl.grad(self.eta_n)
         # Generalized energy-momentum stress: F at n+1-αf times the interpolated Σ.
         S_alpha = s.at(law.second_piola(F_new), law.second_piola(F_old), af)
+        # η̇ at n+1-αf, with η̇_{n+1} the scheme's function of the unknown η_{n+1}.
+        v_alpha = s.at(s.velocity(self.eta, self.eta_n, self.v_n, self.a_n, self._dt),
+                       self.v_n, af)
+        if self.viscous is not None:
+            # The rate pulled back with the mid-step F̄: Ė = (E_{n+1} − E_n)/dt exactly when
+            # η̇_{n+1-αf} = (η_{n+1} − η_n)/dt (trapezoidal, quasi-static): see the docstring.
+            S_alpha = S_alpha + self.viscous.second_piola(s.at(F_new, F_old, 0.5),
+                                                          ufl.grad(v_alpha))
         P_alpha = s.at(F_new, F_old, af) * S_alpha
         residual = ufl.inner(P_alpha, ufl.grad(deta)) * self.dx
         if s.dynamic:
@@ -387,6 +455,19 @@ class SolidSolver:
             F_a = s.at(F_new, F_old, af)
             p_a = s.at(self._pressure, self._pressure_n, af)
             residual += p_a * ufl.inner(ufl.det(F_a) * ufl.inv(F_a).T * N, deta) * ds_interface
+        support = self.bcs_data.support
+        self._support = None
+        if support is not None:
+            # P N = −(k_s η·N + c_s η̇·N) N on the supported boundary, at n+1-αf.
+            N = ufl.FacetNormal(mesh)
+            k_s = dolfinx.fem.Constant(mesh, PETSc.ScalarType(support.stiffness))
+            c_s = dolfinx.fem.Constant(mesh, PETSc.ScalarType(support.damping))
+            ds_support = sum((self.ds(int(b)) for b in support.boundaries[1:]),
+                             self.ds(int(support.boundaries[0])))
+            self._support = (k_s, c_s, N, ds_support)
+            eta_alpha = s.at(self.eta, self.eta_n, af)
+            residual += ((k_s * ufl.dot(eta_alpha, N) + c_s * ufl.dot(v_alpha, N))
+                         * ufl.dot(deta, N) * ds_support)
         self.residual_form = residual
         self.jacobian_form = ufl.derivative(residual, self.eta, ufl.TrialFunction(self.V))
 
@@ -517,12 +598,20 @@ class SolidSolver:
             self.initialize_acceleration()
 
     def initialize_acceleration(self) -> None:
-        """Solve ``M a_n = f_ext(t_n) − f_int(η_n)`` (a_n = 0 on constrained dofs), so that the
-        committed state satisfies the equation of motion (e.g. a flag released under gravity)."""
+        """Solve ``M a_n = f_ext(t_n) − f_int(η_n, η̇_n)`` (a_n = 0 on constrained dofs; f_int
+        with the viscous stress and the support's force), so that the committed state satisfies
+        the equation of motion (e.g. a flag released under gravity)."""
         mesh, I = self.domain.mesh, ufl.Identity(self.domain.mesh.geometry.dim)
         deta, da = ufl.TestFunction(self.V), ufl.TrialFunction(self.V)
         F = I + ufl.grad(self.eta_n)
-        rhs = -ufl.inner(F * self.law.second_piola(F), ufl.grad(deta)) * self.dx
+        S = self.law.second_piola(F)
+        if self.viscous is not None:
+            S = S + self.viscous.second_piola(F, ufl.grad(self.v_n))
+        rhs = -ufl.inner(F * S, ufl.grad(deta)) * self.dx
+        if self._support is not None:
+            k_s, c_s, N, ds_support = self._support
+            rhs -= ((k_s * ufl.dot(self.eta_n, N) + c_s * ufl.dot(self.v_n, N))
+                    * ufl.dot(deta, N) * ds_support)
         rhs += self.rho * ufl.inner(self._gravity, deta) * self.dx
         rhs += ufl.inner(self.traction_n, deta) * self._ds_interface
         if self.bcs_data.source is not None:
