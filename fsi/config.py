@@ -334,30 +334,31 @@ class SolverSettings:
 
 @dataclass(frozen=True)
 class Fluid:
-    """Blood (MODEL.md §2). ``open_boundary`` is the form of the inlet/outlet traction
-    conditions: ``stress`` the study's σ n = −P n (σ the Cauchy stress); ``do_nothing``
-    μ ∇u n − p n = −P n (Heywood, Rannacher & Turek 1996), exact for fully developed flow.
-    ``normal_flow``: the velocity on a traction inlet is normal to it (u·t = 0, strongly; the
-    "normal flow" pressure inlet of commercial CFD codes), and only the normal traction is
-    prescribed there. ``grad_div`` γ ≥ 0 (Pa·s) adds γ (∇·u, ∇·v) to the
-    momentum equation (grad-div stabilization, consistent: zero for a divergence-free u).
+    """Blood (MODEL.md §2) and its open boundaries (docs/boundary-conditions.md compares the
+    options; the defaults are the verified choice of the study's cases).
+
+    ``open_boundary`` is the form of the inlet/outlet traction conditions: ``do_nothing``
+    μ ∇u n − p n = −P n (Heywood, Rannacher & Turek 1996), exact for fully developed flow;
+    ``stress`` σ n = −P n (σ the Cauchy stress), whose tangential part forbids fully developed
+    flow. ``normal_flow``: the velocity on a traction inlet is normal to it (u·t = 0, strongly;
+    the "normal flow" pressure inlet of commercial CFD codes) and only the normal traction is
+    prescribed there, so the inlet keeps its static pressure P. ``inflow_stabilization`` β ≥ 0
+    adds −β/2 ρ min(u·n, 0) u to a traction inlet's σ n: at an inlet, where all the flow is
+    inflow, that lowers the pressure by β ρ (u·n)²/2, i.e. it makes the static-pressure inlet
+    nearly a total-pressure one (0, the default, keeps the study's static pressure).
     ``supg``: streamline-upwind/Petrov–Galerkin stabilization of the momentum equation
     (Brooks & Hughes 1982; τ of Tezduyar & Osawa 2000), consistent: it adds a multiple of the
-    strong residual, so an exact discrete solution (Poiseuille flow) is unchanged.
-    docs/boundary-conditions.md compares the options.
-    ``inflow_stabilization`` β ≥ 0 adds −β/2 ρ min(u·n, 0) u to a traction inlet's σ n, so the
-    kinetic energy carried in through the open inlet is balanced (0: the plain condition; the
-    study's case is unstable without it once the pulse has passed)."""
+    strong residual, so an exact discrete solution (Poiseuille flow) is unchanged; for flows
+    whose cell Reynolds number at the inlet is too high for the Galerkin form."""
 
     density: float = positive(1060.0, " (kg/m^3)")
     rheology: Rheology = field(default_factory=Newtonian)
     inlet: Inlet = field(default_factory=InletPulse)
     outlet: Outlet = field(default_factory=Outlet)
-    open_boundary: Literal["stress", "do_nothing"] = "stress"
-    normal_flow: bool = False
-    grad_div: float = non_negative(0.0, " (Pa s)")
+    open_boundary: Literal["stress", "do_nothing"] = "do_nothing"
+    normal_flow: bool = True
     supg: bool = False
-    inflow_stabilization: float = non_negative(1.0)
+    inflow_stabilization: float = non_negative(0.0)
     quadrature_degree: int = at_least(4, 1)
     solver: SolverSettings = field(default_factory=SolverSettings)
 

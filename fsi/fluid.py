@@ -425,10 +425,6 @@ class FluidSolver:
             F -= ufl.dot(body_force(x, self.t), v) * dx
         if cfg.supg:
             F += self._supg(u, p, v, mu, dudt, h, body_force, x) * dx
-        if cfg.grad_div > 0:
-            # Consistent (zero for a divergence-free u); damps the discretely divergent modes
-            # that the open boundaries otherwise feed (docs/boundary-conditions.md).
-            F += cfg.grad_div * ufl.div(u) * ufl.div(v) * dx
 
         def ds_of(tags):
             return sum((ds(t) for t in tags[1:]), ds(tags[0]))

@@ -75,9 +75,10 @@ def test_unsupported_coupled_cases_are_refused_before_any_work(shared_tmp, capsy
 
 
 def test_rigid_stenosis_stays_stable_after_the_pulse(shared_tmp):
-    """With a plain traction inlet the jet blew up at t ≈ 0.035–0.04 s (|u| 0.24 → 1.5 m/s in
-    5 ms, then Newton diverged): kinetic energy entered through the open inlet unbalanced. The
-    inflow stabilization (fluid.inflow_stabilization, default 1) keeps the decaying flow decaying."""
+    """With the plain traction condition σ n = −P n the jet blew up at t ≈ 0.031 s (|u| 0.24 →
+    2 m/s in 9 ms, then Newton diverged), growing at the inlet's corners, where that condition
+    lets tangential velocity in. The study's normal-flow inlet (docs/boundary-conditions.md)
+    keeps the decaying flow decaying."""
     out = shared_tmp / "stable"
     overrides = ["structure.mode=rigid", "time.end=0.06",
                  "time.schedule=[{until: 0.005, dt: 5.0e-4}, {until: 0.06, dt: 1.0e-3}]"]
