@@ -485,11 +485,16 @@ class Time:
     ``scheme``: the fluid's time scheme. ``steady`` drops ∂u/∂t and the mesh velocity: every
     step solves the steady equations with the boundary data at its time (a continuation through
     an inflow ramp); with a ``quasi_static`` structure a coupled step is a steady FSI solve.
+
+    ``retries``: how often a step whose solve fails is taken again as two steps of half its
+    size, from the state before it (each half may be halved again while retries remain: up to
+    2^retries substeps); the metrics row is the scheduled step's. 0: a failed step ends the run.
     """
 
     end: float = positive(0.8, " (s)")
     scheme: Literal["backward_euler", "bdf2", "steady"] = "bdf2"
     schedule: tuple[TimeSegment, ...] = (TimeSegment(0.4, 5.0e-3), TimeSegment(0.8, 1.0e-2))
+    retries: int = _check(0, lambda v: 0 <= v <= 8, "an integer in [0, 8]")
 
 
 @dataclass(frozen=True)

@@ -183,13 +183,15 @@ def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start:
     good = _Snapshot(first or 0, t0, None if restart is None else restart.dt, stepper.state())
     saved: Path | None = None
     rows: list[dict] = []
+    retried: list[Step] = []  # the steps that had to be split
     try:
         for writer, fields in writers:
             writer.write(t0, fields)
         for k, step in enumerate(schedule):
             tic = wallclock.perf_counter()
             try:
-                row = {"step": step.index, "t": step.t, "dt": step.dt, **stepper.step(step)}
+                row = {"step": step.index, "t": step.t, "dt": step.dt,
+                       **advance(stepper, step, good.state, case.time.retries, retried)}
                 row["wall_time_s"] = wallclock.perf_counter() - tic
                 bad = [key for key, v in row.items()
                        if isinstance(v, float) and not math.isfinite(v)]
@@ -227,6 +229,7 @@ def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start:
         "mean_step_time_s": sum(r.get("wall_time_s", 0.0) for r in every) / max(len(every), 1),
         "newton_iterations": newton, "mean_newton_iterations": newton / max(len(every), 1),
         "ranks": comm.size, "dolfinx": dolfinx.__version__, "python": platform.python_version(),
+        "retried_steps": sorted({s.index for s in retried}),
         **stepper.summary(),
         "checkpoint": None if saved is None else str(saved),
     }
@@ -235,6 +238,27 @@ def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start:
                                      "t": restart.t}
     io.write_json(comm, out / "summary.json", summary)
     return RunResult(len(schedule), summary["wall_time_s"], summary)
+
+
+def advance(stepper: Stepper, step: Step, before: dict, retries: int,
+            retried: list[Step]) -> dict:
+    """``stepper.step(step)``; if it fails with retries left, go back to ``before`` (the
+    stepper's state at the start of the step) and take the step as two of half its size, each
+    retried the same way with one retry fewer. Returns the row of the step's last (sub)step;
+    appends every split step to ``retried``. Collective (the failure is raised on every rank)."""
+    try:
+        return stepper.step(step)
+    except SolveFailed as e:
+        if retries <= 0:
+            raise
+        log.warning("step %d to t = %.6g s failed (%s); taking it as two steps of %.3g s",
+                    step.index, step.t, e, step.dt / 2)
+        retried.append(step)
+        stepper.load_state(before)
+        half = step.dt / 2
+        advance(stepper, Step(step.index, step.t - half, half), before, retries - 1, retried)
+        middle = stepper.state()
+        return advance(stepper, Step(step.index, step.t, half), middle, retries - 1, retried)
 
 
 @dataclass(frozen=True)

@@ -116,3 +116,49 @@ def test_structure_alone_under_the_inlet_pressure(shared_tmp):
 def test_interface_load_needs_a_structure_and_a_pressure(overrides, expected):
     with pytest.raises(config.ConfigError, match=expected):
         config.load(CASE, overrides)
+
+
+class HalfStepOnly:
+    """A stepper whose solve fails for steps longer than ``limit`` (a :class:`simulation.Stepper`
+    as far as :func:`simulation.advance` uses it): its state is the time it has reached."""
+
+    def __init__(self, limit: float):
+        self.limit, self.t, self.taken = limit, 0.0, []
+
+    def step(self, step):
+        if step.dt > self.limit * (1 + 1e-12):
+            self.t = float("nan")  # a failed solve leaves garbage behind
+            raise simulation.SolveFailed(f"dt = {step.dt} is too long")
+        assert step.t - step.dt == pytest.approx(self.t)  # continues from where it is
+        self.t = step.t
+        self.taken.append(step.dt)
+        return {"reached": self.t}
+
+    def state(self):
+        return {"t": np.array(self.t)}
+
+    def load_state(self, state):
+        self.t = float(state["t"])
+
+
+def test_a_failed_step_is_retried_as_halves_from_the_state_before_it():
+    """time.retries: a failed step goes back to the state before it and is taken as two halves,
+    each of which may be halved again while retries remain."""
+    from fsi.timestepping import Step
+
+    stepper, retried = HalfStepOnly(limit=0.1), []
+    row = simulation.advance(stepper, Step(3, 0.4, 0.4), stepper.state(), 2, retried)
+    assert stepper.taken == pytest.approx([0.1] * 4) and row == {"reached": pytest.approx(0.4)}
+    assert [(s.index, s.dt) for s in retried] == [(3, 0.4), (3, 0.2), (3, 0.2)]
+    # One retry is not enough: the failure is raised (march then checkpoints the state before).
+    stepper = HalfStepOnly(limit=0.1)
+    with pytest.raises(simulation.SolveFailed, match="too long"):
+        simulation.advance(stepper, Step(1, 0.4, 0.4), stepper.state(), 1, [])
+    # No retries: the first failure ends it, as before time.retries existed.
+    with pytest.raises(simulation.SolveFailed):
+        simulation.advance(HalfStepOnly(0.1), Step(1, 0.2, 0.2), {"t": np.array(0.0)}, 0, [])
+
+
+def test_retries_are_validated():
+    with pytest.raises(config.ConfigError, match="time.retries"):
+        config.from_dict({"time": {"retries": -1}})
