@@ -488,7 +488,9 @@ class FluidSolver:
         (zero for the exact solution: the method is consistent; P2 velocities make the viscous
         term exact for Poiseuille flow, which stays a discrete solution) and
         τ = ((2 a₀)² + (2|u − w|/h)² + (4 μ/(ρ h²))²)^(−1/2) (Tezduyar & Osawa 2000; a₀ the
-        BDF weight of u^{n+1}, 1/Δt for backward Euler, 0 when steady). It adds the streamline
+        BDF weight of u^{n+1}, 1/Δt for backward Euler, 0 when steady; u and μ of the last
+        accepted step, so that τ is a coefficient of the step, not a function of its unknown;
+        the residual R is the step's own). It adds the streamline
         diffusion ≈ ρ|u − w|h/2 that the Galerkin form lacks where the cell Reynolds number is
         large, in particular in the cells of an open inlet (docs/boundary-conditions.md)."""
         rho, w = self._rho, self.ale.w
@@ -497,8 +499,6 @@ class FluidSolver:
                     - ufl.div(2 * mu * rheology.strain_rate(u)))
         if body_force is not None:
             residual -= body_force(x, self.t)
-        # τ from the last accepted step's velocity (a stabilization parameter, not part of the
-        # residual: lagging it keeps the method consistent and Newton's Jacobian simple)
         a_n = self.u_n - w
         mu_n = self.law.mu(rheology.shear_rate(self.u_n))
         speed = ufl.sqrt(ufl.dot(a_n, a_n))

@@ -226,22 +226,35 @@ def surface_force(u: dolfinx.fem.Function, p: dolfinx.fem.Function, law: rheolog
 # Flow rates
 
 
-def flow_rate(u: dolfinx.fem.Function, facet_tags: dolfinx.mesh.MeshTags,
-              tags: Sequence[int], sign: float = 1.0, quadrature_degree: int = 2) -> float:
-    """Q = sign ∫_Γ u·n ds over the facets ``tags`` of ``u``'s mesh, n the outward unit normal:
-    the volume flow rate per unit depth (m²/s) through Γ, on the mesh as it is now (moved or
-    not). ``sign`` = +1 counts outflow as positive (an outlet), −1 inflow (an inlet), so that
-    Q_in = −∫_inlet u·n ds and Q_out = ∫_outlet u·n ds are both positive downstream.
-
-    The default degree 2 integrates a P2 velocity exactly on straight facets (n is constant).
-    The same value on every rank (assembled over owned facets, summed over the ranks)."""
+def flow_rate_form(u: dolfinx.fem.Function, facet_tags: dolfinx.mesh.MeshTags,
+                   tags: Sequence[int], quadrature_degree: int = 2) -> dolfinx.fem.Form:
+    """The compiled form ∫_Γ u·n ds over the facets ``tags`` of ``u``'s mesh (n the outward
+    unit normal), for :func:`total`: compile it once, assemble it every step (it reads the
+    mesh's current coordinates, so it follows a moving mesh). The default degree 2 integrates
+    a P2 velocity exactly on straight facets (n is constant)."""
     mesh = u.function_space.mesh
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags,
                      metadata={"quadrature_degree": quadrature_degree})
     tags = [int(t) for t in tags]
     measure = sum((ds(t) for t in tags[1:]), ds(tags[0]))
-    form = dolfinx.fem.form(ufl.dot(u, ufl.FacetNormal(mesh)) * measure)
-    return sign * mesh.comm.allreduce(dolfinx.fem.assemble_scalar(form), op=MPI.SUM)
+    return dolfinx.fem.form(ufl.dot(u, ufl.FacetNormal(mesh)) * measure)
+
+
+def total(form: dolfinx.fem.Form, comm: MPI.Comm) -> float:
+    """A scalar form assembled over the owned cells or facets of every rank and summed: the
+    same value on every rank."""
+    return comm.allreduce(dolfinx.fem.assemble_scalar(form), op=MPI.SUM)
+
+
+def flow_rate(u: dolfinx.fem.Function, facet_tags: dolfinx.mesh.MeshTags,
+              tags: Sequence[int], sign: float = 1.0, quadrature_degree: int = 2) -> float:
+    """Q = sign ∫_Γ u·n ds over the facets ``tags`` of ``u``'s mesh, n the outward unit normal:
+    the volume flow rate per unit depth (m²/s) through Γ, on the mesh as it is now (moved or
+    not). ``sign`` = +1 counts outflow as positive (an outlet), −1 inflow (an inlet), so that
+    Q_in = −∫_inlet u·n ds and Q_out = ∫_outlet u·n ds are both positive downstream. Compiles
+    the form at every call: a loop keeps :func:`flow_rate_form` instead."""
+    form = flow_rate_form(u, facet_tags, tags, quadrature_degree)
+    return sign * total(form, u.function_space.mesh.comm)
 
 
 # --------------------------------------------------------------------------------------------

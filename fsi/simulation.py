@@ -296,9 +296,15 @@ class FluidOutputs:
         self.walls = [b for b in boundaries
                       if b in (Boundary.RIGID_WALL, Boundary.INTERFACE, Boundary.OBSTACLE)]
         self.lumen = not isinstance(case.geometry, config.TurekHronGeometry)
-        self.open = Boundary.INLET in boundaries and Boundary.OUTLET in boundaries
-        self.columns = ((WALL_COLUMNS if self.lumen else [])
-                        + (FLOW_COLUMNS if self.open else []))
+        # column → (∫ u·n ds over the boundary, compiled once; the sign that makes it positive
+        # downstream): Q_in = −∫_inlet u·n ds, Q_out = ∫_outlet u·n ds.
+        self.flow_rates = {}
+        if Boundary.INLET in boundaries and Boundary.OUTLET in boundaries:
+            for column, tag, sign in zip(FLOW_COLUMNS, (Boundary.INLET, Boundary.OUTLET),
+                                         (-1.0, 1.0)):
+                form = metrics.flow_rate_form(solver.u, solver.facet_tags, [tag])
+                self.flow_rates[column] = (form, sign)
+        self.columns = (WALL_COLUMNS if self.lumen else []) + list(self.flow_rates)
         self.derived = metrics.FluidFields(solver.u, solver.p, solver.law, solver.facet_tags,
                                            self.walls)
 
@@ -315,9 +321,8 @@ class FluidOutputs:
         if self.lumen:
             row.update(metrics.wall_shear_summary(metrics.wall_shear_stress(
                 s.u, s.p, s.law, s.facet_tags, self.walls)))
-        if self.open:
-            row["inlet_flow_rate"] = metrics.flow_rate(s.u, s.facet_tags, [Boundary.INLET], -1.0)
-            row["outlet_flow_rate"] = metrics.flow_rate(s.u, s.facet_tags, [Boundary.OUTLET])
+        for column, (form, sign) in self.flow_rates.items():
+            row[column] = sign * metrics.total(form, s.comm)
         return row
 
 
