@@ -506,32 +506,33 @@ class FluidSolver:
                + (4 * mu_n / (rho * h**2)) ** 2) ** -0.5
         return tau * ufl.dot(ufl.grad(v) * a, residual)
 
+    def _boundary_points(self, tags: Sequence[int]) -> np.ndarray:
+        """The (x, y) of the vertices of the facets ``tags``, gathered from every rank (the
+        same array on each; vertices shared by facets repeat). Collective."""
+        nodes = compat.entities_to_geometry(self.mesh, self.mesh.topology.dim - 1,
+                                            self._facets(tags)).ravel()
+        return np.concatenate(self.comm.allgather(self.mesh.geometry.x[nodes, :2]))
+
     def _normal_flow(self, tags: Sequence[int]):
         """u·t = 0 on the open boundary ``tags``, which must be a straight segment parallel to a
         coordinate axis (every inlet and outlet of the shipped geometries): the velocity
         component along it is 0, the normal one stays free."""
-        fdim = self.mesh.topology.dim - 1
-        facets = self._facets(tags)
-        nodes = compat.entities_to_geometry(self.mesh, fdim, facets).ravel()
-        points = np.concatenate(self.comm.allgather(self.mesh.geometry.x[nodes, :2]))
+        points = self._boundary_points(tags)
         extent = points.max(axis=0) - points.min(axis=0)
         normal_axis = int(np.argmin(extent))
         if extent[normal_axis] > 1e-9 * extent.max():
             raise ValueError(f"fluid.normal_flow needs straight open boundaries parallel to an "
                              f"axis; boundary {list(tags)} spans {extent[0]:g} x {extent[1]:g} m")
         component = self.W.sub(0).sub(1 - normal_axis)
-        dofs = dolfinx.fem.locate_dofs_topological(component, fdim, facets)
+        dofs = dolfinx.fem.locate_dofs_topological(component, self.mesh.topology.dim - 1,
+                                                   self._facets(tags))
         zero = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(0.0))
         return dolfinx.fem.dirichletbc(zero, dofs, component)
 
     def _parabolic_inflow(self, bc: Inflow):
         """u = ramp(t) 1.5 Ū 4 s (H − s)/H² (−n) on a straight inlet of width H."""
         spec: config.ParabolicInflow = bc.spec
-        fdim = self.mesh.topology.dim - 1
-        facets = self._facets(bc.tags)
-        nodes = compat.entities_to_geometry(self.mesh, fdim, facets).ravel()
-        points = self.mesh.geometry.x[nodes, :2]
-        gathered = np.concatenate(self.comm.allgather(points))
+        gathered = self._boundary_points(bc.tags)
         # The inlet's end points: the pair of its vertices farthest apart.
         ends = gathered[[np.argmin(gathered @ d) for d in ((1, 0), (0, 1))]
                         + [np.argmax(gathered @ d) for d in ((1, 0), (0, 1))]]
