@@ -29,11 +29,13 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import math
 import os
 import shutil
 import time
 import typing
 from dataclasses import dataclass
+from io import BytesIO
 from pathlib import Path
 
 from mpi4py import MPI
@@ -42,7 +44,7 @@ import dolfinx
 import numpy as np
 
 import fsi
-from fsi import compat, config
+from fsi import compat, config, io
 
 log = logging.getLogger("fsi")
 
@@ -170,7 +172,8 @@ def dependencies(case: config.Case) -> dict:
     structure's mode, interface load and degree (which solvers, which spaces)."""
     data = config.to_dict(case)
     s = data["structure"]
-    sections = {"geometry": data["geometry"], "mesh": data["mesh"],
+    mesh = {k: v for k, v in data["mesh"].items() if k != "max_cells"}  # a limit, not the mesh
+    sections = {"geometry": data["geometry"], "mesh": mesh,
                 "structure": {k: s[k] for k in ("mode", "interface_load", "degree")}}
     return json.loads(json.dumps(sections))  # as it reads back from JSON (tuples as lists)
 
@@ -209,6 +212,111 @@ def check_metadata(meta: dict, case: config.Case, source: Path) -> None:
             "needs the same geometry, mesh and structure (mode, interface load, degree)")
 
 
+def check_position(meta: dict, source: Path) -> None:
+    """Raise :class:`CheckpointError` (naming ``source`` and the key) unless checkpoint.json's
+    ``step`` is a whole number >= 0, ``t`` a finite number >= 0 (0 at step 0), ``dt`` null or a
+    finite number > 0, and ``files`` the rank files of its ``ranks`` (rank0000.npz, ...)."""
+    step, t, dt, ranks = (meta.get(k) for k in ("step", "t", "dt", "ranks"))
+    if not _whole(step) or step < 0:
+        raise CheckpointError(f"{source}: step: expected a whole number >= 0, got {step!r}")
+    if not _real(t) or not math.isfinite(t) or t < 0 or (step == 0 and t != 0):
+        raise CheckpointError(f"{source}: t: expected a finite time >= 0 (0 at step 0), got "
+                              f"{t!r}")
+    if dt is not None and (not _real(dt) or not math.isfinite(dt) or dt <= 0):
+        raise CheckpointError(f"{source}: dt: expected null or a finite step > 0, got {dt!r}")
+    if not _whole(ranks) or ranks < 1:
+        raise CheckpointError(f"{source}: ranks: expected a whole number >= 1, got {ranks!r}")
+    expected = [rank_file(r) for r in range(ranks)]
+    if meta.get("files") != expected:
+        raise CheckpointError(f"{source}: files: expected {expected[0]} to {expected[-1]} (one "
+                              f"per rank, ranks: {ranks}), got {meta.get('files')!r}")
+
+
+def _whole(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _real(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def check_metrics(meta: dict, source: Path, metrics: Path) -> None:
+    """Raise :class:`CheckpointError` (naming ``metrics``, the run folder's metrics.csv) unless
+    it holds the rows a restart from the checkpoint's step k keeps, each once and in order:
+    steps 1 to k, complete (:func:`fsi.io.read_rows`), and step k's ``t`` and ``dt`` (where
+    both have one) are the checkpoint's (``source``) within a relative :data:`TIME_TOLERANCE`."""
+    k = meta["step"]
+    if k == 0:
+        return
+    keeps = f"a restart from step {k} keeps its rows 1 to {k}"
+    if not metrics.is_file():
+        raise CheckpointError(f"{metrics}: missing; {keeps}")
+    try:
+        rows = io.read_rows(metrics, until_step=k)
+    except io.MetricsError as e:
+        raise CheckpointError(f"{e} ({keeps})") from None
+    except OSError as e:
+        raise CheckpointError(f"{metrics}: unreadable ({e.strerror or e})") from None
+    missing = sorted(set(range(1, k + 1)) - {row.step for row in rows})
+    if missing:
+        noun = "steps" if len(missing) > 1 else "step"
+        raise CheckpointError(f"{metrics}: no row of {noun} {_spans(missing)}: the table was "
+                              f"cut short or damaged, and {keeps}")
+    for expected, row in enumerate(rows, start=1):
+        if row.step != expected:
+            raise CheckpointError(f"{metrics}: line {row.line}: step {row.step} where step "
+                                  f"{expected} belongs ({keeps}, each once and in order)")
+    last = rows[-1]
+    for key in ("t", "dt"):
+        value = meta.get(key)
+        if value is not None and key in last.values and not _close(last.values[key], value):
+            raise CheckpointError(
+                f"{source}: {key}: the checkpoint has {value!r}, but {metrics} line {last.line} "
+                f"(step {k}) has {key} = {last.text[key]}: they are not of the same step (was "
+                "one of them edited?)")
+
+
+TIME_TOLERANCE = 1e-9
+"""Times and steps of a checkpoint agree with metrics.csv and the state within this fraction
+(metrics.csv holds 10 significant digits)."""
+
+
+def _close(a: float, b: float) -> bool:
+    return abs(a - b) <= TIME_TOLERANCE * max(abs(a), abs(b))
+
+
+def _spans(steps: list[int]) -> str:
+    """Sorted step numbers as spans: [1, 2, 3, 7] → '1-3, 7'."""
+    spans: list[list[int]] = []
+    for s in steps:
+        if spans and s == spans[-1][1] + 1:
+            spans[-1][1] = s
+        else:
+            spans.append([s, s])
+    return ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in spans)
+
+
+def check_arrays(meta: dict, folder: Path, files: typing.Sequence[dict[str, np.ndarray]]) -> str:
+    """What is wrong with the arrays of the rank files, '' if nothing: every array must be of
+    numbers (or booleans), every float finite, every ``counters.*`` of whole numbers >= 0, and the
+    state's times (``fluid.time``, ``solid.t``, in rank 0's file) the checkpoint's ``t``."""
+    for name, arrays in zip(meta["files"], files):
+        for key, a in arrays.items():
+            if a.dtype.kind not in "biuf":
+                return f"{folder / name}: {key}: expected numbers, got {a.dtype} values"
+            if a.dtype.kind == "f" and not np.isfinite(a).all():
+                return f"{folder / name}: {key}: non-finite values (NaN or inf)"
+            if key.startswith("counters.") and (a.dtype.kind not in "iu" or (a < 0).any()):
+                return f"{folder / name}: {key}: expected whole numbers >= 0"
+    for key in ("fluid.time", "solid.t"):
+        a = files[0].get(key)
+        if a is not None and (a.shape != () or not _close(float(a), meta["t"])):
+            value = float(a) if a.shape == () else f"an array of shape {a.shape}"
+            return (f"{folder / meta['files'][0]}: {key}: {value}, but checkpoint.json's t is "
+                    f"{meta['t']!r}")
+    return ""
+
+
 def _raise_if_any(comm: MPI.Comm, message: str) -> None:
     messages = [m for m in comm.allgather(message) if m]
     if messages:
@@ -232,7 +340,8 @@ def write(out: Path, comm: MPI.Comm, state: dict[str, np.ndarray], layouts: dict
     """Write ``out/checkpoint/`` atomically (see the module docstring): the owned rows of this
     rank's distributed arrays (:func:`layout_of`) with their keys, the global arrays from rank
     0, and ``meta`` as checkpoint.json. Refuses non-finite values. Collective; raises
-    :class:`CheckpointError` on every rank if any rank fails (the previous checkpoint stays)."""
+    :class:`CheckpointError` on every rank if any rank fails (the previous checkpoint stays,
+    the partial one is removed)."""
     final, partial, previous = out / DIRECTORY, out / PARTIAL, out / PREVIOUS
     bad = [k for k, v in state.items() if v.dtype.kind == "f" and not np.isfinite(v).all()]
     message = f"{out}: not writing a checkpoint: non-finite {', '.join(bad)}" if bad else ""
@@ -248,6 +357,25 @@ def write(out: Path, comm: MPI.Comm, state: dict[str, np.ndarray], layouts: dict
             arrays[key] = value
     for layout in {layout.name: layout for layout in layouts.values()}.values():
         arrays[f"keys.{layout.name}"] = layout.points[: layout.owned]
+    size = comm.allreduce(sum(a.nbytes for a in arrays.values()), op=MPI.SUM)
+    try:
+        io.ensure_space(comm, out, size + size // 10 + io.SPACE_MARGIN, "a checkpoint")
+    except io.OutputError as e:
+        raise CheckpointError(str(e)) from None
+    try:
+        _write_swap(out, comm, arrays, meta)
+    except CheckpointError:
+        if comm.rank == 0:  # a full disk: give back the space of the partial copy
+            shutil.rmtree(partial, ignore_errors=True)
+        raise
+    return final
+
+
+def _write_swap(out: Path, comm: MPI.Comm, arrays: dict[str, np.ndarray], meta: dict) -> None:
+    """Write the rank files and checkpoint.json into ``checkpoint.partial/``, then swap it in.
+    Collective; raises :class:`CheckpointError` on every rank if any rank fails."""
+    final, partial, previous = out / DIRECTORY, out / PARTIAL, out / PREVIOUS
+    message = ""
     if comm.rank == 0:
         try:
             shutil.rmtree(partial, ignore_errors=True)
@@ -255,9 +383,11 @@ def write(out: Path, comm: MPI.Comm, state: dict[str, np.ndarray], layouts: dict
         except OSError as e:
             message = f"{partial}: {e}"
     _raise_if_any(comm, message)
+    zipped = BytesIO()  # in memory: a full disk then fails one plain write
+    np.savez(zipped, **arrays)
     try:
         with open(partial / rank_file(comm.rank), "wb") as f:
-            np.savez(f, **arrays)
+            f.write(zipped.getbuffer())
             f.flush()
             os.fsync(f.fileno())
     except OSError as e:
@@ -269,6 +399,8 @@ def write(out: Path, comm: MPI.Comm, state: dict[str, np.ndarray], layouts: dict
                 f.write(json.dumps(meta, indent=2) + "\n")
                 f.flush()
                 os.fsync(f.fileno())
+            if previous.exists() and not final.exists():  # left by a failed swap
+                previous.rename(final)
             shutil.rmtree(previous, ignore_errors=True)
             if final.exists():
                 final.rename(previous)
@@ -278,7 +410,6 @@ def write(out: Path, comm: MPI.Comm, state: dict[str, np.ndarray], layouts: dict
         except OSError as e:
             message = f"{final}: {e}"
     _raise_if_any(comm, message)
-    return final
 
 
 def _fsync_directory(path: Path) -> None:
@@ -334,8 +465,11 @@ def locate(path: Path) -> tuple[Path, Path]:
 
 def read(path: Path, case: config.Case, comm: MPI.Comm) -> Checkpoint:
     """Find the checkpoint of ``path`` (:func:`locate`), check it against ``case``
-    (:func:`check_metadata`) and read its rank files (every rank reads all of them). Collective;
-    raises :class:`CheckpointError` on every rank, naming the file, when anything is wrong."""
+    (:func:`check_metadata`), check its step, time and files (:func:`check_position`) and that
+    the run folder's metrics.csv holds the rows a restart keeps (:func:`check_metrics`), read
+    its rank files (every rank reads all of them) and check their arrays
+    (:func:`check_arrays`). Writes nothing. Collective; raises :class:`CheckpointError` on every
+    rank, naming the file and the key (or line), when anything is wrong."""
     meta, message, folder, run_dir = None, "", None, None
     if comm.rank == 0:
         try:
@@ -344,12 +478,14 @@ def read(path: Path, case: config.Case, comm: MPI.Comm) -> Checkpoint:
             try:
                 meta = json.loads(source.read_text())
                 check_metadata(meta, case, source)
+                check_position(meta, source)
                 missing = [f for f in meta["files"] if not (folder / f).is_file()]
             except (OSError, ValueError, KeyError, TypeError, AttributeError) as e:
                 raise CheckpointError(f"{source}: unreadable checkpoint ({e!r})") from e
             if missing:
                 raise CheckpointError(f"{folder / missing[0]}: missing (the checkpoint is "
                                       "incomplete)")
+            check_metrics(meta, source, run_dir / "metrics.csv")
         except CheckpointError as e:
             message = str(e)
     message, meta, folder, run_dir = comm.bcast((message, meta, folder, run_dir), root=0)
@@ -364,6 +500,7 @@ def read(path: Path, case: config.Case, comm: MPI.Comm) -> Checkpoint:
             message = f"{folder / name}: unreadable checkpoint ({type(e).__name__}: {e})"
             break
     _raise_if_any(comm, message)
+    _raise_if_any(comm, check_arrays(meta, folder, files))
     return Checkpoint(folder, run_dir, meta, tuple(files))
 
 
@@ -383,13 +520,28 @@ def _match(stored: np.ndarray, points: np.ndarray) -> np.ndarray:
     return index
 
 
+def _check_rows(checkpoint: Checkpoint, key: str, layout: Layout) -> str:
+    """'' if array ``key`` (of ``layout``) has, in every rank file, one row of ``layout.block``
+    values per stored key and the same shape beyond; else what is wrong."""
+    first = checkpoint.files[0][key]
+    for name, arrays in zip(checkpoint.meta["files"], checkpoint.files):
+        a, rows = arrays[key], len(arrays[f"keys.{layout.name}"])
+        if (a.ndim < 2 or len(a) != rows or a.shape[1] != layout.block
+                or a.shape[2:] != first.shape[2:]):
+            return (f"{checkpoint.path / name}: array {key!r} has shape {a.shape}, expected "
+                    f"({rows}, {layout.block}, ...): a row per key of {layout.name!r} (the "
+                    "file is damaged)")
+    return ""
+
+
 def localize(checkpoint: Checkpoint, layouts: dict[str, Layout], current: dict[str, np.ndarray],
              comm: MPI.Comm) -> dict[str, np.ndarray]:
     """The checkpoint's arrays on this rank's local dofs: every row of a distributed array takes
     the value stored under its key, global arrays come from rank 0's file. Checked against
     ``current`` (the fresh stepper's state): each of its arrays outside :data:`VARIABLE` must be
     restored with its shape. Collective; raises :class:`CheckpointError` on every rank if the
-    keys do not match (another mesh) or an array is missing."""
+    keys do not match (another mesh), an array is missing or a distributed array's rows do not
+    match its keys."""
     files, source = checkpoint.files, checkpoint.path
     state: dict[str, np.ndarray] = {}
     message = ""
@@ -400,6 +552,10 @@ def localize(checkpoint: Checkpoint, layouts: dict[str, Layout], current: dict[s
             message = f"{source}: no keys of {name!r} (written by another kind of run)"
             break
         stored = np.concatenate([f[key] for f in files])
+        if stored.ndim != 2 or stored.shape[1] != layout.points.shape[1]:
+            message = (f"{source}: {key}: keys of shape {stored.shape[1:]}, this run's have "
+                       f"{layout.points.shape[1:]} (the file is damaged)")
+            break
         owned = comm.allreduce(layout.owned, op=MPI.SUM)
         if len(stored) != owned:
             message = (f"{source}: {name}: the checkpoint has {len(stored)} rows, this run "
@@ -424,21 +580,33 @@ def localize(checkpoint: Checkpoint, layouts: dict[str, Layout], current: dict[s
             if any(key not in f for f in files):
                 message = f"{source}: array {key!r} is missing from some rank files"
                 break
+            message = _check_rows(checkpoint, key, layout)
+            if message:
+                break
             stored = np.concatenate([f[key] for f in files])
             index = indices[layout.name]
             values = np.zeros((len(index), *stored.shape[1:]), dtype=stored.dtype)
             values[index >= 0] = stored[index[index >= 0]]
             state[key] = values.reshape(-1, *stored.shape[2:])
-        def scalar(a: np.ndarray) -> bool:  # a number, or None (an empty array)
-            return a.ndim == 0 or a.shape == (0,)
-
-        for key, value in current.items():
-            if key.startswith(VARIABLE):
-                continue
-            if key not in state:
-                message = f"{source}: array {key!r} is missing (written by another kind of run)"
-            elif state[key].shape != value.shape and not (scalar(value) and scalar(state[key])):
-                message = (f"{source}: array {key!r} has shape {state[key].shape}, this run "
-                           f"{value.shape}")
+    if not message:
+        message = _check_restored(state, current, source)
     _raise_if_any(comm, message)
     return state
+
+
+def _check_restored(state: dict[str, np.ndarray], current: dict[str, np.ndarray],
+                    source: Path) -> str:
+    """'' if ``state`` has each array of ``current`` outside :data:`VARIABLE` with its shape (a
+    number or None where it has one); else the first that is missing or of another shape."""
+    def scalar(a: np.ndarray) -> bool:  # a number, or None (an empty array)
+        return a.ndim == 0 or a.shape == (0,)
+
+    for key, value in current.items():
+        if key.startswith(VARIABLE):
+            continue
+        if key not in state:
+            return f"{source}: array {key!r} is missing (written by another kind of run)"
+        if state[key].shape != value.shape and not (scalar(value) and scalar(state[key])):
+            return (f"{source}: array {key!r} has shape {state[key].shape}, this run "
+                    f"{value.shape}")
+    return ""

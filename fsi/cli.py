@@ -1,15 +1,22 @@
 """The command line: ``fsi run``, ``fsi mesh``, ``fsi check``, ``fsi report`` (``python -m fsi``
 is the same).
 
-Exit status: 0 done; 2 the configuration, the command line or the checkpoint to restart from is
-wrong (nothing is written); 3 the solve failed (the last converged step is checkpointed).
+Exit status (docs/reliability.md): 0 done; 1 an internal error (a bug: a traceback); 2 the
+configuration, the command line, ``--out`` or the checkpoint to restart from is wrong (nothing is
+computed or written); 3 a step failed (the last converged step is checkpointed); 4 a file could
+not be written (disk full, folder read-only; the last checkpoint that could be written is kept);
+130 / 143 / 138 stopped by SIGINT / SIGTERM / SIGUSR1 after the current step (checkpointed).
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import os
+import shlex
+import signal
 import sys
+import traceback
 from pathlib import Path
 from typing import Sequence
 
@@ -19,7 +26,7 @@ from fsi import config
 
 log = logging.getLogger("fsi")
 
-EXIT_OK, EXIT_USAGE, EXIT_SOLVE_FAILED = 0, 2, 3
+EXIT_OK, EXIT_INTERNAL, EXIT_USAGE, EXIT_SOLVE_FAILED, EXIT_OUTPUT_FAILED = 0, 1, 2, 3, 4
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -39,6 +46,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="continue from the checkpoint of an earlier run in DIR (DIR/checkpoint; "
                         "same mesh and structure, any number of ranks; the schedule, the "
                         "coupling and the solver settings may change)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an earlier run's files in DIR (otherwise a DIR holding a run is "
+                        "refused unless --restart continues it)")
     p = sub.add_parser("mesh", help="build the case's mesh: DIR/mesh.xdmf and DIR/mesh.json")
     with_config(p)
     p.add_argument("--out", type=Path, required=True, metavar="DIR")
@@ -57,8 +67,8 @@ def _parser() -> argparse.ArgumentParser:
 def _setup_logging(comm: MPI.Comm) -> None:
     """Progress on rank 0 only; other ranks report warnings and errors."""
     logger = logging.getLogger("fsi")
-    if not logger.handlers:
-        handler = logging.StreamHandler(sys.stderr)
+    if not any(isinstance(h, _Stderr) for h in logger.handlers):
+        handler = _Stderr()
         handler.setFormatter(logging.Formatter("%(message)s"))
         logger.addHandler(handler)
         logger.propagate = False
@@ -69,6 +79,19 @@ def _setup_logging(comm: MPI.Comm) -> None:
     root.setLevel(logging.WARNING)
     if not any(isinstance(f, _WarningsOnly) for f in root.filters):
         root.addFilter(_WarningsOnly())
+
+
+class _Stderr(logging.StreamHandler):
+    """A handler writing to whatever ``sys.stderr`` is when a record comes (main() may be
+    called several times in one process, e.g. by tests that capture stderr)."""
+
+    @property
+    def stream(self):
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value) -> None:
+        pass
 
 
 class _WarningsOnly(logging.Filter):
@@ -88,10 +111,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         case = config.load(args.config, args.overrides)
     except config.ConfigError as e:
-        if comm.rank == 0:
-            print(f"fsi: error: {e}", file=sys.stderr)
+        _error(comm, str(e))
         return EXIT_USAGE
-    return {"run": _run, "mesh": _mesh, "check": _check}[args.command](args, case)
+    command = {"run": _run, "mesh": _mesh, "check": _check}[args.command]
+    if comm.size == 1:
+        return command(args, case)
+    try:
+        return command(args, case)
+    except Exception:  # a bug: the other ranks may wait in a collective, so end them all
+        print(f"fsi: internal error on rank {comm.rank} of {comm.size}:\n"
+              f"{traceback.format_exc()}", file=sys.stderr, flush=True)
+        comm.Abort(EXIT_INTERNAL)
+        raise  # not reached
+
+
+def _error(comm: MPI.Comm, message: str) -> None:
+    """One ``fsi: error:`` line on stderr (rank 0; every rank has the same message)."""
+    if comm.rank == 0:
+        print(f"fsi: error: {message}", file=sys.stderr, flush=True)
 
 
 def _check(args: argparse.Namespace, case: config.Case) -> int:
@@ -101,47 +138,125 @@ def _check(args: argparse.Namespace, case: config.Case) -> int:
 
 
 def _run(args: argparse.Namespace, case: config.Case) -> int:
-    from fsi import simulation
+    from fsi import checkpoint, io, simulation
 
+    comm = MPI.COMM_WORLD
     reason = simulation.unsupported(case)
     if reason is not None:
-        if MPI.COMM_WORLD.rank == 0:
-            print(f"fsi: error: {args.config}: {reason}", file=sys.stderr)
+        _error(comm, f"{args.config}: {reason}")
         return EXIT_USAGE
-    from fsi import checkpoint
-
     restart = None
     try:
         if args.restart is not None:
-            restart = checkpoint.read(args.restart, case, MPI.COMM_WORLD)
-            log.info("restarting from %s: step %d, t = %.6g s", restart.path, restart.step,
-                     restart.t)
-        result = simulation.run(case, args.out, MPI.COMM_WORLD, restart)
+            restart = checkpoint.read(args.restart, case, comm)
     except checkpoint.CheckpointError as e:
-        if MPI.COMM_WORLD.rank == 0:
-            print(f"fsi: error: --restart: {e}", file=sys.stderr)
+        _error(comm, f"--restart: {e}")
         return EXIT_USAGE
-    except simulation.SolveFailed as e:
-        log.error("fsi: solve failed: %s (the finished steps are in %s)", e,
-                  args.out / "metrics.csv")
-        if e.checkpoint is not None:
-            log.error("fsi: the state after step %d (t = %.6g s), the last converged one, is "
-                      "checkpointed in %s."
-                      " To continue from it, change what failed (e.g. a smaller time step with"
-                      " --set 'time.schedule=[...]', or the coupling or solver settings) and run"
-                      "\n  fsi run %s --out %s --restart %s --set ...", e.step, e.t,
-                      e.checkpoint, args.config, args.out, args.out)
-        return EXIT_SOLVE_FAILED
+    continuing = restart is not None and restart.run_dir.resolve() == args.out.resolve()
+    try:
+        io.check_folder(comm, args.out, earlier_run=continuing or args.overwrite)
+    except io.RunFolderError as e:
+        _error(comm, f"--out: {e}")
+        return EXIT_USAGE
+    if restart is not None:
+        log.info("restarting from %s: step %d, t = %.6g s", restart.path, restart.step,
+                 restart.t)
+    try:
+        with _StopOnSignal() as stop:
+            result = simulation.run(case, args.out, comm, restart, stop)
+    except checkpoint.CheckpointError as e:
+        _error(comm, f"--restart: {e}")
+        return EXIT_USAGE
+    except simulation.RunStopped as e:
+        return _stopped(args, e)
+    except KeyboardInterrupt:  # a second interrupt: at once, without a checkpoint
+        log.error("fsi: stopped at once; the last periodic checkpoint is in %s",
+                  args.out / checkpoint.DIRECTORY)
+        return 128 + signal.SIGINT
     log.info("done: %d steps in %.1f s; wrote %s", result.steps, result.wall_time_s, args.out)
     return EXIT_OK
+
+
+def _stopped(args: argparse.Namespace, e: Exception) -> int:
+    """Say why a run stopped early and where its checkpoint is (rank 0: every rank has the
+    same exception); return the exit status."""
+    from fsi import simulation
+
+    if isinstance(e, simulation.Interrupted):
+        status = 128 + e.signal
+        lines = [f"fsi: stopped by signal {e.signal} ({signal.Signals(e.signal).name})."]
+    elif isinstance(e, simulation.OutputFailed):
+        status = EXIT_OUTPUT_FAILED
+        lines = [f"fsi: cannot write the run's files: {e}"]
+    else:
+        status = EXIT_SOLVE_FAILED
+        lines = [f"fsi: solve failed: {e} (the finished steps are in {args.out / 'metrics.csv'})"]
+    if e.checkpoint is None:
+        lines.append("fsi: no checkpoint could be written.")
+    else:
+        change = (" with what failed changed (e.g. a smaller time step with --set "
+                  "'time.schedule=[...]', or the coupling or solver settings)"
+                  if status == EXIT_SOLVE_FAILED else "")
+        command = ["fsi", "run", str(args.config), "--out", str(args.out), "--restart",
+                   str(args.out), *[a for s in args.overrides for a in ("--set", s)]]
+        lines.append(f"fsi: the state after step {e.step} (t = {e.t:.6g} s) is checkpointed in "
+                     f"{e.checkpoint}. To continue from it{change}, run\n  "
+                     f"{shlex.join(command)}")
+    if MPI.COMM_WORLD.rank == 0:
+        for line in lines:
+            log.error(line)
+    return status
+
+
+class _StopOnSignal:
+    """While entered, SIGINT, SIGTERM and SIGUSR1 ask the run to stop after its current step
+    (the run polls the instance, which returns the signal's number or None); a second one stops
+    at once (KeyboardInterrupt). Open MPI's mpirun forwards SIGUSR1 to every rank but answers
+    SIGINT and SIGTERM by killing the ranks within a second: under mpirun, stop a run with
+    ``kill -USR1 <mpirun's pid>`` (docs/reliability.md)."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGUSR1)
+
+    def __init__(self) -> None:
+        self.signal: int | None = None
+        self._previous: dict = {}
+
+    def __enter__(self) -> "_StopOnSignal":
+        for s in self.SIGNALS:
+            self._previous[s] = signal.signal(s, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for s, handler in self._previous.items():
+            signal.signal(s, handler)
+
+    def __call__(self) -> int | None:
+        return self.signal
+
+    def _handle(self, signum: int, frame) -> None:
+        if self.signal is not None:
+            raise KeyboardInterrupt
+        self.signal = signum
+        log.warning("fsi: %s received: stopping after this step with a checkpoint (again: "
+                    "stop at once)", signal.Signals(signum).name)
 
 
 def _mesh(args: argparse.Namespace, case: config.Case) -> int:
     from fsi import io, mesh
 
-    tagged = mesh.build(case, MPI.COMM_WORLD)
+    comm = MPI.COMM_WORLD
+    try:
+        io.check_folder(comm, args.out, earlier_run=True)
+    except io.RunFolderError as e:
+        _error(comm, f"--out: {e}")
+        return EXIT_USAGE
+    tagged = mesh.build(case, comm)
     summary = mesh.summary(tagged, case)
-    io.write_mesh(args.out, tagged, summary)
+    try:
+        io.write_mesh(args.out, tagged, summary)
+    except io.OutputError as e:
+        _error(comm, f"cannot write the mesh: {e}")
+        return EXIT_OUTPUT_FAILED
     cells = summary["cells"]
     log.info("mesh of %s (%s): %d triangles (%s)", args.config, case.mesh.level, cells["total"],
              ", ".join(f"{k} {v}" for k, v in cells.items() if k != "total"))
@@ -165,11 +280,25 @@ def _report(args: argparse.Namespace) -> int:
         else:
             print(report.markdown(runs, args.times))
             if args.out is not None:
-                written = report.write(runs, args.out, args.times)
-                log.info("wrote %s", ", ".join(str(p) for p in written))
+                try:
+                    written = report.write(runs, args.out, args.times)
+                except OSError as e:
+                    print(f"fsi: error: --out: {e}", file=sys.stderr)
+                    status = EXIT_OUTPUT_FAILED
+                else:
+                    log.info("wrote %s", ", ".join(str(p) for p in written))
     return comm.bcast(status, root=0)
 
 
 def run_console() -> None:
-    """Console-script entry point."""
-    sys.exit(main())
+    """Console-script entry point. After a failed file write (exit status 4) the process leaves
+    without running destructors: dolfinx's XDMF writer retries closing a file that failed to
+    close in its destructor, and the exception it throws there would abort the process."""
+    status = main()
+    if status == EXIT_OUTPUT_FAILED:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        MPI.COMM_WORLD.barrier()
+        MPI.Finalize()
+        os._exit(status)
+    sys.exit(status)

@@ -5,12 +5,22 @@ every key is optional (defaults are the study's values, ../shared/MODEL.md). Pre
 < YAML < ``--set key.path=value`` overrides. Unknown keys, wrong types and out-of-range values
 raise :class:`ConfigError` naming the file, the key and what is expected, before anything is
 computed. The schema is documented in docs/configuration.md.
+
+What a configuration may not do (each refused with a :class:`ConfigError`): hold a number that
+is not finite; nest YAML deeper than :data:`MAX_YAML_DEPTH` levels or repeat a key; exceed
+:data:`MAX_FILE_BYTES`; give PETSc any option outside the allow-list of
+:func:`check_petsc_options` (no viewers, monitors, Python types, options files or file paths);
+ask for more than ``time.max_steps`` steps or, by :func:`estimated_cells`, more than
+``mesh.max_cells`` triangles; give an inlet formula longer than :data:`MAX_FORMULA_LENGTH`
+characters or one that fails at t = 0 or at a step time of the schedule.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
+import reprlib
 import types
 import typing
 from dataclasses import dataclass, field
@@ -20,10 +30,39 @@ from typing import Any, Literal, Union
 import yaml
 
 from geometry import stenosis as stenosis_geometry
+from geometry import turek_hron as turek_hron_geometry
+
+MAX_FILE_BYTES = 1 << 20
+"""A case file is at most 1 MiB (the shipped ones are < 4 kB; a 50,000-row pressure table fits)."""
+
+MAX_YAML_DEPTH = 32
+"""Nesting levels of YAML lists and mappings (the schema needs 6): deeper is refused before
+PyYAML's recursive composer reaches Python's recursion limit."""
+
+
+class YAMLTooDeep(yaml.YAMLError):
+    """YAML nested more than :data:`MAX_YAML_DEPTH` levels, at ``line`` (1-based)."""
+
+    def __init__(self, mark: yaml.Mark):
+        self.line, self.column = mark.line + 1, mark.column + 1
+        super().__init__(f"YAML nested more than {MAX_YAML_DEPTH} levels deep (line {self.line},"
+                         f" column {self.column})")
 
 
 class _Loader(yaml.SafeLoader):
-    """PyYAML's safe loader with YAML 1.2 floats: plain ``4e6`` and ``1.0e-3`` are numbers."""
+    """PyYAML's safe loader with YAML 1.2 floats (plain ``4e6`` and ``1.0e-3`` are numbers) and
+    a nesting limit of :data:`MAX_YAML_DEPTH` levels."""
+
+    _depth = 0
+
+    def compose_node(self, parent, index):
+        self._depth += 1
+        try:
+            if self._depth > MAX_YAML_DEPTH:
+                raise YAMLTooDeep(self.peek_event().start_mark)
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
 
 
 _Loader.add_implicit_resolver(
@@ -34,23 +73,106 @@ _Loader.add_implicit_resolver(
 )
 
 
-def parse_yaml(text: str):
-    return yaml.load(text, Loader=_Loader)  # noqa: S506 (a SafeLoader subclass)
+def parse_yaml(text: str, source: str = "<string>", key: str = ""):
+    """The data of one YAML document (safe types only).
+
+    Raises ``yaml.YAMLError`` for invalid YAML (:class:`YAMLTooDeep` for nesting deeper than
+    :data:`MAX_YAML_DEPTH`), and :class:`ConfigError` (``source``, the key path below ``key``)
+    for a key that a mapping repeats: PyYAML would silently keep the last one.
+    """
+    loader = _Loader(text)
+    try:
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        _refuse_duplicate_keys(node, source, key)
+        try:
+            return loader.construct_document(node)
+        except (ValueError, TypeError, OverflowError) as e:  # 5000 digits, month 13, ...
+            raise yaml.YAMLError(f"a value cannot be read: {_shorten(str(e))}") from None
+    finally:
+        loader.dispose()
+
+
+def _refuse_duplicate_keys(root: yaml.Node, source: str, root_key: str) -> None:
+    """Walk the composed YAML graph once per node (aliases share nodes, so an alias "bomb" is
+    not expanded) and raise :class:`ConfigError` at the first mapping that repeats a key."""
+    seen: set[int] = set()
+    stack = [(root, root_key)]
+    while stack:
+        node, key = stack.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        if isinstance(node, yaml.MappingNode):
+            first: dict[tuple, yaml.Mark] = {}
+            for key_node, value_node in node.value:
+                name = str(key_node.value) if isinstance(key_node, yaml.ScalarNode) else "?"
+                sub = f"{key}.{name}" if key else name
+                identity = (key_node.tag, name) if isinstance(key_node, yaml.ScalarNode) else (
+                    id(key_node),)
+                mark = key_node.start_mark
+                if identity in first:
+                    a = first[identity]
+                    where = (f"lines {a.line + 1} and {mark.line + 1}" if a.line != mark.line else
+                             f"line {a.line + 1}, columns {a.column + 1} and {mark.column + 1}")
+                    raise ConfigError(source, sub, reason=f"duplicate key ({where})")
+                first[identity] = mark
+                stack.append((value_node, sub))
+        elif isinstance(node, yaml.SequenceNode):
+            stack.extend((item, f"{key}[{i}]") for i, item in enumerate(node.value))
 
 
 class ConfigError(Exception):
-    """A configuration value is wrong: ``source: key: expected ..., got ...``."""
+    """A configuration value is wrong: ``source: key: expected ..., got ...``, or, when there
+    is no single expected value, ``source: key: reason`` (``source: reason`` without a key)."""
 
-    def __init__(self, source: str, key: str, expected: str, got: Any = dataclasses.MISSING):
+    def __init__(self, source: str, key: str, expected: str = "",
+                 got: Any = dataclasses.MISSING, reason: str | None = None):
         self.source, self.key, self.expected, self.got = source, key, expected, got
-        message = f"{source}: {key}: expected {expected}"
-        if got is not dataclasses.MISSING:
-            message += f", got {got!r}"
+        self.reason = reason
+        where = f"{source}: {key}" if key else source
+        if reason is not None:
+            message = f"{where}: {reason}"
+        else:
+            message = f"{where}: expected {expected}"
+            if got is not dataclasses.MISSING:
+                message += f", got {_show(got)}"
         super().__init__(message)
+
+    def from_source(self, source: str) -> ConfigError:
+        """The same error, attributed to ``source`` (a file, or ``--set``)."""
+        return ConfigError(source, self.key, self.expected, self.got, self.reason)
+
+
+def _shorten(text: str, limit: int = 80) -> str:
+    """``text``, or its start and its length when longer than ``limit`` (a 1 MB formula)."""
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
+
+
+_REPR = reprlib.Repr()
+_REPR.maxlevel, _REPR.maxlist, _REPR.maxtuple, _REPR.maxdict = 2, 8, 8, 8
+_REPR.maxlong, _REPR.maxother = 40, 40
+
+
+def _show(value: Any) -> str:
+    """A value for a message, bounded: a string by :func:`_shorten`, containers by
+    ``reprlib`` (YAML aliases can make a list of 10⁹ shared items, too long to ``repr``)."""
+    return _shorten(repr(value) if isinstance(value, str) else _REPR.repr(value))
+
+
+def _finite(value: Any) -> bool:
+    """False only for a float inf or nan (the builder refuses those for every number)."""
+    return not isinstance(value, float) or math.isfinite(value)
 
 
 def _check(default: Any, check: typing.Callable[[Any], bool], expected: str) -> Any:
-    """A dataclass field with a range check and the words that describe the allowed range."""
+    """A dataclass field with a range check and the words that describe the allowed range.
+
+    ``check`` returns whether a value is allowed; it may instead raise ``ValueError`` whose
+    ``reason`` (or message) is added to the error. A non-finite number is refused before
+    ``check`` sees it, with ``expected`` as "a finite ...".
+    """
     return field(default=default, metadata={"check": check, "expected": expected})
 
 
@@ -120,15 +242,34 @@ MESH_LEVELS = {"coarse": 0, "medium": 1, "fine": 2}
 @dataclass(frozen=True)
 class MeshSettings:
     """gmsh sizes of the coarse mesh: ``size`` away from, ``local_size`` at the plaque (or the
-    obstacle); ``level`` adds uniform refinements (medium = coarse × 4, fine = coarse × 16)."""
+    obstacle); ``level`` adds uniform refinements (medium = coarse × 4, fine = coarse × 16).
+
+    ``max_cells``: validation refuses a mesh whose :func:`estimated_cells` exceeds it, before
+    gmsh starts (memory grows with the cells: the fine stenosis, 51k triangles, took ~0.9 GB
+    in a serial coupled run, ~18 kB per triangle, so the default 10⁶ is ~18 GB)."""
 
     level: Literal["coarse", "medium", "fine"] = "coarse"
     size: float = positive(6.0e-4, " (m)")
     local_size: float = positive(2.2e-4, " (m)")
+    max_cells: int = at_least(1_000_000, 1)
 
     @property
     def refinements(self) -> int:
         return MESH_LEVELS[self.level]
+
+
+def quadrature(default: int) -> Any:
+    """A quadrature degree in [1, :data:`MAX_QUADRATURE_DEGREE`]."""
+    return _check(default, lambda v: 1 <= v <= MAX_QUADRATURE_DEGREE,
+                  f"an integer in [1, {MAX_QUADRATURE_DEGREE}]")
+
+
+MAX_QUADRATURE_DEGREE = 20
+"""The highest quadrature degree a case may set. The shipped cases use 4 (exact for the P2 SVK
+residual); a triangle rule of degree q has about (q/2 + 1)² points, which the form compiler
+unrolls into the generated C and assembly visits in every cell, so cost grows as q² (UFL's own
+choice of 22 for the Carreau Jacobian assembled 5× slower than 4, DESIGN.md) and degree 100000
+never finishes compiling (issue #14). 20 leaves room for convergence studies."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -214,21 +355,42 @@ class InletPulse:
 
 _FORMULA_NAMES = ("sin", "cos", "tan", "exp", "log", "sqrt", "tanh", "abs", "min", "max")
 
+MAX_FORMULA_LENGTH = 2000
+"""Characters of an inlet formula: ample for a pulse of several harmonics, and short enough
+that parsing and compiling it are instant."""
+
+
+class FormulaError(ValueError):
+    """An inlet formula is not an allowed expression (``t`` None), or its value at time ``t``
+    is not a finite real number: division by zero, a math domain error (``log(0)``,
+    ``sqrt(-1)``), an overflow, a complex result, inf or nan. ``reason`` says which."""
+
+    def __init__(self, formula: str, reason: str, t: float | None = None):
+        self.formula, self.reason, self.t = formula, reason, t
+        at = "" if t is None else f" at t = {t:.6g} s"
+        super().__init__(f"formula {_shorten(repr(formula), 60)}{at}: {reason}")
+
 
 def time_function(formula: str) -> typing.Callable[[float], float]:
     """``formula``, an arithmetic expression in the time ``t`` (s), as a function of t.
 
     Allowed: numbers, ``t``, ``pi``, ``e``, ``+ - * / ** %``, parentheses, comparisons (true = 1,
     e.g. ``600*(1 - cos(2*pi*t/0.005))*(t <= 0.005)``) and the functions sin, cos, tan, exp, log,
-    sqrt, tanh, abs, min, max. Raises ValueError for anything else (names, attributes, strings).
+    sqrt, tanh, abs, min, max, in at most :data:`MAX_FORMULA_LENGTH` characters. Raises
+    :class:`FormulaError` (a ValueError) for anything else (names, attributes, strings, nesting
+    too deep to compile). The function returned returns a finite float or raises
+    :class:`FormulaError` naming the formula and t; it raises nothing else.
     """
     import ast
-    import math
 
+    if len(formula) > MAX_FORMULA_LENGTH:
+        raise FormulaError(formula, f"longer than {MAX_FORMULA_LENGTH} characters")
     try:
         tree = ast.parse(formula, mode="eval")
     except SyntaxError as e:
-        raise ValueError(f"not an expression: {e.msg}") from None
+        raise FormulaError(formula, f"not an expression: {e.msg}") from None
+    except (ValueError, RecursionError, MemoryError) as e:  # null bytes; nesting
+        raise FormulaError(formula, f"not an expression: {_nesting(e)}") from None
     allowed = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Compare, ast.Call, ast.Name, ast.Load,
                ast.Constant, ast.operator, ast.unaryop, ast.cmpop)
     for node in ast.walk(tree):
@@ -237,27 +399,55 @@ def time_function(formula: str) -> typing.Callable[[float], float]:
                                                               ast.FloorDiv, ast.Invert, ast.Not,
                                                               ast.Is, ast.IsNot, ast.In,
                                                               ast.NotIn)):
-            raise ValueError(f"{type(node).__name__} is not allowed")
+            raise FormulaError(formula, f"{type(node).__name__} is not allowed")
         if isinstance(node, ast.Constant):
             if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
-                raise ValueError(f"{node.value!r} is not a number")
-            node.value = float(node.value)  # float powers overflow instead of running forever
+                raise FormulaError(formula, f"{_shorten(repr(node.value), 40)} is not a number")
+            try:
+                node.value = float(node.value)  # float powers overflow instead of running forever
+            except OverflowError:
+                raise FormulaError(formula, "a number too large for a float") from None
         if isinstance(node, ast.Name) and node.id not in ("t", "pi", "e", *_FORMULA_NAMES):
-            raise ValueError(f"unknown name {node.id!r}")
+            raise FormulaError(formula, f"unknown name {node.id!r}")
         if isinstance(node, ast.Call) and (node.keywords or not isinstance(node.func, ast.Name)
                                            or node.func.id not in _FORMULA_NAMES):
-            raise ValueError("only calls of " + ", ".join(_FORMULA_NAMES))
-    code = compile(tree, "<formula>", "eval")
+            raise FormulaError(formula, "only calls of " + ", ".join(_FORMULA_NAMES))
+    try:
+        code = compile(tree, "<formula>", "eval")
+    except (ValueError, RecursionError, MemoryError) as e:
+        raise FormulaError(formula, f"cannot be compiled: {_nesting(e)}") from None
     names = {"__builtins__": {}, "pi": math.pi, "e": math.e, "abs": abs, "min": min, "max": max}
     names.update({f: getattr(math, f) for f in _FORMULA_NAMES if hasattr(math, f)})
-    return lambda t: float(eval(code, names, {"t": float(t)}))  # noqa: S307 (checked above)
+
+    def value(t: float) -> float:
+        try:
+            result = eval(code, names, {"t": float(t)})  # noqa: S307 (checked above)
+        except ZeroDivisionError:
+            raise FormulaError(formula, "division by zero", t) from None
+        except OverflowError:
+            raise FormulaError(formula, "overflow", t) from None
+        except (ArithmeticError, ValueError, TypeError, RecursionError, MemoryError) as e:
+            raise FormulaError(formula, str(e) or type(e).__name__, t) from None
+        if isinstance(result, complex):  # a negative number to a fractional power
+            raise FormulaError(formula, f"complex result {result}", t)
+        result = float(result)
+        if not math.isfinite(result):
+            raise FormulaError(formula, f"the result is {result}", t)
+        return result
+
+    return value
+
+
+def _nesting(error: Exception) -> str:
+    """Words for a parser/compiler failure: nesting too deep (recursion, memory) or its message."""
+    if isinstance(error, (RecursionError, MemoryError)):
+        return "nested too deeply"
+    return str(error)
 
 
 def _is_time_formula(text: str) -> bool:
-    try:
-        time_function(text)
-    except ValueError:
-        return False
+    """True, or :class:`FormulaError` saying why ``text`` is not an allowed formula."""
+    time_function(text)
     return True
 
 
@@ -323,6 +513,7 @@ class SolverSettings:
     max_iterations: int = at_least(25, 1)
     jacobian_reuse: Literal["none", "step", "run"] = "none"
     jacobian_reuse_rate: float = open_interval(0.3, 0.0, 1.0)
+    # Names and values are checked against an allow-list (check_petsc_options) in validate().
     petsc_options: dict[str, Union[str, int, float]] = field(
         default_factory=lambda: {
             "ksp_type": "preonly",
@@ -359,7 +550,7 @@ class Fluid:
     normal_flow: bool = True
     supg: bool = False
     inflow_stabilization: float = non_negative(0.0)
-    quadrature_degree: int = at_least(4, 1)
+    quadrature_degree: int = quadrature(4)
     solver: SolverSettings = field(default_factory=SolverSettings)
 
 
@@ -462,7 +653,7 @@ class Structure:
         (0.0, 0.0), lambda v: len(v) == 2, "a list of two numbers [gx, gy] (m/s^2)")
     time_integration: StructuralTimeIntegration = field(default_factory=GeneralizedAlpha)
     degree: int = _check(2, lambda v: 1 <= v <= 3, "an integer in [1, 3]")
-    quadrature_degree: int = at_least(4, 1)
+    quadrature_degree: int = quadrature(4)
     solver: SolverSettings = field(default_factory=SolverSettings)
 
 
@@ -489,12 +680,16 @@ class Time:
     ``retries``: how often a step whose solve fails is taken again as two steps of half its
     size, from the state before it (each half may be halved again while retries remain: up to
     2^retries substeps); the metrics row is the scheduled step's. 0: a failed step ends the run.
+
+    ``max_steps``: validation refuses a schedule of more steps to ``end`` (:func:`count_steps`),
+    so a mistyped ``dt`` fails at once instead of running for ever.
     """
 
     end: float = positive(0.8, " (s)")
     scheme: Literal["backward_euler", "bdf2", "steady"] = "bdf2"
     schedule: tuple[TimeSegment, ...] = (TimeSegment(0.4, 5.0e-3), TimeSegment(0.8, 1.0e-2))
     retries: int = _check(0, lambda v: 0 <= v <= 8, "an integer in [0, 8]")
+    max_steps: int = at_least(1_000_000, 1)
 
 
 @dataclass(frozen=True)
@@ -547,7 +742,9 @@ class Output:
     fields: Literal["xdmf", "vtx"] = "xdmf"
     fields_every: int = at_least(1, 1)
     checkpoint_every: int = at_least(10, 1)
-    report_times: tuple[float, ...] = (0.01, 0.02, 0.05, 0.1, 0.8)
+    report_times: tuple[float, ...] = _check((0.01, 0.02, 0.05, 0.1, 0.8),
+                                             lambda v: all(t >= 0 for t in v),
+                                             "a list of times >= 0 (s)")
 
 
 @dataclass(frozen=True)
@@ -569,15 +766,31 @@ class Case:
 
 
 def load(path: str | Path, overrides: typing.Sequence[str] = ()) -> Case:
-    """Read a case from YAML, apply ``key.path=value`` overrides, build and validate it."""
+    """Read a case from YAML, apply ``key.path=value`` overrides, build and validate it.
+
+    Every failure is a :class:`ConfigError` naming the file (or ``--set``) and the key: an
+    unreadable file, one larger than :data:`MAX_FILE_BYTES` or not UTF-8 text, invalid or too
+    deeply nested YAML, a repeated key, and whatever :func:`from_dict` refuses.
+    """
     path = Path(path)
     source = str(path)
     try:
-        text = path.read_text()
+        with path.open("rb") as f:
+            raw = f.read(MAX_FILE_BYTES + 1)  # bounded: /dev/zero is refused, not read for ever
     except OSError as e:
         raise ConfigError(source, "<file>", "a readable YAML file", e.strerror) from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise ConfigError(source, "", reason=f"larger than {MAX_FILE_BYTES} bytes: not a case "
+                                              "file")
     try:
-        data = parse_yaml(text)
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise ConfigError(source, "", reason=f"not UTF-8 text (byte 0x{raw[e.start]:02x} at "
+                                              f"offset {e.start}): not a case file") from None
+    try:
+        data = parse_yaml(text, source)
+    except YAMLTooDeep as e:
+        raise ConfigError(source, "", reason=str(e)) from None
     except yaml.YAMLError as e:
         raise ConfigError(source, "<file>", f"valid YAML ({e})".replace("\n", " ")) from None
     if data is None:
@@ -589,19 +802,24 @@ def load(path: str | Path, overrides: typing.Sequence[str] = ()) -> Case:
 
 
 def apply_overrides(data: dict, overrides: typing.Sequence[str]) -> set[str]:
-    """Set ``key.path=value`` (value parsed as YAML) in ``data``; return the keys set."""
+    """Set ``key.path=value`` (value parsed as YAML) in ``data``; return the keys set and the
+    sections the overrides created (a section not in ``data`` comes from the command line)."""
     keys = set()
     for item in overrides:
         key, sep, text = item.partition("=")
         if not sep or not key or any(not part for part in key.split(".")):
-            raise ConfigError("--set", item, "key.path=value")
+            raise ConfigError("--set", _shorten(item), "key.path=value")
         try:
-            value = parse_yaml(text)
+            value = parse_yaml(text, "--set", key)
+        except YAMLTooDeep as e:
+            raise ConfigError("--set", key, reason=str(e)) from None
         except yaml.YAMLError:
             raise ConfigError("--set", key, "a YAML value", text) from None
         node = data
         parts = key.split(".")
         for i, part in enumerate(parts[:-1]):
+            if part not in node:
+                keys.add(".".join(parts[: i + 1]))
             child = node.setdefault(part, {})
             if not isinstance(child, dict):
                 raise ConfigError("--set", ".".join(parts[: i + 1]), "a section", child)
@@ -612,15 +830,20 @@ def apply_overrides(data: dict, overrides: typing.Sequence[str]) -> set[str]:
 
 
 def from_dict(data: dict, source: str = "<dict>", overridden: set[str] | None = None) -> Case:
-    """Build and validate a :class:`Case` from a plain dict (as read from YAML)."""
+    """Build and validate a :class:`Case` from a plain dict (as read from YAML).
+
+    ``overridden``: the keys :func:`apply_overrides` set (and the sections it created); an
+    error at one of them, below one (``time.schedule[0].dt`` below ``time.schedule``) or about
+    a whole section one changed (``mesh``'s cell count after ``--set mesh.size=...``) names
+    ``--set`` instead of ``source``."""
     overridden = overridden or set()
     try:
         case = _build(Case, data, "")
         validate(case)
     except ConfigError as e:
-        # Name the command line, not the file, when the bad value came from --set.
-        origin = "--set" if any(e.key == k or e.key.startswith(k + ".") for k in overridden) else source
-        raise ConfigError(origin, e.key, e.expected, e.got) from None
+        from_command_line = any(e.key == k or e.key.startswith((k + ".", k + "["))
+                                or k.startswith(e.key + ".") for k in overridden)
+        raise e.from_source("--set" if from_command_line else source) from None
     return case
 
 
@@ -646,13 +869,14 @@ def _describe(tp: Any) -> str:
 
 
 def _build(tp: Any, value: Any, key: str) -> Any:
-    """Convert a YAML value to type ``tp`` strictly (no str→bool, no bool→number, no float→int)."""
+    """Convert a YAML value to type ``tp`` strictly (no str→bool, no bool→number, no float→int,
+    no inf or nan for any number)."""
     origin = typing.get_origin(tp)
     if dataclasses.is_dataclass(tp):
         if not isinstance(value, dict):
             raise ConfigError("", key or "<top level>", "a mapping", value)
         fields = {f.name: f for f in dataclasses.fields(tp)}
-        unknown = sorted(set(value) - set(fields))
+        unknown = sorted(set(value) - set(fields), key=str)
         if unknown:
             k = f"{key}.{unknown[0]}" if key else str(unknown[0])
             raise ConfigError("", k, "one of the keys " + ", ".join(fields), "unknown key")
@@ -662,15 +886,27 @@ def _build(tp: Any, value: Any, key: str) -> Any:
             if name not in value:
                 continue
             sub = f"{key}.{name}" if key else name
+            expected = f.metadata.get("expected")
+            if hints[name] is float and expected is not None and not _finite(value[name]):
+                # "a positive number (s)" -> "a finite positive number (s)"
+                raise ConfigError("", sub, "a finite " + expected.removeprefix("a "), value[name])
             v = _build(hints[name], value[name], sub)
-            if "check" in f.metadata and not f.metadata["check"](v):
-                raise ConfigError("", sub, f.metadata["expected"], v)
+            if "check" in f.metadata:
+                try:
+                    allowed = f.metadata["check"](v)
+                except ValueError as e:
+                    raise ConfigError("", sub, f"{expected} ({getattr(e, 'reason', e)})",
+                                      v) from None
+                if not allowed:
+                    raise ConfigError("", sub, expected, v)
             kwargs[name] = v
         return tp(**kwargs)
     if origin in (Union, types.UnionType):
         options = typing.get_args(tp)
         if all(dataclasses.is_dataclass(o) for o in options):
             return _build_tagged(options, value, key)
+        if float in options and not _finite(value):
+            raise ConfigError("", key, "a finite number", value)
         for option in options:
             try:
                 return _build(option, value, key)
@@ -694,7 +930,13 @@ def _build(tp: Any, value: Any, key: str) -> Any:
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError("", key, "a number", value)
-        return float(value)
+        try:
+            number = float(value)
+        except OverflowError:  # an integer of hundreds of digits
+            number = math.inf
+        if not math.isfinite(number):
+            raise ConfigError("", key, "a finite number", value)
+        return number
     if tp is int:
         if isinstance(value, bool) or not isinstance(value, int):
             raise ConfigError("", key, "an integer", value)
@@ -759,6 +1001,7 @@ def validate(case: Case) -> None:
             raise ConfigError("", "structure.interface_load", "'fluid' or 'none' with a "
                               "velocity inlet ('inlet_pressure' needs a traction inlet)",
                               case.structure.interface_load)
+    _validate_cell_count(case)  # before the size order: mesh.size 1e-6 gets the estimate
     if case.mesh.local_size > case.mesh.size:
         raise ConfigError("", "mesh.local_size", f"at most mesh.size = {case.mesh.size} m",
                           case.mesh.local_size)
@@ -774,6 +1017,13 @@ def validate(case: Case) -> None:
     if schedule[-1].until < case.time.end * (1 - 1e-12):
         raise ConfigError("", f"time.schedule[{len(schedule) - 1}].until",
                           f"at least time.end = {case.time.end} s", schedule[-1].until)
+    steps = count_steps(case.time)
+    if steps > case.time.max_steps:
+        raise_limit = (f"raise the limit (--set time.max_steps={int(steps)}) if you mean it"
+                       if math.isfinite(steps) else "no limit can be that high")
+        raise ConfigError("", "time.schedule", reason=(
+            f"{_count(steps)} steps to time.end = {case.time.end:g} s, more than "
+            f"time.max_steps = {case.time.max_steps:,}: use larger dt, or {raise_limit}"))
 
     if (case.time.scheme == "steady" and case.structure.mode != "rigid"
             and case.structure.time_integration.scheme != "quasi_static"):
@@ -792,6 +1042,229 @@ def validate(case: Case) -> None:
             raise ConfigError("", f"{name}.solver.rtol",
                               f"at most coupling.tolerance / 10 = {case.coupling.tolerance / 10:g}",
                               rtol)
+
+    check_petsc_options(case.fluid.solver.petsc_options, "fluid.solver.petsc_options")
+    check_petsc_options(case.structure.solver.petsc_options, "structure.solver.petsc_options")
+    check_petsc_options(case.mesh_motion.petsc_options, "mesh_motion.petsc_options")
+    _validate_inlet(case)  # last: it walks the schedule, now known to be of bounded length
+
+
+def _count(n: float) -> str:
+    """A step or cell count for a message: ``1,234,567``, ``8e+12`` if huge, ``over 1e308`` if
+    it overflowed."""
+    if not math.isfinite(n):
+        return "over 1e308"
+    return f"{n:.3g}" if n >= 1e12 else f"{int(n):,}"
+
+
+def count_steps(time: Time) -> float:
+    """The number of steps :func:`fsi.timestepping.steps` takes from t = 0 to ``time.end``,
+    counted per segment arithmetically (a schedule of 10¹² steps costs no more than one of 10;
+    inf for a dt so small that the count overflows). Each segment's steps end on its ``until``
+    (or ``end``), a remainder below 1e-9 dt merged into the last step, as ``steps`` does."""
+    t, n = 0.0, 0
+    for segment in time.schedule:
+        stop = min(segment.until, time.end)
+        if stop - t > 1e-9 * segment.dt:
+            segment_steps = (stop - t) / segment.dt
+            n += math.ceil(segment_steps - 1e-9) if segment_steps < 2.0**52 else segment_steps
+            t = stop
+        if time.end <= segment.until:
+            break
+    return n
+
+
+TRIANGLE_AREA = math.sqrt(3) / 4
+"""Area of an equilateral triangle of side 1: a gmsh triangle of size h covers about
+``TRIANGLE_AREA · h²``."""
+
+
+def estimated_cells(case: Case) -> float:
+    """About how many triangles :func:`fsi.mesh.build` makes for ``case``, from the geometry
+    alone (no gmsh): area / (TRIANGLE_AREA h²), × 4 per uniform refinement of ``mesh.level``.
+
+    The size field h is modelled per geometry: ``size`` everywhere in a channel; in the
+    stenosis ``local_size`` over the box under each plaque (stenosis_length × plaque height)
+    and ``size`` elsewhere; in Turek–Hron ``local_size + grading · d`` up to ``size`` at the
+    distance d from the cylinder and the flag (the builder's Threshold field, integrated over
+    bands around the obstacle). Within a factor 1.5 of gmsh's count on the shipped cases (its
+    tests check a factor 3); meant for refusing absurd sizes, not for planning.
+    """
+    g, m = case.geometry, case.mesh
+    size, local = m.size, min(m.local_size, m.size)
+    if isinstance(g, StenosisGeometry):
+        total = stenosis_geometry.analytic_areas(g)["total"]
+        fine_area = len(g.plaque_sides) * stenosis_geometry.plaque_height(g) * g.stenosis_length
+        per_size2 = (total - fine_area) / size / size + fine_area / local / local
+    elif isinstance(g, TurekHronGeometry):
+        per_size2 = _turek_hron_cells_area(g, size, local)
+    else:
+        per_size2 = g.length * g.height / size / size
+    return per_size2 / TRIANGLE_AREA * 4.0**m.refinements
+
+
+def _turek_hron_cells_area(g: TurekHronGeometry, size: float, local: float) -> float:
+    """∫ dA / h² over the Turek–Hron channel with h(d) = min(size, local + k d), k the
+    builder's grading and d the distance to the obstacle (perimeter P, convex): the band
+    d < D = (size − local)/k, whose level line at d has length P + 2π d, gives
+    ``∫₀^D (P + 2π d) / (local + k d)² dd``; the rest of the channel is at ``size``."""
+    k = turek_hron_geometry.GRADING
+    r, t = g.cylinder_radius, g.flag_thickness
+    x_joint = g.cylinder_centre[0] + math.sqrt(r * r - t * t / 4)
+    perimeter = 2 * math.pi * r + 2 * (turek_hron_geometry.tip_x(g) - x_joint) + t
+    band = (size - local) / k
+    near = (perimeter / k * (1 / local - 1 / size)
+            + 2 * math.pi / k**2 * (math.log(size / local) + local / size - 1))
+    total = turek_hron_geometry.analytic_areas(g)["total"]
+    rest = max(total - perimeter * band - math.pi * band**2, 0.0)
+    return near + rest / size / size
+
+
+BYTES_PER_CELL = 18e3
+"""Memory per triangle of a coupled run, measured: the fine stenosis (51k triangles) ~0.9 GB."""
+
+
+def _validate_cell_count(case: Case) -> None:
+    """Refuse a mesh whose :func:`estimated_cells` exceeds ``mesh.max_cells``, before gmsh."""
+    cells = estimated_cells(case)
+    if cells > case.mesh.max_cells:
+        m = case.mesh
+        gigabytes = cells * BYTES_PER_CELL / 1e9
+        memory = (f"{gigabytes:.2g} GB" if gigabytes < 10 else f"{gigabytes:,.0f} GB"
+                  if gigabytes < 1e9 else "too much")
+        raise ConfigError("", "mesh", reason=(
+            f"{_count(cells)} triangles estimated (mesh.size = {m.size:g} m, mesh.local_size = "
+            f"{m.local_size:g} m, mesh.level = {m.level}), more than mesh.max_cells = "
+            f"{m.max_cells:,} (a coupled run needs ~{BYTES_PER_CELL / 1e3:.0f} kB per triangle:"
+            f" {memory}): use larger sizes or a coarser level, or raise mesh.max_cells if you "
+            "mean it"))
+
+
+def _validate_inlet(case: Case) -> None:
+    """Evaluate an inlet formula at t = 0 and at every step time of the schedule: one that
+    fails (division by zero, log(0), overflow, ...) is refused now, not mid-run."""
+    inlet = case.fluid.inlet
+    if not isinstance(inlet, InletPressure):
+        return  # the pulse is closed-form; a table holds finite numbers and interpolates
+    from fsi.timestepping import steps  # not at the top: fsi.timestepping imports this module
+
+    pressure = time_function(inlet.formula)
+    try:
+        pressure(0.0)
+        for step in steps(case.time):
+            pressure(step.t)
+    except FormulaError as e:
+        raise ConfigError("", "fluid.inlet.formula",
+                          reason=f"evaluation fails at t = {e.t:.6g} s ({e.reason})") from None
+
+
+# --------------------------------------------------------------------------------------------
+# PETSc options: an allow-list, since PETSc options can run code and write files
+
+# Sub-solver prefixes inside one solver's options: the blocks of block Jacobi / ASM (sub_),
+# the redundant PC, multigrid levels, fieldsplit blocks and a smoother's eigenvalue estimator.
+_PETSC_SUBSOLVER = (r"(?:(?:sub|redundant|mg_coarse|mg_levels(?:_[0-9]+)?|fieldsplit_[a-z0-9]+"
+                    r"|esteig)_)*")
+
+_PETSC_OPTIONS = (
+    # Krylov method: type, tolerances, iteration limits, restart lengths
+    r"ksp_(?:type|rtol|atol|divtol|max_it|norm_type|pc_side|initial_guess_nonzero"
+    r"|error_if_not_converged|reuse_preconditioner|gmres_restart|gcr_restart"
+    r"|gmres_modifiedgramschmidt|gmres_cgs_refinement_type|richardson_scale"
+    r"|chebyshev_eigenvalues|chebyshev_esteig)",
+    # preconditioner type; LU / ILU / Cholesky factorisations and the package that does them
+    r"pc_(?:type|factor_mat_solver_type|factor_mat_ordering_type|factor_levels|factor_fill"
+    r"|factor_shift_type|factor_shift_amount|factor_nonzeros_along_diagonal"
+    r"|factor_pivot_in_blocks|jacobi_type|sor_omega|sor_its|sor_symmetric|asm_overlap|asm_type"
+    r"|bjacobi_blocks)",
+    # MUMPS (not ICNTL 1-4: output streams and print level; not 22: out-of-core files; 37, 48
+    # and 58 need PETSc >= 3.20, older ones ignore them)
+    r"mat_mumps_icntl_(?:6|7|8|10|11|12|13|14|23|24|25|27|28|29|35|36|37|38|48|58)",
+    r"mat_mumps_cntl_[1-57]",
+    r"mat_superlu_dist_(?:rowperm|colperm|equil|replacetinypivot|iterrefine)",
+    # hypre BoomerAMG
+    r"pc_hypre_type",
+    r"pc_hypre_boomeramg_(?:strong_threshold|coarsen_type|interp_type|agg_nl|agg_num_paths"
+    r"|max_iter|tol|max_levels|truncfactor|p_max|max_row_sum|cycle_type|relax_type_(?:all|down"
+    r"|up|coarse)|grid_sweeps_(?:all|down|up|coarse)|relax_weight_all|outer_relax_weight_all"
+    r"|nodal_coarsen|vec_interp_variant|numfunctions|measure_type|no_cf|smooth_type"
+    r"|smooth_num_levels)",
+    # GAMG and geometric/algebraic multigrid cycles
+    r"pc_gamg_(?:type|threshold|threshold_scale|agg_nsmooths|square_graph|aggressive_coarsening"
+    r"|coarse_eq_limit|process_eq_limit|reuse_interpolation|repartition"
+    r"|esteig_ksp_type|esteig_ksp_max_it|use_sa_esteig|asm_use_agg"
+    r"|use_parallel_coarse_grid_solver)",
+    r"pc_mg_(?:levels|cycle_type|type|smoothup|smoothdown|galerkin|distinct_smoothup)",
+    # fieldsplit and Schur complements
+    r"pc_fieldsplit_(?:type|schur_fact_type|schur_precondition|schur_scale|detect_saddle_point"
+    r"|block_size|diag_use_amat|off_diag_use_amat|[a-z0-9]+_fields)",
+)
+_PETSC_ALLOWED = re.compile(_PETSC_SUBSOLVER + "(?:" + "|".join(_PETSC_OPTIONS) + ")")
+
+# Why a name is refused: patterns (searched in the lower-case name) of dangerous options.
+_PETSC_REFUSED = (
+    ("python", "a Python type imports and runs code the configuration names"),
+    ("view", "viewers write to any file their value names (ascii:/path)"),
+    ("monitor", "monitors write to any file their value names"),
+    ("options", "options files and aliases read or inject other options"),
+    (r"mat_mumps_icntl_[1-4]$", "MUMPS ICNTL 1-4 choose output streams and printing"),
+    (r"mat_mumps_icntl_22$", "MUMPS ICNTL 22 writes out-of-core files"),
+    ("print", "printing options write output"),
+    ("log", "logging options write files"),
+    ("dump", "dump options write files"),
+    ("draw", "drawing options open windows or write files"),
+)
+_PETSC_TYPE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,63}")
+_HYPRE_NAMES = frozenset((
+    "Jacobi", "sequential-Gauss-Seidel", "seqboundary-Gauss-Seidel", "SOR/Jacobi",
+    "backward-SOR/Jacobi", "symmetric-SOR/Jacobi", "l1scaled-SOR/Jacobi",
+    "Gaussian-elimination", "l1-Gauss-Seidel", "backward-l1-Gauss-Seidel", "CG", "Chebyshev",
+    "FCF-Jacobi", "l1scaled-Jacobi", "CLJP", "Ruge-Stueben", "modifiedRuge-Stueben", "Falgout",
+    "PMIS", "HMIS", "classical", "direct", "multipass", "multipass-wts", "ext+i", "ext+i-cc",
+    "standard", "standard-wts", "FF", "FF1", "ext", "ext-mm", "ext+i-mm", "ext+e-mm"))
+"""BoomerAMG's smoother, coarsening and interpolation names: fixed words of PETSc's hypre
+interface, accepted although they contain ``/``, ``-`` or ``+``."""
+_NUMBER = r"[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?"
+_PETSC_NUMBERS = re.compile(f"{_NUMBER}(?:,{_NUMBER}){{0,63}}")  # "0.01", "0,1", "0.1,1.1"
+
+
+def check_petsc_options(options: dict[str, str | int | float], key: str) -> None:
+    """Raise :class:`ConfigError` naming ``key.<name>`` unless every option is on the allow-list.
+
+    A configuration sets PETSc options under its solver's prefix (``fluid_``, ``solid_``,
+    ``mesh_``), and PETSc options can run code (``pc_type: python`` with
+    ``pc_python_type: module.Attr``) or write any file (``ksp_view: ascii:/path``). Allowed
+    names (case-insensitive, as PETSc's; optionally behind sub-solver prefixes ``sub_``,
+    ``redundant_``, ``mg_levels_[N_]``, ``mg_coarse_``, ``fieldsplit_<name>_``, ``esteig_``):
+    Krylov types, tolerances, iteration limits and restarts; PC types and factorisations;
+    MUMPS ICNTL/CNTL tuning (not its output streams or out-of-core files), SuperLU_dist;
+    hypre BoomerAMG, GAMG, multigrid and fieldsplit/Schur tuning (``_PETSC_OPTIONS``). Allowed
+    values: finite numbers, numbers as text or comma-separated lists of them, and type names
+    of letters, digits and ``_`` (not ``python``).
+    """
+    for name, value in options.items():
+        sub = f"{key}.{name}"
+        lower = name.lower()
+        if len(name) > 100 or not re.fullmatch(r"[a-z0-9_]+", lower):
+            raise ConfigError("", _shorten(sub), reason="not a PETSc option name: letters, "
+                              "digits and _ only, without the leading '-' (the prefix is added)")
+        for pattern, why in _PETSC_REFUSED:
+            if re.search(pattern, lower):
+                raise ConfigError("", sub, reason=f"refused PETSc option: {why}")
+        if not _PETSC_ALLOWED.fullmatch(lower):
+            raise ConfigError("", sub, reason="not an allowed PETSc option (solver and "
+                              "preconditioner types, tolerances, iteration limits and tuning: "
+                              "the list is in docs/configuration.md)")
+        if isinstance(value, str) and value not in _HYPRE_NAMES:
+            if "python" in value.lower():
+                raise ConfigError("", sub, reason=f"refused value {_shorten(repr(value))}: a "
+                                  "Python type imports and runs code the configuration names")
+            if any(c in value for c in ":/\\~"):
+                raise ConfigError("", sub, reason=f"refused value {_shorten(repr(value))}: no "
+                                  "file paths or viewer specifications")
+            if not (_PETSC_TYPE_NAME.fullmatch(value) or _PETSC_NUMBERS.fullmatch(value)):
+                raise ConfigError("", sub, "a type name (letters, digits, _), a number or "
+                                  "comma-separated numbers", value)
 
 
 def _validate_turek_hron(g: TurekHronGeometry) -> None:
@@ -827,5 +1300,10 @@ def to_dict(case: Case) -> dict:
     return plain(dataclasses.asdict(case))
 
 
+def to_yaml(case: Case) -> str:
+    """The resolved configuration as YAML text (``fsi run`` writes it as DIR/config.yaml)."""
+    return yaml.safe_dump(to_dict(case), sort_keys=False)
+
+
 def dump(case: Case, path: str | Path) -> None:
-    Path(path).write_text(yaml.safe_dump(to_dict(case), sort_keys=False))
+    Path(path).write_text(to_yaml(case))

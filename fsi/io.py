@@ -1,11 +1,24 @@
 """Files: the mesh (XDMF with tags) and its summary, metrics tables (CSV) and field time series
-(XDMF). Physics modules never open files."""
+(XDMF). Physics modules never open files.
+
+Most files are written by rank 0 alone. A write that fails there (a full disk, a read-only
+folder) must stop every rank, not leave the others waiting in the next collective: writes go
+through :func:`collectively`, which turns a failure on any rank into :class:`OutputError` on all.
+"""
 
 from __future__ import annotations
 
 import csv
 import json
+import logging
+import math
+import os
+import shutil
+import sys
+import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable, TypeVar
 
 from mpi4py import MPI
 
@@ -15,55 +28,260 @@ import dolfinx.io
 from fsi import compat
 from fsi.mesh import TaggedMesh
 
+log = logging.getLogger("fsi")
+
+log = logging.getLogger("fsi")
+
+
+T = TypeVar("T")
+
+
+class OutputError(Exception):
+    """A file of the run could not be written (raised on every rank)."""
+
+
+def collectively(comm: MPI.Comm, write: Callable[[], T], path: Path | None = None) -> T:
+    """Call ``write()`` on every rank and agree on the outcome: if it raised ``OSError`` (or a
+    ``RuntimeError`` of the HDF5 layer) on any rank, raise :class:`OutputError` with the first
+    rank's message (naming ``path``, the file written, if the error does not) on every rank.
+    ``write`` must not enter a collective after a point where it can fail on one rank only
+    (rank-0 writes: write, then let this call be the collective). Collective."""
+    message, result = "", None
+    try:
+        result = write()
+    except (OSError, RuntimeError) as e:
+        message = _describe_error(e)
+        if path is not None and str(path) not in message:
+            message = f"{path}: {message}"
+    _meet(comm, message)
+    messages = [m for m in comm.allgather(message) if m]
+    if messages:
+        raise OutputError(messages[0])
+    return result
+
+
+AGREEMENT_TIMEOUT_S = 120.0
+"""How long a rank whose write failed waits for the others to reach the agreement: a write of
+the HDF5 layer can fail on one rank only while the others wait inside it (a disk filled by
+another process mid-write). Then the failing rank ends the job (``MPI_Abort``, exit status 4)
+with its message instead of waiting for ever."""
+
+
+def _meet(comm: MPI.Comm, message: str) -> None:
+    """Wait until every rank has got here; if this rank failed (``message``) and the others do
+    not come within :data:`AGREEMENT_TIMEOUT_S`, abort the job with the message."""
+    if comm.size == 1:
+        return
+    request = comm.Ibarrier()
+    if not message:
+        request.Wait()
+        return
+    deadline = time.monotonic() + AGREEMENT_TIMEOUT_S
+    while not request.Test():
+        if time.monotonic() > deadline:
+            print(f"fsi: cannot write the run's files: {message} (rank {comm.rank}; the other "
+                  "ranks are stuck in the write: ending the job)", file=sys.stderr, flush=True)
+            comm.Abort(4)
+        time.sleep(0.01)
+
+
+def ensure_space(comm: MPI.Comm, folder: Path, needed: int, what: str) -> None:
+    """Raise :class:`OutputError` on every rank unless the file system of ``folder`` has
+    ``needed`` bytes free for ``what``: a write into a full disk can fail on one rank only,
+    inside the HDF5 layer's collectives, so the writers look first. Collective."""
+    free = shutil.disk_usage(folder).free if comm.rank == 0 else 0
+    free = comm.bcast(free, root=0)
+    if free < needed:
+        raise OutputError(f"{folder}: {free} bytes free, {what} needs about {needed} "
+                          "(the disk is full)")
+
+
+def on_rank0(comm: MPI.Comm, write: Callable[[], object], path: Path | None = None) -> None:
+    """``write()`` on rank 0 only, with :func:`collectively`'s agreement. Collective."""
+    collectively(comm, write if comm.rank == 0 else lambda: None, path)
+
+
+def _describe_error(e: Exception) -> str:
+    if isinstance(e, OSError) and e.filename is not None:
+        return f"{e.filename}: {e.strerror or e}"
+    return str(e) or type(e).__name__
+
 
 def write_json(comm: MPI.Comm, path: Path, data: dict) -> None:
-    """Write ``data`` as indented JSON from rank 0; every rank returns once it is on disk."""
-    if comm.rank == 0:
-        path.write_text(json.dumps(data, indent=2) + "\n")
-    comm.barrier()
+    """Write ``data`` as indented JSON from rank 0; every rank returns once it is on disk
+    (:class:`OutputError` on every rank if it could not be written)."""
+    on_rank0(comm, lambda: path.write_text(json.dumps(data, indent=2) + "\n"))
 
 
 def write_mesh(out: Path, tagged: TaggedMesh, summary: dict) -> None:
     """``out/mesh.xdmf`` (mesh, cell tags ``cell_tags``, facet tags ``facet_tags``) and
     ``out/mesh.json`` (the summary of :func:`fsi.mesh.summary`). Collective."""
     comm = tagged.comm
-    if comm.rank == 0:
-        out.mkdir(parents=True, exist_ok=True)
-    comm.barrier()
+    on_rank0(comm, lambda: out.mkdir(parents=True, exist_ok=True))
     tagged.mesh.name = "mesh"
-    with dolfinx.io.XDMFFile(comm, str(out / "mesh.xdmf"), "w") as xdmf:
-        xdmf.write_mesh(tagged.mesh)
-        compat.write_meshtags(xdmf, tagged.mesh, tagged.cell_tags)
-        compat.write_meshtags(xdmf, tagged.mesh, tagged.facet_tags)
+
+    def write() -> None:
+        with dolfinx.io.XDMFFile(comm, str(out / "mesh.xdmf"), "w") as xdmf:
+            xdmf.write_mesh(tagged.mesh)
+            compat.write_meshtags(xdmf, tagged.mesh, tagged.cell_tags)
+            compat.write_meshtags(xdmf, tagged.mesh, tagged.facet_tags)
+
+    collectively(comm, write)
     write_json(comm, out / "mesh.json", summary)
+
+
+class MetricsError(ValueError):
+    """A damaged ``metrics.csv``: the message names the file and the line."""
+
+
+@dataclass(frozen=True)
+class MetricsRow:
+    """A complete row of ``metrics.csv``: its line number, its non-empty cells as written and
+    their values."""
+
+    line: int
+    text: dict[str, str]
+    values: dict[str, float]
+
+    @property
+    def step(self) -> int:
+        return int(self.values["step"])
+
+
+REQUIRED_COLUMNS = ("step", "t")
+
+
+def read_rows(path: Path, until_step: int | None = None) -> list[MetricsRow]:
+    """The complete rows of the metrics table ``path`` in file order, up to (without) the first
+    row of a step after ``until_step`` (default: every row); OSError if it cannot be read.
+
+    Guaranteed for each row: a cell per column of the header, which has ``step`` and ``t``;
+    every non-empty cell a finite number; ``step`` a whole number ≥ 1; ``t`` not empty. The
+    last line without its line end is a row cut short (a run stopped, or is running, while
+    writing it): left out with a warning. Any other line that breaks these rules raises
+    :class:`MetricsError` ``"<path>: line <n>: <what>"``. An empty file, or one whose header
+    is cut short, has no rows."""
+    data = Path(path).read_bytes()
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = data[: e.start].count(b"\n") + 1
+        raise MetricsError(f"{path}: line {line}: not UTF-8 text") from None
+    lines = text.split("\n")
+    cut = lines.pop()  # "" when the file ends with a line end
+
+    def leave_out_cut() -> None:
+        if cut:
+            log.warning("%s: line %d is cut short (a run stopped while writing it): left out",
+                        path, len(lines) + 1)
+
+    if not lines:
+        leave_out_cut()
+        return []
+    header = _cells(path, 1, lines[0])
+    for name in REQUIRED_COLUMNS:
+        if name not in header:
+            raise MetricsError(f"{path}: line 1: no {name!r} column (not a metrics table)")
+    for name in header:
+        if not name or header.count(name) > 1:
+            what = f"column {name!r} twice" if name else "a column without a name"
+            raise MetricsError(f"{path}: line 1: {what} (not a metrics table)")
+    rows = []
+    for number, line in enumerate(lines[1:], start=2):
+        cells = _cells(path, number, line)
+        if not cells:  # a blank line
+            continue
+        if len(cells) != len(header):
+            raise MetricsError(f"{path}: line {number}: {len(cells)} cells, the header has "
+                               f"{len(header)} columns")
+        text = {k: v for k, v in zip(header, cells) if v != ""}
+        for name in REQUIRED_COLUMNS:
+            if name not in text:
+                raise MetricsError(f"{path}: line {number}: {name}: empty")
+        values = {name: _number(path, number, name, cell) for name, cell in text.items()}
+        step = values["step"]
+        if step < 1 or step != int(step):
+            raise MetricsError(f"{path}: line {number}: step: {text['step']!r} is not a step "
+                               "number (1, 2, ...)")
+        if until_step is not None and step > until_step:
+            break
+        rows.append(MetricsRow(number, text, values))
+    else:
+        leave_out_cut()
+    return rows
+
+
+def _cells(path: Path, number: int, line: str) -> list[str]:
+    try:
+        return next(csv.reader([line.removesuffix("\r")]), [])
+    except csv.Error as e:
+        raise MetricsError(f"{path}: line {number}: {e}") from None
+
+
+def _number(path: Path, number: int, name: str, cell: str) -> float:
+    try:
+        value = float(cell)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise MetricsError(f"{path}: line {number}: {name}: {cell[:40]!r} is not a finite "
+                           "number")
+    return value
+
+
+def read_metrics(path: Path) -> list[dict[str, float]]:
+    """The complete rows of a ``metrics.csv`` as numbers (:func:`read_rows`: a row cut short
+    at the end is left out, a damaged table raises :class:`MetricsError`)."""
+    return [row.values for row in read_rows(path)]
 
 
 class MetricsTable:
     """``metrics.csv``: one row per time step, written by rank 0 and flushed at every row, so a
     run that stops keeps every finished step. On restart the rows up to ``keep_until_step`` of
-    ``source`` (default: ``path`` itself) are kept, the later ones dropped, and new rows are
-    appended; :attr:`kept` holds the kept rows as numbers (on every rank)."""
+    ``source`` (default: ``path`` itself) are kept as written (:func:`read_rows`: a row cut
+    short at the end, or any after that step, is dropped), and new rows are appended;
+    :attr:`kept` holds the kept rows as numbers (on every rank). The table with the kept rows
+    replaces ``path`` only once it is complete on disk, so a run stopped meanwhile loses none.
+    Collective; a failure to read ``source`` (OSError, :class:`MetricsError`) is raised on
+    every rank, one to write ``path`` on rank 0 (after the last collective)."""
 
     def __init__(self, comm: MPI.Comm, path: Path, columns: list[str],
                  keep_until_step: int | None = None, source: Path | None = None):
         self.comm, self.path, self.columns = comm, path, list(columns)
         self._file = None
-        self.kept: list[dict] = []
         source = path if source is None else source
-        rows: list[dict] = []
+        rows: list[MetricsRow] = []
+        error = None
         if comm.rank == 0 and keep_until_step is not None and source.exists():
-            with source.open(newline="") as f:
-                rows = [r for r in csv.DictReader(f) if int(r["step"]) <= keep_until_step]
-        self.kept = comm.bcast([{k: _parse(v) for k, v in r.items() if v not in ("", None)}
-                                for r in rows], root=0)
-        if comm.rank != 0:
-            return
-        self._file = path.open("w", newline="")
-        self._writer = csv.DictWriter(self._file, fieldnames=self.columns, extrasaction="raise")
-        self._writer.writeheader()
-        for row in rows:
-            self._writer.writerow({k: row.get(k, "") for k in self.columns})
-        self._file.flush()
+            try:
+                rows = read_rows(source, until_step=keep_until_step)
+            except (OSError, MetricsError) as e:
+                error = e
+        kept, error = comm.bcast(([{k: _parse(v) for k, v in r.text.items()} for r in rows],
+                                  error), root=0)
+        if error is not None:
+            raise error
+        self.kept: list[dict] = kept
+        if comm.rank == 0:
+            self._start(rows)
+
+    def _start(self, rows: list[MetricsRow]) -> None:
+        """Write the header and ``rows`` into ``<path>.partial``, then rename it to ``path``
+        and keep it open for the new rows."""
+        partial = self.path.with_name(self.path.name + ".partial")
+        f = partial.open("w", newline="")
+        try:
+            writer = csv.DictWriter(f, fieldnames=self.columns, extrasaction="raise")
+            writer.writeheader()
+            for row in rows:
+                writer.writerow({k: row.text.get(k, "") for k in self.columns})
+            f.flush()
+            os.fsync(f.fileno())
+            os.replace(partial, self.path)
+        except BaseException:
+            f.close()
+            raise
+        self._file, self._writer = f, writer
 
     def write(self, row: dict) -> None:
         if self._file is not None:
@@ -88,12 +306,6 @@ def _parse(text: str) -> int | float | str:
         except ValueError:
             pass
     return text
-
-
-def read_metrics(path: Path) -> list[dict[str, float]]:
-    """The rows of a ``metrics.csv`` as numbers."""
-    with Path(path).open(newline="") as f:
-        return [{k: float(v) for k, v in row.items() if v != ""} for row in csv.DictReader(f)]
 
 
 def field_segment(name: str, first_step: int | None) -> str:
@@ -126,6 +338,7 @@ class FieldWriter:
     the mesh displacement is one of the fields (ParaView: Warp By Vector)."""
 
     def __init__(self, comm: MPI.Comm, path: Path, mesh):
+        self.path = path
         self._xdmf = dolfinx.io.XDMFFile(comm, str(path), "w")
         self._xdmf.write_mesh(mesh)
         self._outputs: dict[str, dolfinx.fem.Function] = {}
@@ -141,11 +354,128 @@ class FieldWriter:
         return self._outputs[f.name]
 
     def write(self, t: float, fields: list[dolfinx.fem.Function]) -> None:
-        for f in fields:
-            out = self._output_for(f)
+        outputs = [self._output_for(f) for f in fields]
+        # Room for the values (8-byte numbers) and as much again for the HDF5 layer's metadata.
+        values = sum(8 * f.function_space.dofmap.index_map.size_global
+                     * f.function_space.dofmap.index_map_bs for f in outputs)
+        ensure_space(outputs[0].function_space.mesh.comm, self.path.parent,
+                     2 * values + SPACE_MARGIN, f"writing {self.path.name} at t = {t:g} s")
+        for f, out in zip(fields, outputs):
             out.interpolate(f)
             self._xdmf.write_function(out, t)
 
     def close(self) -> None:
         self._xdmf.close()
 
+
+
+class RunFiles:
+    """The files of ``fsi run`` in ``out`` while it steps: config.yaml, metrics.csv
+    (:class:`MetricsTable`) and a :class:`FieldWriter` per entry of ``field_files`` (file name
+    → (mesh, fields)). Opening makes the folder and deletes an earlier run's files
+    (:data:`RUN_FILES`) or, when ``continuing`` the run restarted from step ``first``, only the
+    field segments after it. Every write is agreed by all ranks (:func:`collectively`): a failure
+    raises :class:`OutputError` on every rank. Collective."""
+
+    def __init__(self, comm: MPI.Comm, out: Path, config_yaml: str, columns: list[str],
+                 field_files: dict[str, tuple[object, list]], first: int | None, *,
+                 continuing: bool, metrics_source: Path | None):
+        self.comm = comm
+
+        def prepare() -> None:
+            out.mkdir(parents=True, exist_ok=True)
+            if continuing:
+                remove_later_segments(out, list(field_files), first)
+            else:
+                remove_run_files(out)
+            (out / "config.yaml").write_text(config_yaml)
+
+        on_rank0(comm, prepare, out)
+        path = out / "metrics.csv"
+        self.table = collectively(comm, lambda: MetricsTable(
+            comm, path, columns, keep_until_step=first, source=metrics_source), path)
+        self.writers: list[tuple[FieldWriter, list]] = []
+        try:
+            for name, (mesh, fields) in field_files.items():
+                path = out / field_segment(name, first)
+                self.writers.append(
+                    (collectively(comm, lambda: FieldWriter(comm, path, mesh), path), fields))
+        except OutputError:
+            self.close()
+            raise
+
+    @property
+    def kept(self) -> list[dict]:
+        """The metrics rows kept from before a restart (:attr:`MetricsTable.kept`)."""
+        return self.table.kept
+
+    def write_row(self, row: dict) -> None:
+        on_rank0(self.comm, lambda: self.table.write(row), self.table.path)
+
+    def write_fields(self, t: float) -> None:
+        for writer, fields in self.writers:
+            collectively(self.comm, lambda: writer.write(t, fields), writer.path)
+
+    def close(self) -> None:
+        """Close every file; a failure is only logged (each row was flushed when written)."""
+        for close, path in [(self.table.close, self.table.path),
+                            *[(w.close, w.path) for w, _ in self.writers]]:
+            try:
+                collectively(self.comm, close, path)
+            except OutputError as e:  # raised on every rank: said once
+                if self.comm.rank == 0:
+                    log.warning("fsi: %s", e)
+
+
+SPACE_MARGIN = 64 * 1024
+"""Bytes kept free beyond what a write needs (:func:`ensure_space`)."""
+
+
+RUN_FILES = ("config.yaml", "metrics.csv", "metrics.csv.partial", "summary.json", "fields*.xdmf", "fields*.h5",
+             "solid*.xdmf", "solid*.h5", "checkpoint", "checkpoint.partial",
+             "checkpoint.previous")
+"""What ``fsi run`` writes into its ``--out`` folder (glob patterns); ``--overwrite`` deletes
+these and nothing else."""
+
+
+class RunFolderError(Exception):
+    """``--out`` cannot take this run (exit status 2, before any computation)."""
+
+
+def run_files(out: Path) -> list[Path]:
+    """The files and folders of an earlier run in ``out`` (:data:`RUN_FILES`)."""
+    return sorted({p for pattern in RUN_FILES for p in out.glob(pattern)})
+
+
+def remove_run_files(out: Path) -> None:
+    """Delete an earlier run's :data:`RUN_FILES` from ``out`` (nothing else)."""
+    for path in run_files(out):
+        if path.is_dir():
+            shutil.rmtree(path)
+        else:
+            path.unlink()
+
+
+def check_folder(comm: MPI.Comm, out: Path, *, earlier_run: bool = False) -> None:
+    """Check, before any computation and without writing anything, that ``out`` can take the
+    output: a folder, or a path where one can be made, writable by this process (a read-only
+    mount is caught, a full disk is not); unless ``earlier_run``, one that holds no earlier
+    run's files (:data:`RUN_FILES`). Collective; raises :class:`RunFolderError` on every rank."""
+    message = _check_folder(out, earlier_run) if comm.rank == 0 else ""
+    message = comm.bcast(message, root=0)
+    if message:
+        raise RunFolderError(message)
+
+
+def _check_folder(out: Path, earlier_run: bool) -> str:
+    existing = next(p for p in (out, *out.absolute().parents) if p.exists())
+    if not existing.is_dir():
+        return f"{existing} is a file, not a folder"
+    if not os.access(existing, os.W_OK | os.X_OK):
+        return f"{existing}: cannot write there (read-only or no permission)"
+    earlier = run_files(out) if existing == out and not earlier_run else []
+    if earlier:
+        names = ", ".join(p.name for p in earlier[:4]) + (", ..." if len(earlier) > 4 else "")
+        return (f"{out} holds an earlier run ({names}): continue it with --restart {out},"
+                " replace it with --overwrite, or choose another --out")
+    return ""

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from pathlib import Path
 
 from mpi4py import MPI
 
@@ -55,10 +56,7 @@ def build(case: Case, comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
     """Mesh the case's geometry with gmsh on rank 0 and distribute it over ``comm``."""
     error = None
     if comm.rank == 0:
-        import gmsh
-
-        gmsh.initialize()
-        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh = _start_gmsh()
         try:
             _build_model(case)
             gmsh.model.mesh.generate(2)
@@ -80,6 +78,41 @@ def build(case: Case, comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
     mesh.topology.create_entities(1)
     cell_tags.name, facet_tags.name = "cell_tags", "facet_tags"
     return TaggedMesh(mesh, cell_tags, facet_tags)
+
+
+def _start_gmsh():
+    """Import and initialise gmsh so that it reads and writes no file of its own: not the
+    user's ``~/.gmshrc`` and ``~/.gmsh-options`` (their options would change the mesh), and not
+    FLTK's preference files. Returns the module.
+
+    gmsh hands its GUI option defaults to FLTK even without a GUI (General.Tooltips), and
+    FLTK's first look at its options opens and rewrites ``$HOME/.fltk/fltk.org/fltk.prefs``
+    and, as root, ``/etc/fltk/fltk.org/fltk.prefs``. Marking FLTK's options as already read
+    (``Fl::options_read_``) skips that; they keep FLTK's defaults, which only a GUI uses."""
+    import gmsh
+
+    _skip_fltk_preferences()
+    gmsh.initialize(readConfigFiles=False)  # gmsh 4.8 (Debian 12) to 4.13 (Debian 13)
+    gmsh.option.setNumber("General.Terminal", 0)
+    return gmsh
+
+
+def _skip_fltk_preferences() -> bool:
+    """Set FLTK's ``Fl::options_read_`` in the libfltk that gmsh loaded; False if this process
+    has none (gmsh built without FLTK) or it has no such symbol."""
+    import ctypes
+
+    try:  # the files mapped into this process (Linux)
+        mapped = Path("/proc/self/maps").read_text().split()
+    except OSError:
+        return False
+    for library in {p for p in mapped if Path(p).name.startswith("libfltk.so")}:
+        try:
+            ctypes.c_ubyte.in_dll(ctypes.CDLL(library), "_ZN2Fl13options_read_E").value = 1
+            return True
+        except (OSError, ValueError):
+            pass
+    return False
 
 
 def _build_model(case: Case) -> None:

@@ -48,7 +48,10 @@ class Run:
 
 
 def load_run(path: Path) -> Run:
-    """A finished (or stopped) run folder; summary.json is absent when the run stopped."""
+    """A finished (or stopped, or running) run folder; summary.json is absent when the run
+    stopped. The complete rows of metrics.csv (a last row cut short by a run stopped while
+    writing it is left out, with a warning). Raises :class:`ReportError` naming the file (and
+    the line of metrics.csv) if a file is missing, unreadable or damaged."""
     path = Path(path)
     for name in ("config.yaml", "metrics.csv"):
         if not (path / name).is_file():
@@ -57,15 +60,33 @@ def load_run(path: Path) -> Run:
         case = config.load(path / "config.yaml")
     except config.ConfigError as e:
         raise ReportError(f"{path}: {e}") from None
-    summary_file = path / "summary.json"
-    summary = json.loads(summary_file.read_text()) if summary_file.is_file() else {}
-    return Run(path, case, io.read_metrics(path / "metrics.csv"), summary)
+    try:
+        rows = io.read_metrics(path / "metrics.csv")
+    except io.MetricsError as e:
+        raise ReportError(str(e)) from None
+    except OSError as e:
+        raise ReportError(f"{path / 'metrics.csv'}: unreadable ({e.strerror or e})") from None
+    return Run(path, case, rows, _summary(path / "summary.json"))
+
+
+def _summary(path: Path) -> dict:
+    """summary.json's content; {} if there is none (a run that stopped)."""
+    if not path.is_file():
+        return {}
+    try:
+        summary = json.loads(path.read_bytes())
+    except (OSError, ValueError) as e:
+        raise ReportError(f"{path}: unreadable ({e})") from None
+    if not isinstance(summary, dict):
+        raise ReportError(f"{path}: not a summary written by fsi run")
+    return summary
 
 
 def value_at(rows: Sequence[dict[str, float]], t: float, column: str) -> float | None:
-    """``column`` of the row at time ``t`` (within a thousandth of that step), or None."""
+    """``column`` of the row at time ``t`` (within a thousandth of that step; exactly, for a
+    row without ``dt``), or None."""
     for row in rows:
-        if abs(row["t"] - t) <= 1e-3 * row["dt"] and column in row:
+        if abs(row["t"] - t) <= 1e-3 * row.get("dt", 0.0) and column in row:
             return row[column]
     return None
 

@@ -17,7 +17,7 @@ import platform
 import time as wallclock
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
+from typing import Callable, Protocol
 
 from mpi4py import MPI
 
@@ -49,14 +49,33 @@ FLOW_COLUMNS = ["inlet_flow_rate", "outlet_flow_rate"]
 through each, positive downstream, on the current mesh (fsi.metrics.flow_rate)."""
 
 
-class SolveFailed(RuntimeError):
-    """A sub-solver did not converge; the run stops with exit status 3. :func:`march` sets
-    ``checkpoint`` (the folder it wrote, or None if it could not) and ``step``, ``t`` (the last
-    converged step, whose state that checkpoint holds)."""
+class RunStopped(Exception):
+    """The run stopped before the end of its schedule. :func:`march` sets ``checkpoint`` (the
+    folder it wrote, or None if it could not: then an earlier checkpoint, if any, is still
+    there) and ``step``, ``t`` (the last converged step, whose state that checkpoint holds)."""
 
     checkpoint: Path | None = None
     step: int | None = None
     t: float | None = None
+
+
+class SolveFailed(RunStopped):
+    """A sub-solver did not converge, or a step's data (the inlet formula) could not be
+    evaluated; the CLI's exit status 3."""
+
+
+class OutputFailed(RunStopped):
+    """A file of the run could not be written (a full disk, a folder made read-only); exit
+    status 4."""
+
+
+class Interrupted(RunStopped):
+    """SIGINT, SIGTERM or SIGUSR1 asked the run to stop (:func:`march` finishes the step
+    first); exit status 128 + ``signal``."""
+
+    def __init__(self, signal: int):
+        super().__init__(f"stopped by signal {signal}")
+        self.signal = signal
 
 
 @dataclass
@@ -80,13 +99,17 @@ def unsupported(case: config.Case) -> str | None:
 
 
 def run(case: config.Case, out: Path, comm: MPI.Comm = MPI.COMM_WORLD,
-        restart: checkpoint.Checkpoint | None = None) -> RunResult:
+        restart: checkpoint.Checkpoint | None = None,
+        stop_requested: Callable[[], int | None] = lambda: None) -> RunResult:
     """Run a case (rigid structure or coupled), writing ``out``'s files (see the README), from
-    t = 0 or from the checkpoint ``restart`` (:func:`fsi.checkpoint.read`).
+    t = 0 or from the checkpoint ``restart`` (:func:`fsi.checkpoint.read`). ``stop_requested``
+    returns the number of a signal that asks the run to stop, or None (polled after every
+    step; :class:`Interrupted`).
 
-    Raises :class:`SolveFailed` when a step fails (the finished steps stay in metrics.csv, the
-    last converged one is checkpointed), :class:`fsi.checkpoint.CheckpointError` when
-    ``restart``'s arrays do not fit the case (before anything is written). Collective."""
+    Raises a :class:`RunStopped` when the run stops early (the finished steps stay in
+    metrics.csv, the last converged one is checkpointed), :class:`fsi.checkpoint.
+    CheckpointError` when ``restart``'s arrays do not fit the case (before anything is
+    written). Collective."""
     start = wallclock.perf_counter()
     if case.structure.mode == "rigid":
         stepper: Stepper = RigidStepper(case, comm)
@@ -94,7 +117,7 @@ def run(case: config.Case, out: Path, comm: MPI.Comm = MPI.COMM_WORLD,
         stepper = StructureStepper(case, comm)
     else:
         stepper = CoupledStepper(case, comm)
-    return march(case, out, comm, stepper, start, restart)
+    return march(case, out, comm, stepper, start, restart, stop_requested)
 
 
 # --------------------------------------------------------------------------------------------
@@ -139,11 +162,12 @@ class Stepper(Protocol):
 
 
 def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start: float,
-          restart: checkpoint.Checkpoint | None = None) -> RunResult:
+          restart: checkpoint.Checkpoint | None = None,
+          stop_requested: Callable[[], int | None] = lambda: None) -> RunResult:
     """Step ``stepper`` through the schedule: ``out/config.yaml``, a metrics row per step
     (flushed at once), fields every ``output.fields_every`` steps and at the end, a checkpoint
-    (fsi/checkpoint.py) every ``output.checkpoint_every`` steps, at the end and when a step
-    fails, and ``out/summary.json`` (over all rows of metrics.csv) once every step is done.
+    (fsi/checkpoint.py) every ``output.checkpoint_every`` steps, at the end and when the run
+    stops early, and ``out/summary.json`` (over all rows of metrics.csv) once every step is done.
 
     With ``restart`` the checkpoint's arrays are placed on this run's dofs and checked
     (:func:`fsi.checkpoint.localize`) before anything is written, then loaded into the stepper,
@@ -151,93 +175,108 @@ def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start:
     rows up to k are kept (copied from the checkpoint's run folder if ``out`` is another one),
     and the fields go to new files (``fields.restart<k>.xdmf``, :func:`fsi.io.field_segment`).
 
-    A failed step leaves the solvers anywhere (the coupler keeps its last iterates as initial
-    guesses; a sub-solver's exception skips the restore), so the checkpoint written then is
-    the snapshot of the stepper's state taken after the last converged step, and the
-    :class:`SolveFailed` raised says where it is. Collective."""
+    The run stops early with a :class:`RunStopped` raised on every rank: :class:`SolveFailed`
+    when a step fails, :class:`OutputFailed` when a file cannot be written (rank 0's failures
+    are shared, :func:`fsi.io.collectively`), :class:`Interrupted` after the step during which
+    ``stop_requested`` (polled on every rank) returned a signal. A failed step leaves the
+    solvers anywhere (the coupler keeps its last iterates as initial guesses; a sub-solver's
+    exception skips the restore), so the checkpoint written then is the snapshot of the
+    stepper's state taken after the last converged step, whose metrics row is the last one
+    written; the exception says where it is. Collective."""
     first = None if restart is None else restart.step
     t0 = 0.0 if restart is None else restart.t
     layouts = stepper.layouts()
     if restart is not None:  # before any file is touched
         loaded = checkpoint.localize(restart, layouts, stepper.state(), comm)
     files = stepper.field_files()
-    if comm.rank == 0:
-        out.mkdir(parents=True, exist_ok=True)
-        config.dump(case, out / "config.yaml")
-        if first is not None:
-            io.remove_later_segments(out, list(files), first)
-    comm.barrier()
-    source = None
-    if restart is not None and restart.run_dir.resolve() != out.resolve():
-        source = restart.run_dir / "metrics.csv"
-    table = io.MetricsTable(comm, out / "metrics.csv", stepper.columns, keep_until_step=first,
-                            source=source)
-    # The writers store the mesh now, in its reference configuration (the state, which may
-    # move the fluid mesh, is loaded after).
-    writers = [(io.FieldWriter(comm, out / io.field_segment(name, first), m), fields)
-               for name, (m, fields) in files.items()]
+
+    continuing = restart is not None and restart.run_dir.resolve() == out.resolve()
+    try:
+        # The field writers store the mesh now, in its reference configuration (the state,
+        # which may move the fluid mesh, is loaded after).
+        files = io.RunFiles(comm, out, config.to_yaml(case), stepper.columns,
+                            stepper.field_files(), first, continuing=continuing,
+                            metrics_source=None if restart is None or continuing
+                            else restart.run_dir / "metrics.csv")
+    except io.OutputError as e:
+        raise OutputFailed(str(e)) from e
     if restart is not None:
         stepper.load_state(loaded)
-    schedule = list(steps(case.time, t0, first or 0))
-    last = schedule[-1].index if schedule else first or 0
+    last = first or 0
+    for last_step in steps(case.time, t0, first or 0):  # counted, never stored (time.max_steps)
+        last = last_step.index
     good = _Snapshot(first or 0, t0, None if restart is None else restart.dt, stepper.state())
-    saved: Path | None = None
+    saved: tuple[Path, int, float] | None = None  # this run's latest checkpoint: folder, step, t
     rows: list[dict] = []
     retried: list[Step] = []  # the steps that had to be split
+
     try:
-        for writer, fields in writers:
-            writer.write(t0, fields)
-        for k, step in enumerate(schedule):
+        files.write_fields(t0)
+        for step in steps(case.time, t0, first or 0):
             tic = wallclock.perf_counter()
-            try:
-                row = {"step": step.index, "t": step.t, "dt": step.dt,
-                       **advance(stepper, step, good.state, case.time.retries, retried)}
-                row["wall_time_s"] = wallclock.perf_counter() - tic
-                bad = [key for key, v in row.items()
-                       if isinstance(v, float) and not math.isfinite(v)]
-                if bad:  # never write a NaN: a step that produced one failed
-                    raise SolveFailed(f"step {step.index} to t = {step.t:g} s gave non-finite "
-                                      f"{', '.join(bad)}")
-            except SolveFailed as e:
-                e.checkpoint, e.step, e.t = good.write(out, comm, case, layouts), good.step, good.t
-                raise
-            table.write(row)
+            row = {"step": step.index, "t": step.t, "dt": step.dt,
+                   **advance(stepper, step, good.state, case.time.retries, retried)}
+            row["wall_time_s"] = wallclock.perf_counter() - tic
+            bad = [key for key, v in row.items()
+                   if isinstance(v, float) and not math.isfinite(v)]
+            if bad:  # never write a NaN: a step that produced one failed
+                raise SolveFailed(f"step {step.index} to t = {step.t:g} s gave non-finite "
+                                  f"{', '.join(bad)}")
+            files.write_row(row)
             rows.append(row)
             good = _Snapshot(step.index, step.t, step.dt, stepper.state())
-            if step.index % case.output.checkpoint_every == 0 or k == len(schedule) - 1:
-                saved = good.write(out, comm, case, layouts) or saved
-            if step.index % case.output.fields_every == 0 or k == len(schedule) - 1:
-                for writer, fields in writers:
-                    writer.write(step.t, fields)
+            final = step.index == last
+            if step.index % case.output.checkpoint_every == 0 or final:
+                written = good.write(out, comm, case, layouts)  # None: logged, go on
+                if final and written is None:
+                    raise io.OutputError(f"no checkpoint of the last step {step.index}")
+                saved = written or saved
+            if step.index % case.output.fields_every == 0 or final:
+                files.write_fields(step.t)
             elapsed = wallclock.perf_counter() - start
-            left = elapsed / (k + 1) * (len(schedule) - k - 1)
+            left = elapsed / len(rows) * (last - step.index)
             log.info("step %d/%d  t = %.5g s  dt = %.3g s  %s  %.2f s/step  ~%.0f s left",
                      step.index, last, step.t, step.dt, stepper.describe(row),
                      row["wall_time_s"], left)
-        if not schedule:  # restarted at (or past) the end: the checkpoint goes to out as well
-            saved = good.write(out, comm, case, layouts)
+            signal = comm.allreduce(stop_requested() or 0, op=MPI.MAX)
+            if signal and not final:
+                raise Interrupted(signal)
+        if not rows:  # restarted at (or past) the end: the checkpoint goes to out as well
+            saved = good.write(out, comm, case, layouts) or saved
+    except (RunStopped, io.OutputError) as e:
+        stopped = e if isinstance(e, RunStopped) else OutputFailed(str(e))
+        if saved is None or saved[1] != good.step:  # else it is checkpointed already
+            saved = good.write(out, comm, case, layouts) or saved
+        # If that failed (a full disk), the run's previous checkpoint is still there.
+        stopped.checkpoint, stopped.step, stopped.t = saved or (None, None, None)
+        if stopped is e:
+            raise
+        raise stopped from e
     finally:
-        table.close()
-        for writer, _ in writers:
-            writer.close()
-    every = table.kept + rows  # a restart's summary covers the kept rows too
+        files.close()
+    every = files.kept + rows  # a restart's summary covers the kept rows too
     newton = sum(r.get("newton_iterations", 0) for r in every)
     summary = {
         "case": case.name, "structure_mode": case.structure.mode, "steps": len(every),
-        "end_time_s": schedule[-1].t if schedule else t0,
+        "end_time_s": rows[-1]["t"] if rows else t0,
         "wall_time_s": wallclock.perf_counter() - start,
         "mean_step_time_s": sum(r.get("wall_time_s", 0.0) for r in every) / max(len(every), 1),
         "newton_iterations": newton, "mean_newton_iterations": newton / max(len(every), 1),
         "ranks": comm.size, "dolfinx": dolfinx.__version__, "python": platform.python_version(),
         "retried_steps": sorted({s.index for s in retried}),
         **stepper.summary(),
-        "checkpoint": None if saved is None else str(saved),
+        "checkpoint": None if saved is None else str(saved[0]),
     }
     if restart is not None:
         summary["restarted_from"] = {"checkpoint": str(restart.path), "step": restart.step,
                                      "t": restart.t}
-    io.write_json(comm, out / "summary.json", summary)
-    return RunResult(len(schedule), summary["wall_time_s"], summary)
+    try:
+        io.write_json(comm, out / "summary.json", summary)
+    except io.OutputError as e:
+        stopped = OutputFailed(str(e))
+        stopped.checkpoint, stopped.step, stopped.t = saved or (None, None, None)
+        raise stopped from e
+    return RunResult(len(rows), summary["wall_time_s"], summary)
 
 
 def advance(stepper: Stepper, step: Step, before: dict, retries: int,
@@ -245,9 +284,13 @@ def advance(stepper: Stepper, step: Step, before: dict, retries: int,
     """``stepper.step(step)``; if it fails with retries left, go back to ``before`` (the
     stepper's state at the start of the step) and take the step as two of half its size, each
     retried the same way with one retry fewer. Returns the row of the step's last (sub)step;
-    appends every split step to ``retried``. Collective (the failure is raised on every rank)."""
+    appends every split step to ``retried``. An inlet formula that cannot be evaluated at a time
+    of the step fails it (:class:`SolveFailed`, no retry: its time is the configuration's fault).
+    Collective (the failure is raised on every rank)."""
     try:
         return stepper.step(step)
+    except config.FormulaError as e:
+        raise SolveFailed(f"step {step.index} to t = {step.t:g} s: fluid.inlet: {e}") from e
     except SolveFailed as e:
         if retries <= 0:
             raise
@@ -271,13 +314,16 @@ class _Snapshot:
     state: dict
 
     def write(self, out: Path, comm: MPI.Comm, case: config.Case,
-              layouts: dict[str, checkpoint.Layout]) -> Path | None:
-        """Write it as ``out/checkpoint``; on failure log why and return None. Collective."""
+              layouts: dict[str, checkpoint.Layout]) -> tuple[Path, int, float] | None:
+        """Write it as ``out/checkpoint``; return (the folder, step, t), or on failure log why
+        and return None (the previous checkpoint stays). Collective."""
         try:
-            return checkpoint.write(out, comm, self.state, layouts,
-                                    checkpoint.metadata(case, comm, self.step, self.t, self.dt))
-        except checkpoint.CheckpointError as e:
-            log.error("fsi: no checkpoint of step %d: %s", self.step, e)
+            folder = checkpoint.write(out, comm, self.state, layouts,
+                                      checkpoint.metadata(case, comm, self.step, self.t, self.dt))
+            return folder, self.step, self.t
+        except checkpoint.CheckpointError as e:  # raised on every rank: said once
+            if comm.rank == 0:
+                log.error("fsi: no checkpoint of step %d: %s", self.step, e)
             return None
 
 
@@ -515,9 +561,9 @@ class CoupledStepper:
 
 class StructureStepper:
     """The structure alone under a prescribed interface pressure (the inlet's P(t)) or under its
-    body force only; the fluid columns hold the prescribed pressure and no velocity."""
-
-    columns = COLUMNS + ["peak_wall_displacement"]
+    body force only; the fluid columns hold the prescribed pressure and no velocity. The
+    Turek–Hron cases (CSM1–3) add the displacement ``ux_A``, ``uy_A`` (m) of point A, as the
+    coupled runs do."""
 
     def __init__(self, case: config.Case, comm: MPI.Comm):
         whole = mesh.build(case, comm)
@@ -526,6 +572,10 @@ class StructureStepper:
                          if case.structure.interface_load == "inlet_pressure" else None)
         self.solver = solid.build(case, whole, comm, self.pressure)
         self.stenosis = isinstance(case.geometry, config.StenosisGeometry)
+        self.point_a = (turek_hron.point_a(case.geometry)
+                        if isinstance(case.geometry, config.TurekHronGeometry) else None)
+        self.columns = COLUMNS + ["peak_wall_displacement"] + (["ux_A", "uy_A"] if self.point_a
+                                                               else [])
         self._layouts = structure_layouts(self.solver)
 
     def field_files(self) -> dict[str, tuple[object, list]]:
@@ -540,14 +590,17 @@ class StructureStepper:
                               f"{result.reason} (residual {result.residual:.3g})")
         s.advance()
         s.stress.update()
-        return {"peak_velocity": "",
-                "peak_pressure": self.pressure(step.t) if self.pressure else "",
-                "peak_displacement": s.max_displacement(),
-                "peak_wall_displacement": (s.max_displacement([Region.WALL])
-                                           if self.stenosis else ""),
-                "max_sss": s.stress.region_maxima()["all"].max_abs_shear,
-                "coupling_iterations": 0,
-                "newton_iterations": result.iterations, "newton_residual": result.residual}
+        row = {"peak_velocity": "",
+               "peak_pressure": self.pressure(step.t) if self.pressure else "",
+               "peak_displacement": s.max_displacement(),
+               "peak_wall_displacement": (s.max_displacement([Region.WALL])
+                                          if self.stenosis else ""),
+               "max_sss": s.stress.region_maxima()["all"].max_abs_shear,
+               "coupling_iterations": 0,
+               "newton_iterations": result.iterations, "newton_residual": result.residual}
+        if self.point_a:
+            row["ux_A"], row["uy_A"] = metrics.nodal_value(s.eta, self.point_a)
+        return row
 
     def describe(self, row: dict) -> str:
         return (f"Newton {row['newton_iterations']} (residual {row['newton_residual']:.2e})  "

@@ -88,3 +88,75 @@ def test_a_folder_that_is_not_a_run_is_refused(shared_tmp, capsys):
     assert cli.main(["report", str(shared_tmp / "nothing")]) == 2
     if MPI.COMM_WORLD.rank == 0:
         assert "no config.yaml (not a folder written by fsi run)" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------------------------
+# Damaged run folders: a row cut short at the end is left out, anything else is refused
+
+
+def copy_with_metrics(run_dir: Path, copy: Path, change) -> Path:
+    """``copy``, a copy of the run folder whose metrics.csv lines (bytes with their line ends,
+    the header first) are replaced by ``change(lines)``."""
+    if MPI.COMM_WORLD.rank == 0:
+        shutil.copytree(run_dir, copy)
+        lines = (run_dir / "metrics.csv").read_bytes().splitlines(keepends=True)
+        (copy / "metrics.csv").write_bytes(b"".join(change(lines)))
+    MPI.COMM_WORLD.barrier()
+    return copy
+
+
+def set_cell(line: int, column: str, value: bytes):
+    """A change of metrics.csv: the cell of ``column`` in line ``line`` (1: the header)."""
+    def change(lines: list[bytes]) -> list[bytes]:
+        header = lines[0].decode().rstrip("\r\n").split(",")
+        cells = lines[line - 1].rstrip(b"\r\n").split(b",")
+        cells[header.index(column)] = value
+        return lines[: line - 1] + [b",".join(cells) + b"\r\n"] + lines[line:]
+    return change
+
+
+def test_a_row_cut_short_at_the_end_is_left_out(run_dir, shared_tmp, capsys, fsi_log):
+    """A run killed (or still running) while writing its last row: the complete rows are
+    reported, the cut one is left out with a warning naming the line."""
+    comm = MPI.COMM_WORLD
+    cut = copy_with_metrics(run_dir, shared_tmp / "cut", lambda lines: lines[:4] + [lines[4][:25]])
+    assert [r["step"] for r in report.load_run(cut).rows] == [1, 2, 3]
+    assert cli.main(["report", str(cut), "--times", "0.002", "0.004"]) == 0
+    if comm.rank == 0:
+        out = capsys.readouterr().out
+        row = next(line for line in out.splitlines() if line.startswith("| cut (")
+                   and "| 3 |" in line)  # the solver effort: 3 steps
+        assert "| 0.003 |" in row
+        assert f"{cut / 'metrics.csv'}: line 5 is cut short" in fsi_log.text
+
+
+@pytest.mark.parametrize("change, expected", [
+    (set_cell(3, "peak_velocity", b"1.2.3"), "line 3: peak_velocity: '1.2.3' is not a finite "
+     "number"),
+    (set_cell(4, "peak_pressure", b"nan"), "line 4: peak_pressure: 'nan' is not a finite number"),
+    (set_cell(3, "step", b"2.5"), "line 3: step: '2.5' is not a step number (1, 2, ...)"),
+    (set_cell(3, "t", b""), "line 3: t: empty"),
+    (set_cell(2, "dt", b"0.001,7"), "line 2: "),  # one cell too many
+    (set_cell(4, "max_wss", b"\xff\xfe"), "line 4: not UTF-8 text"),
+    (lambda lines: lines[:2] + [lines[2][:12] + b"\r\n"] + lines[3:], "line 3: "),
+    (lambda lines: [lines[0].replace(b"step,", b"steps,")] + lines[1:],
+     "line 1: no 'step' column (not a metrics table)"),
+])
+def test_a_damaged_metrics_table_is_refused(run_dir, shared_tmp, capsys, change, expected):
+    """Exit 2 with one line naming the file and the line, no traceback."""
+    damaged = copy_with_metrics(run_dir, shared_tmp / "damaged", change)
+    assert cli.main(["report", str(damaged)]) == 2
+    if MPI.COMM_WORLD.rank == 0:
+        err = capsys.readouterr().err
+        assert err.startswith(f"fsi: error: {damaged / 'metrics.csv'}: {expected}")
+        assert len(err.splitlines()) == 1
+
+
+def test_a_damaged_summary_is_refused(run_dir, shared_tmp, capsys):
+    damaged = copy_with_metrics(run_dir, shared_tmp / "damaged", lambda lines: lines)
+    if MPI.COMM_WORLD.rank == 0:
+        (damaged / "summary.json").write_text('{"steps": 4, "wall')
+    MPI.COMM_WORLD.barrier()
+    assert cli.main(["report", str(damaged)]) == 2
+    if MPI.COMM_WORLD.rank == 0:
+        assert f"fsi: error: {damaged / 'summary.json'}: unreadable" in capsys.readouterr().err

@@ -293,9 +293,11 @@ def test_structure_alone_restart_continues_like_the_uninterrupted_run(shared_tmp
 
 
 def copy_checkpoint(rigid, shared_tmp) -> Path:
+    """A run folder with the split run's checkpoint (step 6) and the metrics.csv it keeps."""
     source = shared_tmp / "source"
     if MPI.COMM_WORLD.rank == 0:
         shutil.copytree(rigid["split"] / "checkpoint", source / "checkpoint")
+        shutil.copy(rigid["split"] / "metrics.csv", source / "metrics.csv")
     MPI.COMM_WORLD.barrier()
     return source
 
@@ -354,6 +356,156 @@ def test_a_checkpoint_of_another_mesh_is_refused_before_writing(rigid, shared_tm
 
 
 # --------------------------------------------------------------------------------------------
+# A checkpoint's contents and the rows it keeps are checked before anything is written (exit 2)
+
+
+LAST = MPI.COMM_WORLD.size - 1  # the rank file of the last rank
+JSON = "{source}/checkpoint/checkpoint.json"
+METRICS = "{source}/metrics.csv"
+
+
+def edit_json(**changes):
+    def edit(source: Path) -> None:
+        path = source / "checkpoint" / "checkpoint.json"
+        path.write_text(json.dumps({**json.loads(path.read_text()), **changes}))
+    return edit
+
+
+def edit_array(key: str, change, rank: int = 0):
+    def edit(source: Path) -> None:
+        path = source / "checkpoint" / checkpoint.rank_file(rank)
+        with np.load(path) as data:
+            arrays = {k: data[k] for k in data.files}
+        arrays[key] = change(arrays[key])
+        with path.open("wb") as f:
+            np.savez(f, **arrays)
+    return edit
+
+
+def edit_metrics(change):
+    """``change`` maps the lines of metrics.csv (header first, with their line ends) to new
+    ones."""
+    def edit(source: Path) -> None:
+        path = source / "metrics.csv"
+        path.write_bytes(b"".join(change(path.read_bytes().splitlines(keepends=True))))
+    return edit
+
+
+def with_nan(a: np.ndarray) -> np.ndarray:
+    a = a.astype(float)
+    a.flat[a.size // 2] = np.nan
+    return a
+
+
+def listing(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file()}
+
+
+# The split run's checkpoint: step 6, t = 4 ms, dt = 0.5 ms; metrics.csv has steps 1–6 at
+# t = 1, 2, 2.5, 3, 3.5, 4 ms (step n on line n + 1).
+@pytest.mark.parametrize("edit, expected", [
+    (edit_json(step="6"), JSON + ": step: expected a whole number >= 0, got '6'"),
+    (edit_json(step=-1), JSON + ": step: expected a whole number >= 0, got -1"),
+    (edit_json(step=6.0), JSON + ": step: expected a whole number >= 0, got 6.0"),
+    (edit_json(t=-0.004), JSON + ": t: expected a finite time >= 0 (0 at step 0), got -0.004"),
+    (edit_json(t=float("nan")), JSON + ": t: expected a finite time >= 0 (0 at step 0), got nan"),
+    (edit_json(step=0), JSON + ": t: expected a finite time >= 0 (0 at step 0), got 0.004"),
+    (edit_json(dt=0.0), JSON + ": dt: expected null or a finite step > 0, got 0.0"),
+    (edit_json(dt=float("inf")), JSON + ": dt: expected null or a finite step > 0, got inf"),
+    (edit_json(files=["../rank0000.npz"]), JSON + ": files: expected rank0000.npz to "),
+    # Step and time that contradict metrics.csv.
+    (edit_json(step=4), JSON + ": t: the checkpoint has 0.004, but " + METRICS + " line 5 "
+     "(step 4) has t = 0.003"),
+    (edit_json(t=0.0041), JSON + ": t: the checkpoint has 0.0041, but " + METRICS + " line 7 "
+     "(step 6) has t = 0.004"),
+    (edit_json(dt=0.001), JSON + ": dt: the checkpoint has 0.001, but " + METRICS + " line 7 "
+     "(step 6) has dt = 0.0005"),
+    (edit_json(step=9), METRICS + ": no row of steps 7-9: the table was cut short or damaged, "
+     "and a restart from step 9 keeps its rows 1 to 9"),
+    # The arrays.
+    (edit_array("fluid.U", with_nan, rank=LAST),
+     f"{{source}}/checkpoint/{checkpoint.rank_file(LAST)}: fluid.U: non-finite values"),
+    (edit_array("fluid.time", lambda a: a * np.inf),
+     "{source}/checkpoint/rank0000.npz: fluid.time: non-finite values"),
+    (edit_array("fluid.time", lambda a: 2 * a),
+     "{source}/checkpoint/rank0000.npz: fluid.time: 0.008, but checkpoint.json's t is 0.004"),
+    (edit_array("fluid.dt_previous", lambda a: a.astype("U8")),
+     "{source}/checkpoint/rank0000.npz: fluid.dt_previous: expected numbers"),
+    (edit_array("fluid.u_n", lambda a: a[1:]),
+     "{source}/checkpoint/rank0000.npz: array 'fluid.u_n' has shape "),
+])
+def test_a_damaged_or_edited_checkpoint_is_refused_before_writing(rigid, shared_tmp, capsys,
+                                                                  edit, expected):
+    source = copy_checkpoint(rigid, shared_tmp)
+    if MPI.COMM_WORLD.rank == 0:
+        edit(source)
+    MPI.COMM_WORLD.barrier()
+    out = shared_tmp / "refused"
+    assert fsi_run(RIGID, out, [*RIGID_SET, "time.end=0.004"], restart=source) == 2
+    assert not out.exists()
+    err = stderr(capsys)
+    assert f"fsi: error: --restart: {expected.format(source=source)}" in err
+    assert "Traceback" not in err
+
+
+def drop(*steps: int):
+    return edit_metrics(lambda lines: [x for i, x in enumerate(lines) if i not in steps])
+
+
+@pytest.mark.parametrize("edit, expected", [
+    # Cut short after step 3, or a row lost: the gap is named, nothing is kept or written.
+    (edit_metrics(lambda lines: lines[:4]), METRICS + ": no row of steps 4-6: the table was cut "
+     "short or damaged, and a restart from step 6 keeps its rows 1 to 6"),
+    (edit_metrics(lambda lines: lines[:4] + [lines[4][:9]]), METRICS + ": no row of steps 4-6"),
+    (drop(2), METRICS + ": no row of step 2: "),
+    (drop(1, 2, 3, 4, 5, 6), METRICS + ": no row of steps 1-6: "),
+    (lambda source: (source / "metrics.csv").unlink(),
+     METRICS + ": missing; a restart from step 6 keeps its rows 1 to 6"),
+    (edit_metrics(lambda lines: lines[:4] + [lines[3]] + lines[4:]),
+     METRICS + ": line 5: step 3 where step 4 belongs"),
+    (edit_metrics(lambda lines: lines[:2] + [lines[2].replace(b",0.002,", b",0.0o2,")]
+                  + lines[3:]),
+     METRICS + ": line 3: t: '0.0o2' is not a finite number (a restart from step 6 keeps its "
+     "rows 1 to 6)"),
+    (edit_metrics(lambda lines: lines[:3] + [b"4,0.003\r\n"] + lines[5:]),
+     METRICS + ": line 4: 2 cells, the header has "),
+])
+def test_a_restart_refuses_a_damaged_metrics_table_and_keeps_it(rigid, shared_tmp, capsys, edit,
+                                                                expected):
+    """metrics.csv must hold rows 1 to k, complete, each once, for a restart from step k to
+    keep; otherwise exit 2 before anything is written (restarting in the run's own folder: not
+    a byte of it changes)."""
+    source = copy_checkpoint(rigid, shared_tmp)
+    if MPI.COMM_WORLD.rank == 0:
+        edit(source)
+    MPI.COMM_WORLD.barrier()
+    before = listing(source)
+    assert fsi_run(RIGID, source, [*RIGID_SET, "time.end=0.004"], restart=source) == 2
+    err = stderr(capsys)
+    assert f"fsi: error: --restart: {expected.format(source=source)}" in err
+    assert "Traceback" not in err
+    assert listing(source) == before
+
+
+def test_a_row_cut_short_after_the_checkpoint_is_dropped(rigid, shared_tmp, fsi_log):
+    """A run killed while writing row 7 (its checkpoint: step 6) continues from step 6: the
+    partial row is replaced by the new step 7, rows 1–6 are kept as they were."""
+    source = copy_checkpoint(rigid, shared_tmp)
+    kept = (source / "metrics.csv").read_bytes()
+    if MPI.COMM_WORLD.rank == 0:
+        (source / "metrics.csv").write_bytes(kept + b"7,0.0045,0.0005,0.3")
+    MPI.COMM_WORLD.barrier()
+    longer = "time.schedule=[{until: 0.002, dt: 0.001}, {until: 0.0045, dt: 0.0005}]"
+    assert fsi_run(RIGID, source, [*RIGID_SET, longer, "time.end=0.0045"], restart=source) == 0
+    table = (source / "metrics.csv").read_bytes()
+    assert table.startswith(kept)
+    assert [r["step"] for r in rows(source)] == ["1", "2", "3", "4", "5", "6", "7"]
+    assert rows(source)[-1]["peak_velocity"] != "0.3"
+    assert not (source / "metrics.csv.partial").exists()
+
+
+# --------------------------------------------------------------------------------------------
 # The files: atomic replacement
 
 
@@ -361,8 +513,10 @@ def test_a_checkpoint_is_replaced_atomically(shared_tmp):
     comm = MPI.COMM_WORLD
     case = config.load(RIGID, [*RIGID_SET, "time.end=0.004"])
     out = shared_tmp / "atomic"
-    if comm.rank == 0:
+    if comm.rank == 0:  # the run folder: its metrics.csv has the rows a restart keeps
         out.mkdir()
+        (out / "metrics.csv").write_text(
+            "step,t,dt\n" + "".join(f"{k},{1e-3 * k},0.001\n" for k in (1, 2, 3)))
     comm.barrier()
     # One row per rank, keyed by the rank: after reading, each rank finds its own value.
     layouts = {"x": checkpoint.Layout("ranks", np.array([[float(comm.rank)]]), 1, 1)}
@@ -393,7 +547,7 @@ def test_a_checkpoint_is_replaced_atomically(shared_tmp):
     assert load() == expected(1)
     save(2)
     assert load() == expected(2)
-    assert listing() == [["checkpoint"]] * comm.size
+    assert listing() == [["checkpoint", "metrics.csv"]] * comm.size
     # Killed between the two renames: the previous complete checkpoint is used.
     if comm.rank == 0:
         (out / "checkpoint").rename(out / "checkpoint.previous")
@@ -404,7 +558,7 @@ def test_a_checkpoint_is_replaced_atomically(shared_tmp):
         checkpoint.write(out, comm, {"x": np.array([np.nan])}, layouts,
                          checkpoint.metadata(case, comm, 3, 3e-3, 1e-3))
     assert load() == expected(2)
-    assert listing() == [["checkpoint.previous"]] * comm.size
+    assert listing() == [["checkpoint.previous", "metrics.csv"]] * comm.size
 
 
 def test_state_dataclasses_round_trip_through_arrays():

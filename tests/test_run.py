@@ -162,3 +162,22 @@ def test_a_failed_step_is_retried_as_halves_from_the_state_before_it():
 def test_retries_are_validated():
     with pytest.raises(config.ConfigError, match="time.retries"):
         config.from_dict({"time": {"retries": -1}})
+
+
+def test_structure_alone_turek_hron_writes_point_a(shared_tmp):
+    """A CSM run (``structure.interface_load: none``) writes the benchmark's ``ux_A``, ``uy_A``
+    as the FSI runs do: the flag sags under gravity (quasi-static: at rest from step 1, near the
+    reference u_y(A) = −66.10 mm, reference/turek_hron.md), the same on all ranks and on one."""
+    comm = MPI.COMM_WORLD
+    case = config.load("configs/turek_hron_csm1.yaml", ["time.end=0.1"])  # 2 steps of 0.05 s
+    simulation.run(case, shared_tmp / "world", comm)
+    simulation.run(case, shared_tmp / f"self{comm.rank}", MPI.COMM_SELF)
+    world = io.read_metrics(shared_tmp / "world" / "metrics.csv")
+    alone = io.read_metrics(shared_tmp / f"self{comm.rank}" / "metrics.csv")
+    assert [r["step"] for r in world] == [r["step"] for r in alone] == [1, 2]
+    for a, b in zip(world, alone):
+        assert a["uy_A"] < 0 and a["ux_A"] < 0
+        for key in ("ux_A", "uy_A"):
+            assert a[key] == pytest.approx(b[key], rel=1e-8), key
+    assert world[-1]["uy_A"] == pytest.approx(-66.10e-3, rel=0.01)
+    assert world[-1]["ux_A"] == pytest.approx(-7.187e-3, rel=0.01)
