@@ -88,22 +88,27 @@ def test_an_out_naming_a_file_is_refused_before_any_computation(shared_tmp, caps
     assert taken.read_text() == "a file"
 
 
-@pytest.fixture
-def read_only_folder(shared_tmp):
-    """A read-only mount (a tmpfs; root ignores permission bits, not a read-only mount)."""
+def mounted_tmpfs(folder: Path, options: str, why: str):
+    """A tmpfs mounted at ``folder`` (by rank 0) for the test's duration, or a skip saying
+    ``why`` it is needed where the machine does not let the tests mount one."""
     comm = MPI.COMM_WORLD
-    folder = shared_tmp / "read-only"
     mounted = False
     if comm.rank == 0:
         folder.mkdir()
-        mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=64k", "tmpfs",
-                                  str(folder)], capture_output=True).returncode == 0
+        mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)],
+                                 capture_output=True).returncode == 0
     if not comm.bcast(mounted, root=0):
-        pytest.skip("this machine does not let the tests mount a read-only tmpfs")
+        pytest.skip(f"this machine does not let the tests mount a tmpfs ({why})")
     yield folder
     comm.barrier()
     if comm.rank == 0:
         subprocess.run(["umount", str(folder)], check=True)
+
+
+@pytest.fixture
+def read_only_folder(shared_tmp):
+    """A read-only mount (root ignores permission bits, not a read-only file system)."""
+    yield from mounted_tmpfs(shared_tmp / "read-only", "ro,size=64k", "read-only --out")
 
 
 def test_a_read_only_out_is_refused_before_any_computation(read_only_folder, capsys):
@@ -182,20 +187,8 @@ def test_a_checkpoint_that_cannot_be_written_keeps_the_previous_one(shared_tmp, 
 @pytest.fixture
 def small_disk(shared_tmp):
     """A 1.2 MB tmpfs: the channel's fields and two checkpoints do not fit."""
-    comm = MPI.COMM_WORLD
-    folder = shared_tmp / "small-disk"
-    mounted = False
-    if comm.rank == 0:
-        folder.mkdir()
-        mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1200k", "tmpfs",
-                                  str(folder)], capture_output=True).returncode == 0
-    if not comm.bcast(mounted, root=0):
-        pytest.skip("this machine does not let the tests mount a tmpfs (the simulated full "
-                    "disks of the tests above still run)")
-    yield folder
-    comm.barrier()
-    if comm.rank == 0:
-        subprocess.run(["umount", str(folder)], check=True)
+    yield from mounted_tmpfs(shared_tmp / "small-disk", "size=1200k",
+                             "the simulated full disks of the tests above still run")
 
 
 @pytest.mark.parametrize("ranks", [1, 2])
