@@ -359,6 +359,11 @@ MAX_FORMULA_LENGTH = 2000
 """Characters of an inlet formula: ample for a pulse of several harmonics, and short enough
 that parsing and compiling it are instant."""
 
+MAX_FORMULA_DEPTH = 100
+"""Levels of nested operations in an inlet formula (a formula of several harmonics needs
+about 10): deeper is refused the same way on every Python (3.11 cannot compile a few hundred
+levels, 3.13 can)."""
+
 
 class FormulaError(ValueError):
     """An inlet formula is not an allowed expression (``t`` None), or its value at time ``t``
@@ -369,6 +374,18 @@ class FormulaError(ValueError):
         self.formula, self.reason, self.t = formula, reason, t
         at = "" if t is None else f" at t = {t:.6g} s"
         super().__init__(f"formula {_shorten(repr(formula), 60)}{at}: {reason}")
+
+
+def _depth(tree) -> int:
+    """The depth of a syntax tree (without recursion: the tree may be deep)."""
+    import ast
+
+    deepest, stack = 0, [(tree, 1)]
+    while stack:
+        node, depth = stack.pop()
+        deepest = max(deepest, depth)
+        stack.extend((child, depth + 1) for child in ast.iter_child_nodes(node))
+    return deepest
 
 
 def time_function(formula: str) -> typing.Callable[[float], float]:
@@ -391,6 +408,8 @@ def time_function(formula: str) -> typing.Callable[[float], float]:
         raise FormulaError(formula, f"not an expression: {e.msg}") from None
     except (ValueError, RecursionError, MemoryError) as e:  # null bytes; nesting
         raise FormulaError(formula, f"not an expression: {_nesting(e)}") from None
+    if _depth(tree) > MAX_FORMULA_DEPTH:
+        raise FormulaError(formula, f"nested more than {MAX_FORMULA_DEPTH} levels deep")
     allowed = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Compare, ast.Call, ast.Name, ast.Load,
                ast.Constant, ast.operator, ast.unaryop, ast.cmpop)
     for node in ast.walk(tree):

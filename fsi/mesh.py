@@ -8,7 +8,9 @@ degree and the thinnest fibrous cap. Every function here is collective.
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import signal
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -54,6 +56,24 @@ class TaggedMesh:
 
 def build(case: Case, comm: MPI.Comm = MPI.COMM_WORLD) -> TaggedMesh:
     """Mesh the case's geometry with gmsh on rank 0 and distribute it over ``comm``."""
+    with _sigint_kept():
+        return _build(case, comm)
+
+
+@contextlib.contextmanager
+def _sigint_kept():
+    """Keep the process's SIGINT handler across a gmsh session: gmsh's Python API sets SIGINT
+    to its default (4.8 when imported, 4.13 in ``initialize``) and at ``finalize`` puts back
+    the handler of its import (4.8) or none (4.13), so Ctrl-C would kill a run instead of
+    reaching its checkpointing handler (fsi/cli.py)."""
+    handler = signal.getsignal(signal.SIGINT)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, handler)
+
+
+def _build(case: Case, comm: MPI.Comm) -> TaggedMesh:
     error = None
     if comm.rank == 0:
         gmsh = _start_gmsh()

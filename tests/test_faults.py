@@ -284,3 +284,19 @@ def test_an_inlet_formula_failing_mid_run_fails_the_step_with_a_checkpoint(share
     assert (failed.value.step, failed.value.checkpoint) == (2, out / "checkpoint")
     assert metrics_steps(out) == [1, 2]
     assert checkpoint_step(out) == 2
+
+
+def test_a_mesh_build_leaves_the_runs_sigint_handler_in_place():
+    """gmsh's Python API sets SIGINT to its default while it runs (and 4.13 does not restore
+    it): the build asks it not to, so Ctrl-C still reaches the run's checkpointing handler."""
+    from fsi import mesh
+
+    def handler(signum, frame):
+        pass
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        mesh.build(config.load(CHANNEL), MPI.COMM_WORLD)
+        assert signal.getsignal(signal.SIGINT) is handler
+    finally:
+        signal.signal(signal.SIGINT, previous)
