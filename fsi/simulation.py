@@ -44,6 +44,28 @@ longest reversed-flow zone along either wall (m) (fsi.metrics.wall_shear_summary
 ``relaxation``: Aitken's (or the constant) ω of the step's last iteration, empty for IQN-ILS;
 ``newton_iterations``/``solid_newton_iterations``: fluid/solid Newton iterations summed over the
 step's coupling iterations; ``mesh_jacobian_ratio``: the fluid mesh's smallest J/J_ref."""
+def stress_columns(solver: solid.SolidSolver) -> list[str]:
+    """The structure's stress maxima (Pa) beside ``max_sss``: ``max_von_mises``,
+    ``max_principal`` over the whole structure, and ``max_sss_<region>``,
+    ``max_von_mises_<region>``, ``max_principal_<region>`` per region (cap, lipid, wall; the
+    Turek–Hron flag), where ``max_sss`` is the largest |σ₁₂| (fsi.solid.StressFields)."""
+    return ["max_von_mises", "max_principal"] + [
+        f"{name}_{region.label}" for region in solver.regions
+        for name in ("max_sss", "max_von_mises", "max_principal")]
+
+
+def stress_row(solver: solid.SolidSolver) -> dict[str, float]:
+    """``max_sss`` and the :func:`stress_columns` of the current stresses (call
+    ``solver.stress.update()`` first). Collective."""
+    row = {}
+    for label, m in solver.stress.region_maxima().items():
+        suffix = "" if label == "all" else f"_{label}"
+        row.update({f"max_sss{suffix}": m.max_abs_shear,
+                    f"max_von_mises{suffix}": m.max_von_mises,
+                    f"max_principal{suffix}": m.max_principal})
+    return row
+
+
 FLOW_COLUMNS = ["inlet_flow_rate", "outlet_flow_rate"]
 """Every fluid mesh with an inlet and an outlet: the volume flow rate per unit depth (m²/s)
 through each, positive downstream, on the current mesh (fsi.metrics.flow_rate)."""
@@ -462,17 +484,16 @@ class CoupledStepper:
         self._layouts = {**fluid_layouts(p.fluid), **structure_layouts(p.solid),
                          "coupling.iqn.V": interface, "coupling.iqn.W": interface,
                          "predictor.values": interface}
-        self.columns = COUPLED_COLUMNS + self.outputs.columns + (
+        self.columns = COUPLED_COLUMNS + stress_columns(p.solid) + self.outputs.columns + (
             ["drag", "lift", "ux_A", "uy_A"] if self.point_a else [])
         self.iterations: list[int] = []
         self.solid_newton = 0
 
     def field_files(self) -> dict[str, tuple[object, list]]:
         p = self.problem
-        stress = p.solid.stress.fields
         return {"fields.xdmf": (p.fluid.mesh, [*self.outputs.fields, p.fluid.ale.d]),
-                "solid.xdmf": (p.solid.domain.mesh, [p.solid.eta, stress["sss"],
-                                                     stress["von_mises"]])}
+                "solid.xdmf": (p.solid.domain.mesh,
+                               [p.solid.eta, *p.solid.stress.cell_fields.values()])}
 
     def step(self, step: Step) -> dict:
         p = self.problem
@@ -494,7 +515,7 @@ class CoupledStepper:
                 "peak_velocity": metrics.peak_velocity(p.fluid.u),
                 "peak_pressure": metrics.peak_pressure(p.fluid.p),
                 "peak_displacement": p.solid.max_displacement(),
-                "max_sss": p.solid.stress.region_maxima()["all"].max_abs_shear,
+                **stress_row(p.solid),
                 "coupling_iterations": result.iterations,
                 "coupling_residual": result.residuals[-1],
                 "newton_iterations": p.fluid_side.newton_iterations,
@@ -574,13 +595,13 @@ class StructureStepper:
         self.stenosis = isinstance(case.geometry, config.StenosisGeometry)
         self.point_a = (turek_hron.point_a(case.geometry)
                         if isinstance(case.geometry, config.TurekHronGeometry) else None)
-        self.columns = COLUMNS + ["peak_wall_displacement"] + (["ux_A", "uy_A"] if self.point_a
-                                                               else [])
+        self.columns = (COLUMNS + ["peak_wall_displacement"] + stress_columns(self.solver)
+                        + (["ux_A", "uy_A"] if self.point_a else []))
         self._layouts = structure_layouts(self.solver)
 
     def field_files(self) -> dict[str, tuple[object, list]]:
-        s, stress = self.solver, self.solver.stress.fields
-        return {"solid.xdmf": (s.domain.mesh, [s.eta, stress["sss"], stress["von_mises"]])}
+        s = self.solver
+        return {"solid.xdmf": (s.domain.mesh, [s.eta, *s.stress.cell_fields.values()])}
 
     def step(self, step: Step) -> dict:
         s = self.solver
@@ -595,7 +616,7 @@ class StructureStepper:
                "peak_displacement": s.max_displacement(),
                "peak_wall_displacement": (s.max_displacement([Region.WALL])
                                           if self.stenosis else ""),
-               "max_sss": s.stress.region_maxima()["all"].max_abs_shear,
+               **stress_row(s),
                "coupling_iterations": 0,
                "newton_iterations": result.iterations, "newton_residual": result.residual}
         if self.point_a:

@@ -766,6 +766,11 @@ class StressFields:
     ``sqrt(((σ₁₁−σ₂₂)² + (σ₂₂−σ₃₃)² + (σ₃₃−σ₁₁)²)/2 + 3σ₁₂²)``; the largest principal stress
     ``max((σ₁₁+σ₂₂)/2 + sqrt(((σ₁₁−σ₂₂)/2)² + σ₁₂²), σ₃₃)``. Fields are interpolated into DG
     of degree ``max(k − 1, 0)`` for P``k`` displacements (the degree of ∇η), at its points.
+
+    :attr:`cell_fields` are what the field files hold (XDMF stores one value per cell): each
+    cell's extreme of the fields above (``sss``: the value of largest magnitude, sign kept;
+    ``von_mises`` and ``max_principal``: the largest), so their maxima over a region are the
+    :meth:`region_maxima`; and ``region``, the cell's region tag (geometry/tags.py ``Region``).
     """
 
     def __init__(self, solver: SolidSolver, law: HyperelasticLaw):
@@ -795,13 +800,31 @@ class StressFields:
                 expr, compat.interpolation_points(self.S))))
         dofs = compat.cell_dofs(self.S)
         n_owned = mesh.topology.index_map(mesh.topology.dim).size_local
+        self._all_cell_dofs = dofs
         self._cell_dofs = dofs[:n_owned]
         self._cell_region = solver._cell_region[:n_owned]
+        S0 = compat.function_space(mesh, "DG", 0)
+        self._cell_value = compat.cell_dofs(S0)[:, 0]  # cell → its DG0 dof
+        self.cell_fields = {}
+        for name in (*self.fields, "region"):
+            f = dolfinx.fem.Function(S0)
+            f.name = name
+            self.cell_fields[name] = f
+        region = self.cell_fields["region"].x.array
+        region[self._cell_value] = solver._cell_region[: len(self._cell_value)]
 
     def update(self) -> None:
-        """Interpolate the stresses of the current η."""
+        """Interpolate the stresses of the current η; their cell extremes."""
         for f, expr in self._expressions:
             f.interpolate(expr)
+        for name, f in self.fields.items():
+            values = f.x.array[self._all_cell_dofs]  # (cells, dofs per cell)
+            if name == "sss":  # signed: the value of largest magnitude
+                extreme = np.take_along_axis(
+                    values, np.abs(values).argmax(axis=1)[:, None], axis=1)[:, 0]
+            else:
+                extreme = values.max(axis=1)
+            self.cell_fields[name].x.array[self._cell_value] = extreme
 
     def region_maxima(self) -> dict[str, RegionStress]:
         """Per region (and ``"all"``): the maxima over the region's cells on all ranks.
