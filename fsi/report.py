@@ -1,32 +1,44 @@
 """``fsi report``: the study's tables and plots from finished run folders (MODEL.md §6).
 
 Tables 1–3 are the peak velocity, pressure and displacement at the report times (the rows of
-``metrics.csv`` at those times); a fourth table gives each run's solver effort. The plots show
-a column of ``metrics.csv`` over time, one line per run (Figure 6 is ``max_sss``), and the inlet
-and outlet flow rates together, one line per run and boundary. A run without a column (an older
-run folder, a structure-only run) is left out of that plot and shows '–' in the tables.
-Reads only the files ``fsi run`` writes: ``config.yaml``, ``metrics.csv``, ``summary.json``.
+``metrics.csv`` at those times); a fourth table gives each run's solver effort. The plots
+(:data:`FIGURES`) show, over time, every metric the tables report, the study's Figure 6
+(``max_sss``) in the whole structure and in the plaque (the maximum of ``max_sss_cap`` and
+``max_sss_lipid``), the fibrous cap's largest principal stress (``max_principal_cap``), the range
+of the wall shear stress (``min_wss`` to ``max_wss``, shaded), the recirculation length, the
+coupling iterations, the inlet and outlet flow rates and the inlet pressure P(t) of each run's
+configuration (one line per distinct waveform; velocity inlets have none). A run without a
+column (an older run folder, a structure-only run) is left out of that plot and shows '–' in
+the tables; a plot that no run has a line for is not written. ``report.md`` lists every PNG
+with a caption line. Reads only the files ``fsi run`` writes: ``config.yaml``, ``metrics.csv``,
+``summary.json``.
+
+Units (:func:`choose_unit`). ``metrics.csv`` holds SI units; each table and plot shows its
+quantity in one of a few units (:data:`UNITS`: stress and pressure Pa, kPa or MPa; displacement
+µm or mm; velocity cm/s or m/s; length mm; flow rate per unit depth cm²/s): the largest unit in
+which the largest magnitude shown is at least 1 (17 kPa, 300 Pa, 230 µm, 1.5 mm, 30 cm/s), the
+smallest one when there is none. Tables keep 4 significant digits.
+
+Scales (:func:`choose_scale`). Each plot has one group of lines per run (per waveform for
+P(t)), and a group's magnitude is its largest |value|. The plot is
+
+- ``linear`` when the magnitudes lie within a factor :data:`MAGNITUDE_RATIO` (10) of each other
+  (or there is one group);
+- ``log`` (a logarithmic y-axis) when they differ more and every value is positive (the fixed
+  wall's ~300 Pa beside the moving wall's 17 kPa: both curves readable on one axis);
+- ``panels`` otherwise (some value ≤ 0, where a log axis cannot go: one panel per group, stacked
+  and sharing t, each with its own y-range).
 """
 
 from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
 
 from fsi import config, io
-
-TABLES = [("peak_velocity", "Peak velocity (m/s)"), ("peak_pressure", "Peak pressure (Pa)"),
-          ("peak_displacement", "Peak displacement (m)")]
-PLOTS = [("max_sss", "max |σ₁₂| in the structure (Pa)"),
-         ("peak_displacement", "peak displacement (m)"),
-         ("peak_velocity", "peak velocity (m/s)"),
-         ("recirculation_length", "recirculation length (m)"),
-         ("coupling_iterations", "coupling iterations")]
-FLOW_RATES = [("inlet_flow_rate", "inlet", "-"), ("outlet_flow_rate", "outlet", "--")]
-FLOW_RATE_UNIT = ("cm²/s = mL/s per cm of depth", 1.0e4)  # metrics.csv holds m²/s
 
 
 class ReportError(ValueError):
@@ -82,6 +94,66 @@ def _summary(path: Path) -> dict:
     return summary
 
 
+# --------------------------------------------------------------------------------------------
+# Units and scales
+
+
+@dataclass(frozen=True)
+class Unit:
+    """A display unit: a value in it is ``scale`` × the SI value."""
+
+    name: str
+    scale: float
+
+
+STRESS_UNITS = (Unit("Pa", 1.0), Unit("kPa", 1.0e-3), Unit("MPa", 1.0e-6))
+UNITS: dict[str, tuple[Unit, ...]] = {  # per quantity, from the smallest unit to the largest
+    "stress": STRESS_UNITS,
+    "pressure": STRESS_UNITS,
+    "displacement": (Unit("µm", 1.0e6), Unit("mm", 1.0e3)),
+    "length": (Unit("mm", 1.0e3),),
+    "velocity": (Unit("cm/s", 1.0e2), Unit("m/s", 1.0)),
+    "flow_rate": (Unit("cm²/s", 1.0e4),),  # per unit depth: mL/s per cm of depth
+    "count": (Unit("", 1.0),),
+}
+
+MAGNITUDE_RATIO = 10.0
+"""Groups of lines whose magnitudes (largest |value|) differ by more than this factor are not
+drawn on one linear axis (:func:`choose_scale`)."""
+
+
+def choose_unit(quantity: str, values: Sequence[float]) -> Unit:
+    """The unit of ``UNITS[quantity]`` to show ``values`` (SI) in: the largest one in which the
+    largest finite |value| is at least 1; the smallest one if there is none (or no values)."""
+    units = UNITS[quantity]
+    peak = max((abs(v) for v in values if math.isfinite(v)), default=0.0)
+    fitting = [unit for unit in units if peak * unit.scale >= 1.0]
+    return fitting[-1] if fitting else units[0]
+
+
+def choose_scale(series: Sequence[Sequence[float]]) -> str:
+    """How to draw groups of values on one plot (one sequence per group; empty ones are
+    ignored): ``"linear"`` when their magnitudes (largest |value|) are within a factor
+    :data:`MAGNITUDE_RATIO` of each other or there is at most one group; else ``"log"`` when
+    every value is positive, ``"panels"`` (one panel per group) when one is not."""
+    series = [list(values) for values in series if len(values)]
+    peaks = [max(abs(v) for v in values) for values in series]
+    if len(peaks) < 2 or max(peaks) <= MAGNITUDE_RATIO * min(peaks):
+        return "linear"
+    if all(v > 0 for values in series for v in values):
+        return "log"
+    return "panels"
+
+
+# --------------------------------------------------------------------------------------------
+# Tables
+
+
+TABLES = [("peak_velocity", "Peak velocity", "velocity"),
+          ("peak_pressure", "Peak pressure", "pressure"),
+          ("peak_displacement", "Peak displacement", "displacement")]
+
+
 def value_at(rows: Sequence[dict[str, float]], t: float, column: str) -> float | None:
     """``column`` of the row at time ``t`` (within a thousandth of that step; exactly, for a
     row without ``dt``), or None."""
@@ -91,20 +163,25 @@ def value_at(rows: Sequence[dict[str, float]], t: float, column: str) -> float |
     return None
 
 
-def _number(value: float | None) -> str:
-    return "–" if value is None or not math.isfinite(value) else f"{value:.4g}"
+def _number(value: float | None, scale: float = 1.0) -> str:
+    """``scale`` × ``value`` to 4 significant digits; '–' for no (or a non-finite) value."""
+    return "–" if value is None or not math.isfinite(value) else f"{scale * value:.4g}"
 
 
-def peaks_table(runs: Sequence[Run], column: str, title: str,
+def peaks_table(runs: Sequence[Run], column: str, title: str, quantity: str,
                 times: Sequence[float] | None = None) -> str:
     """A markdown table: one row per run, one column per report time (default: the first
-    run's ``output.report_times``); '–' where a run has no step at that time."""
+    run's ``output.report_times``); '–' where a run has no step at that time. The values are
+    in the unit :func:`choose_unit` picks for ``quantity`` from all of them, named in the
+    header: ``| <title> (<unit>) | t = ... |``."""
     times = list(times if times is not None else runs[0].case.output.report_times)
-    head = f"| {title} | " + " | ".join(f"t = {t:g} s" for t in times) + " |"
+    values = [[value_at(run.rows, t, column) for t in times] for run in runs]
+    unit = choose_unit(quantity, [v for row in values for v in row if v is not None])
+    head = (f"| {title} ({unit.name}) | " + " | ".join(f"t = {t:g} s" for t in times) + " |")
     lines = [head, "|---" * (len(times) + 1) + "|"]
-    for run in runs:
-        lines.append(f"| {run.label} | "
-                     + " | ".join(_number(value_at(run.rows, t, column)) for t in times) + " |")
+    for run, row in zip(runs, values):
+        lines.append(f"| {run.label} | " + " | ".join(_number(v, unit.scale) for v in row)
+                     + " |")
     return "\n".join(lines)
 
 
@@ -124,65 +201,281 @@ def effort_table(runs: Sequence[Run]) -> str:
     return "\n".join(lines)
 
 
-def markdown(runs: Sequence[Run], times: Sequence[float] | None = None) -> str:
-    parts = [f"## Table {i + 1}: {title}\n\n{peaks_table(runs, column, title, times)}"
-             for i, (column, title) in enumerate(TABLES)]
+def markdown(runs: Sequence[Run], times: Sequence[float] | None = None,
+             figures: Sequence[tuple[str, str]] = ()) -> str:
+    """Tables 1–3 and the solver effort; with ``figures`` ((PNG file name, caption) pairs), a
+    section that shows each PNG followed by its caption line."""
+    parts = [f"## Table {i + 1}: {title}\n\n{peaks_table(runs, column, title, quantity, times)}"
+             for i, (column, title, quantity) in enumerate(TABLES)]
     parts.append(f"## Solver effort\n\n{effort_table(runs)}")
+    if figures:
+        parts.append("## Figures\n\n" + "\n\n".join(f"![{name}]({name})\n*{name}*: {caption}"
+                                                    for name, caption in figures))
     return "\n\n".join(parts) + "\n"
 
 
-def plot(runs: Sequence[Run], column: str, ylabel: str, path: Path) -> bool:
-    """``column`` over time, one line per run that has it, as a PNG; False if none has it."""
-    series = [(run.label, [r["t"] for r in run.rows if column in r],
-               [r[column] for r in run.rows if column in r]) for run in runs]
-    return _figure([(label, t, y, "-", None) for label, t, y in series], ylabel, path)
+# --------------------------------------------------------------------------------------------
+# What the plots show
 
 
-def flow_rate_plot(runs: Sequence[Run], path: Path) -> bool:
-    """The inlet (solid) and outlet (dashed, same colour) flow rates per unit depth over time,
-    in cm²/s, as a PNG; False if no run has them."""
-    unit, scale = FLOW_RATE_UNIT
-    series = []
+@dataclass(frozen=True)
+class Line:
+    """One curve: ``y`` (SI units) over ``t``; no ``label`` keeps it out of the legend."""
+
+    label: str
+    t: list[float]
+    y: list[float]
+    style: str = "-"
+
+
+@dataclass(frozen=True)
+class Group:
+    """The lines of one run (or one inlet waveform), drawn in colour ``colour`` (an index of
+    matplotlib's cycle) and in a panel of their own when the plot has panels. ``band``: the two
+    lines are a lower and an upper bound at the same times, the range between them is shaded
+    and labelled ``label``."""
+
+    label: str
+    colour: int
+    lines: list[Line]
+    band: bool = False
+
+
+def column_groups(runs: Sequence[Run], column: str) -> list[Group]:
+    """``column`` over time, one group of one line per run (empty for a run without it)."""
+    groups = []
     for k, run in enumerate(runs):
+        rows = [r for r in run.rows if column in r]
+        groups.append(Group(run.label, k, [Line(run.label, [r["t"] for r in rows],
+                                                [r[column] for r in rows])]))
+    return groups
+
+
+def maximum_groups(runs: Sequence[Run], columns: Sequence[str]) -> list[Group]:
+    """The maximum of ``columns`` (those a row has) over time, one line per run, from the rows
+    that have at least one of them."""
+    groups = []
+    for k, run in enumerate(runs):
+        rows = [r for r in run.rows if any(c in r for c in columns)]
+        y = [max(r[c] for c in columns if c in r) for r in rows]
+        groups.append(Group(run.label, k, [Line(run.label, [r["t"] for r in rows], y)]))
+    return groups
+
+
+def range_groups(runs: Sequence[Run], low: str, high: str) -> list[Group]:
+    """The range from ``low`` to ``high`` over time, shaded, one group per run (from the rows
+    that have both)."""
+    groups = []
+    for k, run in enumerate(runs):
+        rows = [r for r in run.rows if low in r and high in r]
+        t = [r["t"] for r in rows]
+        groups.append(Group(run.label, k, [Line("", t, [r[low] for r in rows], "--"),
+                                           Line("", t, [r[high] for r in rows], "-")],
+                            band=True))
+    return groups
+
+
+FLOW_RATES = [("inlet_flow_rate", "inlet", "-"), ("outlet_flow_rate", "outlet", "--")]
+
+
+def flow_rate_groups(runs: Sequence[Run]) -> list[Group]:
+    """The inlet (solid) and outlet (dashed) flow rates over time, one group per run."""
+    groups = []
+    for k, run in enumerate(runs):
+        lines = []
         for column, boundary, style in FLOW_RATES:
             rows = [r for r in run.rows if column in r]
-            series.append((f"{run.label} {boundary}", [r["t"] for r in rows],
-                           [scale * r[column] for r in rows], style, f"C{k % 10}"))
-    return _figure(series, f"flow rate ({unit})", path)
+            lines.append(Line(f"{run.label} {boundary}", [r["t"] for r in rows],
+                              [r[column] for r in rows], style))
+        groups.append(Group(run.label, k, lines))
+    return groups
 
 
-def _figure(series: Sequence[tuple], ylabel: str, path: Path) -> bool:
-    """One line per (label, t, y, linestyle, colour) that has points; False if none has."""
+INLET_SAMPLES = 2001
+"""Evenly spaced times at which P(t) is evaluated over a time span (besides the runs' step
+times and a table's rows)."""
+
+
+def inlet_pressure_groups(runs: Sequence[Run]) -> list[Group]:
+    """P(t) of the traction inlets of the runs' configurations (``fluid.inlet``; velocity
+    inlets are left out), one group per distinct inlet, over [0, the last step of the runs that
+    share it] (their ``time.end`` for runs without steps). Points where a formula cannot be
+    evaluated are left out."""
+    from fsi.fluid import inlet_pressure
+
+    shared: dict[object, list[Run]] = {}
+    for run in runs:
+        shared.setdefault(run.case.fluid.inlet, []).append(run)
+    groups = []
+    for inlet, sharing in shared.items():
+        try:
+            pressure = inlet_pressure(inlet)
+        except TypeError:  # a velocity inlet
+            continue
+        end = max(run.rows[-1]["t"] if run.rows else run.case.time.end for run in sharing)
+        times = {end * i / (INLET_SAMPLES - 1) for i in range(INLET_SAMPLES)}
+        times.update(r["t"] for run in sharing for r in run.rows)
+        if isinstance(inlet, config.InletPressureTable):
+            times.update(row[0] for row in inlet.table if 0 <= row[0] <= end)
+        t, y = [], []
+        for time in sorted(times):
+            try:
+                y.append(pressure(time))
+            except config.FormulaError:
+                continue
+            t.append(time)
+        label = f"{', '.join(run.path.name for run in sharing)}: {_describe(inlet)}"
+        groups.append(Group(label, len(groups), [Line(label, t, y)]))
+    return groups
+
+
+def _describe(inlet: config.Inlet) -> str:
+    """A short legend entry for a traction inlet."""
+    if isinstance(inlet, config.InletPulse):
+        return (f"pulse (A/2)(1 − cos 2πt/T), A = {inlet.amplitude:g} Pa, "
+                f"T = {inlet.duration * 1e3:g} ms")
+    if isinstance(inlet, config.InletPressure):
+        formula = inlet.formula if len(inlet.formula) <= 60 else inlet.formula[:57] + "..."
+        return f"P = {formula}"
+    if isinstance(inlet, config.InletPressureTable):
+        return f"table of {len(inlet.table)} rows"
+    return inlet.kind
+
+
+@dataclass(frozen=True)
+class Figure:
+    """One PNG, ``<name>.png``: ``groups(runs)`` drawn with :func:`draw`, the y-axis labelled
+    ``ylabel`` and the unit :func:`choose_unit` picks for ``quantity``; ``caption`` says what it
+    shows (report.md), ``group`` what one group of lines is (for the caption of panels)."""
+
+    name: str
+    caption: str
+    ylabel: str
+    quantity: str
+    groups: Callable[[Sequence[Run]], list[Group]]
+    group: str = "run"
+
+
+def _column(column: str) -> Callable[[Sequence[Run]], list[Group]]:
+    return lambda runs: column_groups(runs, column)
+
+
+FIGURES = [
+    Figure("max_sss", "Figure 6: the maximum structural shear stress max |σ₁₂| in the whole "
+           "structure (wall, cap and lipid) over time, one line per run.",
+           "max |σ₁₂| in the structure", "stress", _column("max_sss")),
+    Figure("max_sss_plaque", "Figure 6 in the plaque, as the study plots it: max |σ₁₂| over "
+           "the fibrous cap and the lipid pool (the larger of max_sss_cap and max_sss_lipid) "
+           "over time, one line per run.",
+           "max |σ₁₂| in the plaque", "stress",
+           lambda runs: maximum_groups(runs, ("max_sss_cap", "max_sss_lipid"))),
+    Figure("max_principal_cap", "The largest principal stress in the fibrous cap "
+           "(max_principal_cap, the usual rupture indicator) over time, one line per run.",
+           "max principal stress in the cap", "stress", _column("max_principal_cap")),
+    Figure("peak_velocity", "Table 1's peak velocity max |u| over time, one line per run.",
+           "peak velocity", "velocity", _column("peak_velocity")),
+    Figure("peak_pressure", "Table 2's peak pressure max p over time, one line per run.",
+           "peak pressure", "pressure", _column("peak_pressure")),
+    Figure("peak_displacement", "Table 3's peak displacement max |η| over time, one line per "
+           "run.", "peak displacement", "displacement", _column("peak_displacement")),
+    Figure("wall_shear_stress", "The range of the signed wall shear stress along the walls "
+           "over time, min_wss (dashed) to max_wss (solid), shaded, one band per run; negative "
+           "where the flow next to the wall reverses.",
+           "wall shear stress", "stress", lambda runs: range_groups(runs, "min_wss", "max_wss")),
+    Figure("recirculation_length", "The recirculation length (the longest reversed-flow zone "
+           "along either wall) over time, one line per run.",
+           "recirculation length", "length", _column("recirculation_length")),
+    Figure("coupling_iterations", "Dirichlet–Neumann coupling iterations per step, one line "
+           "per run.", "coupling iterations", "count", _column("coupling_iterations")),
+    Figure("flow_rate", "The inlet (solid) and outlet (dashed) flow rates per unit depth over "
+           "time, in cm²/s (= mL/s per cm of depth), one colour per run.",
+           "flow rate", "flow_rate", flow_rate_groups),
+    Figure("inlet_pressure", "The inlet pressure P(t) of the runs' configurations (traction "
+           "inlets; velocity inlets have none) over their time span, one line per distinct "
+           "waveform, named by the runs that share it.",
+           "inlet pressure P", "pressure", inlet_pressure_groups, group="waveform"),
+]
+
+
+# --------------------------------------------------------------------------------------------
+# Drawing
+
+
+def draw(groups: Sequence[Group], ylabel: str, quantity: str, path: Path) -> str | None:
+    """The groups' lines that have points as a PNG at ``path``, in the unit
+    :func:`choose_unit` picks for ``quantity`` from all their values, on the scale
+    :func:`choose_scale` picks from each group's values; returns that scale, or None (and
+    writes nothing) when no line has a point."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    series = [s for s in series if s[1]]
-    if not series:
-        return False
-    fig, ax = plt.subplots(figsize=(7, 4), layout="constrained")
-    for label, t, y, style, colour in series:
-        ax.plot(t, y, style, label=label, lw=1.2, color=colour)
-    ax.set_xlabel("t (s)")
-    ax.set_ylabel(ylabel)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
+    groups = [Group(g.label, g.colour, [line for line in g.lines if line.t], g.band)
+              for g in groups]
+    groups = [g for g in groups if g.lines and (not g.band or len(g.lines) == 2)]
+    if not groups:
+        return None
+    values = [[v for line in g.lines for v in line.y] for g in groups]
+    unit = choose_unit(quantity, [v for vs in values for v in vs])
+    scale = choose_scale(values)
+    label = f"{ylabel} ({unit.name})" if unit.name else ylabel
+    panels = len(groups) if scale == "panels" else 1
+    fig, axes = plt.subplots(panels, 1, sharex=True, squeeze=False, layout="constrained",
+                             figsize=(7, 4 if panels == 1 else 1.2 + 1.7 * panels))
+    axes = list(axes[:, 0])
+    for k, group in enumerate(groups):
+        ax = axes[k if scale == "panels" else 0]
+        colour = f"C{group.colour % 10}"
+        for line in group.lines:
+            ax.plot(line.t, [unit.scale * v for v in line.y], line.style, lw=1.2, color=colour,
+                    label=line.label or "_nolegend_")
+        if group.band:
+            low, high = group.lines
+            ax.fill_between(low.t, [unit.scale * v for v in low.y],
+                            [unit.scale * v for v in high.y], color=colour, alpha=0.2,
+                            label=group.label)
+    for ax in axes:
+        if scale == "log":
+            ax.set_yscale("log")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    axes[-1].set_xlabel("t (s)")
+    if scale == "panels":
+        fig.supylabel(label)
+    else:
+        axes[0].set_ylabel(label)
     fig.savefig(path, dpi=120)
     plt.close(fig)
-    return True
+    return scale
+
+
+def flow_rate_plot(runs: Sequence[Run], path: Path) -> bool:
+    """The inlet (solid) and outlet (dashed, same colour) flow rates per unit depth over time,
+    in cm²/s, as a PNG; False if no run has them."""
+    return draw(flow_rate_groups(runs), "flow rate", "flow_rate", path) is not None
+
+
+SCALE_NOTES = {
+    "linear": "",
+    "log": " Log y-axis: the {group}s' magnitudes differ by more than {ratio:g}×.",
+    "panels": " One panel per {group} (each its own y-range): their magnitudes differ by more "
+              "than {ratio:g}× and not every value is positive.",
+}
 
 
 def write(runs: Sequence[Run], out: Path, times: Sequence[float] | None = None) -> list[Path]:
-    """``out/report.md``, one PNG per plotted column and ``flow_rate.png`` (the inlet and outlet
-    flow rates); returns the files written."""
+    """The PNGs of :data:`FIGURES` that have a line (``out/<name>.png``) and ``out/report.md``
+    (the tables, then each PNG with its caption and scale); returns the files written,
+    report.md first."""
     out.mkdir(parents=True, exist_ok=True)
-    written = [out / "report.md"]
-    written[0].write_text(markdown(runs, times))
-    for column, ylabel in PLOTS:
-        path = out / f"{column}.png"
-        if plot(runs, column, ylabel, path):
-            written.append(path)
-    if flow_rate_plot(runs, out / "flow_rate.png"):
-        written.append(out / "flow_rate.png")
-    return written
+    pictures, captions = [], []
+    for figure in FIGURES:
+        path = out / f"{figure.name}.png"
+        scale = draw(figure.groups(runs), figure.ylabel, figure.quantity, path)
+        if scale is not None:
+            pictures.append(path)
+            note = SCALE_NOTES[scale].format(group=figure.group, ratio=MAGNITUDE_RATIO)
+            captions.append((path.name, figure.caption + note))
+    (out / "report.md").write_text(markdown(runs, times, captions))
+    return [out / "report.md", *pictures]

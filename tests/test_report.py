@@ -1,15 +1,18 @@
 """``fsi report``: the study's tables and plots from run folders."""
 
 import csv
+import json
+import math
 import shutil
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 from mpi4py import MPI
 
 import pytest
 
-from fsi import cli, io, report
+from fsi import cli, config, io, report
 
 SHORT = ["structure.mode=rigid", "time.end=0.004", "time.schedule=[{until: 0.004, dt: 0.001}]",
          "output.report_times=[0.002, 0.004]"]
@@ -33,10 +36,12 @@ def test_tables_hold_the_rows_at_the_report_times(run_dir, capsys):
     run = report.load_run(run_dir)
     rows = io.read_metrics(run_dir / "metrics.csv")
     by_t = {round(r["t"], 9): r for r in rows}
-    table = report.peaks_table([run], "peak_velocity", "Peak velocity (m/s)")
+    table = report.peaks_table([run], "peak_velocity", "Peak velocity", "velocity")
+    unit = report.choose_unit("velocity", [by_t[t]["peak_velocity"] for t in (0.002, 0.004)])
+    assert table.startswith(f"| Peak velocity ({unit.name}) | t = 0.002 s | t = 0.004 s |")
     cells = table.splitlines()[2].split("|")[2:-1]
-    assert [float(c) for c in cells] == [pytest.approx(by_t[t]["peak_velocity"], rel=1e-3)
-                                         for t in (0.002, 0.004)]
+    assert [float(c) for c in cells] == [
+        pytest.approx(unit.scale * by_t[t]["peak_velocity"], rel=1e-3) for t in (0.002, 0.004)]
     # A time with no step is shown as '–', not interpolated.
     assert report.value_at(rows, 0.0025, "peak_velocity") is None
     assert "| 4 | 0.004 |" in report.effort_table([run])
@@ -48,7 +53,7 @@ def test_cli_writes_report_and_plots(run_dir, capsys):
     if MPI.COMM_WORLD.rank == 0:
         text = (out / "report.md").read_text()
         assert "Table 1: Peak velocity" in text and "Table 3: Peak displacement" in text
-        assert text == report.markdown([report.load_run(run_dir)] * 2)
+        assert text.startswith(report.markdown([report.load_run(run_dir)] * 2))
         assert (out / "peak_velocity.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert (out / "flow_rate.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert not (out / "max_sss.png").exists()  # a rigid run has no structure stress
@@ -160,3 +165,230 @@ def test_a_damaged_summary_is_refused(run_dir, shared_tmp, capsys):
     assert cli.main(["report", str(damaged)]) == 2
     if MPI.COMM_WORLD.rank == 0:
         assert f"fsi: error: {damaged / 'summary.json'}: unreadable" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------------------------
+# Units and scales
+
+
+@pytest.mark.parametrize("quantity, values, unit, shown", [
+    ("stress", [300.0, -12.0], "Pa", 300.0),
+    ("stress", [300.0, 17.0e3], "kPa", 17.0),
+    ("stress", [-2.5e3, 10.0], "kPa", 2.5),  # the magnitude decides
+    ("stress", [2.0e6], "MPa", 2.0),
+    ("stress", [0.5], "Pa", 0.5),  # below 1 in every unit: the smallest
+    ("stress", [], "Pa", None),
+    ("pressure", [1200.0], "kPa", 1.2),
+    ("displacement", [3.0e-4], "µm", 300.0),
+    ("displacement", [5.0e-6, 1.5e-3], "mm", 1.5),
+    ("displacement", [1.0e-9], "µm", 1.0e-3),
+    ("velocity", [0.3], "cm/s", 30.0),
+    ("velocity", [1.2], "m/s", 1.2),
+    ("length", [0.004], "mm", 4.0),
+    ("flow_rate", [2.0e-5], "cm²/s", 0.2),
+    ("count", [7.0], "", 7.0),
+])
+def test_the_unit_is_the_largest_one_the_largest_value_is_at_least_1_in(quantity, values, unit,
+                                                                         shown):
+    chosen = report.choose_unit(quantity, values)
+    assert chosen.name == unit
+    if shown is not None:
+        assert chosen.scale * max(values, key=abs) == pytest.approx(math.copysign(shown, max(
+            values, key=abs)))
+
+
+@pytest.mark.parametrize("series, scale", [
+    ([[300.0, 280.0]], "linear"),  # one run
+    ([[300.0, 150.0], [1700.0, 900.0]], "linear"),  # within 10×
+    ([[1.0], [10.0]], "linear"),  # exactly 10×
+    ([[1.0], [10.01]], "log"),
+    ([[300.0, 150.0], [17.0e3, 9.0e3]], "log"),  # fixed vs moving wall SSS
+    ([[300.0, 150.0], [17.0e3, -9.0e3]], "panels"),  # a value ≤ 0: no log axis
+    ([[0.0, 0.0], [0.004, 0.002]], "panels"),  # no recirculation beside 4 mm of it
+    ([[-0.5, 0.2], [-0.4, 0.1]], "linear"),
+    ([[0.0], [0.0]], "linear"),
+    ([[], [17.0e3]], "linear"),  # a run without the column does not count
+    ([], "linear"),
+])
+def test_the_scale_is_linear_log_or_panels_from_the_magnitudes(series, scale):
+    assert report.choose_scale(series) == scale
+
+
+# --------------------------------------------------------------------------------------------
+# Synthetic run folders: a fixed wall (~300 Pa) and a moving wall (~17 kPa)
+
+PULSE = 0.005  # s
+STEPS, DT = 40, 2.5e-4  # to 10 ms
+
+
+def pulse(t: float) -> float:
+    """0 → 1 (at 2.5 ms) → 0 over the 5 ms pulse, 0 after."""
+    return math.sin(math.pi * t / PULSE) ** 2 if t <= PULSE else 0.0
+
+
+def study_columns(stress: float, displacement: float, recirculation: float) -> dict:
+    """metrics.csv columns (functions of t) of a coupled stenosis run whose stresses peak at
+    about ``stress`` (Pa) and displacement at ``displacement`` (m)."""
+    return {
+        "peak_velocity": lambda t: 0.3 * (0.02 + pulse(t)),
+        "peak_pressure": lambda t: 1200.0 * (0.01 + pulse(t)),
+        "peak_displacement": lambda t: displacement * (0.01 + pulse(t)),
+        "max_sss": lambda t: stress * (0.05 + pulse(t)),
+        "coupling_iterations": lambda t: 3.0 + round(2 * pulse(t)),
+        "wall_time_s": lambda t: 0.3,
+        "min_wss": lambda t: -0.1 * stress / 300.0 * pulse(t),
+        "max_wss": lambda t: stress / 300.0 * (0.01 + pulse(t)),
+        "recirculation_length": lambda t: recirculation * pulse(t),
+        "inlet_flow_rate": lambda t: 2.0e-5 * pulse(t),
+        "outlet_flow_rate": lambda t: 1.8e-5 * pulse(t),
+        "max_von_mises": lambda t: 1.7 * stress * (0.05 + pulse(t)),
+        "max_principal": lambda t: 1.2 * stress * (0.05 + pulse(t)),
+        **{f"max_{name}_{region}": (lambda t, f=f: f * stress * (0.05 + pulse(t)))
+           for name in ("sss", "von_mises", "principal")
+           for region, f in (("wall", 0.4), ("lipid", 0.3), ("cap", 0.9))},
+        # the cap's and the lipid's SSS cross: the plaque's maximum is each in turn
+        "max_sss_cap": lambda t: stress * pulse(t),
+        "max_sss_lipid": lambda t: 0.5 * stress * (1.0 - pulse(t)),
+    }
+
+
+def synthetic_run(folder: Path, case: config.Case, columns: dict, finished: bool = True) -> Path:
+    """A run folder written by hand: config.yaml, metrics.csv (``STEPS`` steps of ``DT``;
+    ``columns`` maps a column to its value as a function of t) and, for a finished run,
+    summary.json."""
+    folder.mkdir(parents=True)
+    config.dump(case, folder / "config.yaml")
+    with (folder / "metrics.csv").open("w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["step", "t", "dt", *columns])
+        for step in range(1, STEPS + 1):
+            t = step * DT
+            writer.writerow([step, repr(t), repr(DT), *(repr(value(t))
+                                                        for value in columns.values())])
+    if finished:
+        (folder / "summary.json").write_text(json.dumps({"steps": STEPS}))
+    return folder
+
+
+def stenosis_case(mode: str, **inlet) -> config.Case:
+    case = config.Case(name=mode, structure=replace(config.Structure(), mode=mode))
+    if inlet:
+        case = replace(case, fluid=replace(case.fluid, inlet=config.InletPressure(**inlet)))
+    return case
+
+
+@pytest.fixture
+def folder(shared_tmp) -> Path:
+    """A folder of this rank's own (the report is made on each rank here)."""
+    return shared_tmp / f"rank{MPI.COMM_WORLD.rank}"
+
+
+@pytest.fixture
+def fixed_and_moving(folder) -> list[Path]:
+    return [synthetic_run(folder / "fixed", stenosis_case("fixed_wall"),
+                          study_columns(300.0, 5.0e-6, 0.0)),
+            synthetic_run(folder / "moving", stenosis_case("moving_wall"),
+                          study_columns(17.0e3, 2.3e-4, 0.004))]
+
+
+def captions(report_md: str) -> dict[str, str]:
+    """PNG name → its caption line in report.md (the line after the picture)."""
+    lines = report_md.splitlines()
+    found = {}
+    for line, after in zip(lines, lines[1:]):
+        if line.startswith("![") and line.endswith(".png)"):
+            name = line[line.index("](") + 2:-1]
+            assert line == f"![{name}]({name})" and after.startswith(f"*{name}*: ")
+            found[name] = after
+    return found
+
+
+def test_every_plot_is_written_for_a_fixed_and_a_moving_wall(fixed_and_moving, folder):
+    runs = [report.load_run(path) for path in fixed_and_moving]
+    written = report.write(runs, folder / "report")
+    names = [path.name for path in written]
+    assert names == ["report.md"] + [f"{figure.name}.png" for figure in report.FIGURES]
+    assert {"max_sss.png", "max_sss_plaque.png", "max_principal_cap.png", "peak_pressure.png",
+            "wall_shear_stress.png", "inlet_pressure.png", "flow_rate.png"} <= set(names)
+    for path in written[1:]:
+        assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    text = written[0].read_text()
+    found = captions(text)
+    assert list(found) == names[1:]  # every PNG, in order, with a caption line
+    # 300 Pa beside 17 kPa, all positive: a log axis; signed WSS and no recirculation beside
+    # 4 mm of it: one panel per run; velocities alike: linear.
+    for name in ("max_sss.png", "max_sss_plaque.png", "max_principal_cap.png",
+                 "peak_displacement.png"):
+        assert "Log y-axis: the runs' magnitudes differ by more than 10×." in found[name]
+    for name in ("wall_shear_stress.png", "recirculation_length.png"):
+        assert "One panel per run (each its own y-range)" in found[name]
+    for name in ("peak_velocity.png", "peak_pressure.png", "coupling_iterations.png",
+                 "flow_rate.png", "inlet_pressure.png"):
+        assert "Log y-axis" not in found[name] and "One panel" not in found[name]
+    # The tables in readable units: µm, kPa, cm/s, with 4 significant digits.
+    markdown = report.markdown(runs, [0.0025, 0.005])
+    assert "| Peak displacement (µm) | t = 0.0025 s | t = 0.005 s |" in markdown
+    assert "| moving (moving_wall, newtonian, coarse) | 232.3 | 2.3 |" in markdown
+    assert "| fixed (fixed_wall, newtonian, coarse) | 5.05 | 0.05 |" in markdown
+    assert "| Peak pressure (kPa) | t = 0.0025 s | t = 0.005 s |" in markdown
+    assert "| Peak velocity (cm/s) | t = 0.0025 s | t = 0.005 s |" in markdown
+
+
+def test_the_plaque_curve_is_the_larger_of_the_cap_and_the_lipid(fixed_and_moving):
+    run = report.load_run(fixed_and_moving[1])
+    plaque = report.FIGURES[[f.name for f in report.FIGURES].index("max_sss_plaque")]
+    (group,) = plaque.groups([run])
+    (line,) = group.lines
+    assert line.t == [r["t"] for r in run.rows]
+    assert line.y == [max(r["max_sss_cap"], r["max_sss_lipid"]) for r in run.rows]
+    assert {r["max_sss_cap"] > r["max_sss_lipid"] for r in run.rows} == {True, False}
+
+
+def test_the_inlet_waveform_is_plotted_for_pressure_inlets_only(folder):
+    columns = {"peak_velocity": lambda t: 0.2}
+    pulse_a = synthetic_run(folder / "a", stenosis_case("rigid"), columns)
+    pulse_b = synthetic_run(folder / "b", stenosis_case("rigid"), columns, finished=False)
+    formula = synthetic_run(folder / "c", stenosis_case("rigid", formula="800*sin(pi*t/0.01)**2"),
+                            columns)
+    velocity = synthetic_run(folder / "d", config.load("configs/turek_hron_cfd1.yaml"), columns)
+    runs = [report.load_run(path) for path in (pulse_a, velocity, pulse_b, formula)]
+    groups = report.inlet_pressure_groups(runs)
+    assert [g.label.split(":")[0] for g in groups] == ["a, b", "c"]  # one line per waveform
+    (shared,), (own,) = (g.lines for g in groups)
+    assert shared.t[0] == 0 and shared.t[-1] == pytest.approx(STEPS * DT)
+    assert max(shared.y) == pytest.approx(1200.0)  # the study's pulse, at t = 2.5 ms
+    assert all(p == 0 for t, p in zip(shared.t, shared.y) if t > PULSE)
+    assert own.y == [pytest.approx(800 * math.sin(math.pi * t / 0.01) ** 2) for t in own.t]
+    assert "inlet_pressure.png" in [p.name for p in report.write(runs, folder / "with")]
+    # A velocity inlet has no P(t): no plot.
+    assert report.inlet_pressure_groups(runs[1:2]) == []
+    written = report.write(runs[1:2], folder / "without")
+    assert "inlet_pressure.png" not in [p.name for p in written]
+    assert not (folder / "without" / "inlet_pressure.png").exists()
+
+
+def test_old_runs_without_the_new_columns_still_report(fixed_and_moving, folder, capsys):
+    """A stopped run written before peak_pressure, the WSS, the flow rates and the per-region
+    stresses existed: '–' in Table 2, left out of those plots, which are not written when no
+    run has them."""
+    old_columns = {k: v for k, v in study_columns(300.0, 5.0e-6, 0.0).items()
+                   if k in ("peak_velocity", "peak_displacement", "max_sss",
+                            "coupling_iterations", "wall_time_s")}
+    old = synthetic_run(folder / "old", stenosis_case("fixed_wall"), old_columns, finished=False)
+    written = {p.name for p in report.write([report.load_run(old)], folder / "alone")}
+    assert written == {"report.md", "max_sss.png", "peak_velocity.png", "peak_displacement.png",
+                       "coupling_iterations.png", "inlet_pressure.png"}
+    text = (folder / "alone" / "report.md").read_text()
+    assert "| old (fixed_wall, newtonian, coarse) | – | – | – | – | – |" in text  # Table 2
+    assert "| old (fixed_wall, newtonian, coarse) | 40 (stopped) | 0.01 |" in text
+    assert set(captions(text)) == written - {"report.md"}
+    # Beside a new run: every plot, the old run's lines where it has the column.
+    runs = [report.load_run(old), report.load_run(fixed_and_moving[1])]
+    assert len(report.write(runs, folder / "beside")) == 1 + len(report.FIGURES)
+    assert [len(g.lines[0].t) for g in report.maximum_groups(runs, ("max_sss_cap",))] == [0, 40]
+    # The command line, in-process (the report is made on rank 0).
+    out = folder.parent / "cli"
+    assert cli.main(["report", str(old), str(fixed_and_moving[1]), "--out", str(out)]) == 0
+    if MPI.COMM_WORLD.rank == 0:
+        assert len(captions((out / "report.md").read_text())) == len(report.FIGURES)
+        assert "| Peak displacement (µm) |" in capsys.readouterr().out
