@@ -61,6 +61,27 @@ def _parser() -> argparse.ArgumentParser:
                    help="write DIR/report.md and PNG plots (default: print the tables only)")
     p.add_argument("--times", type=float, nargs="+", metavar="T",
                    help="report times in s (default: the first run's output.report_times)")
+    p = sub.add_parser("plot", help="a picture (PNG) of one field of a run at one time: filled "
+                                    "contours, colour bar with units, axes in mm")
+    p.add_argument("run", type=Path, metavar="RUN_DIR")
+    p.add_argument("--field", required=True, metavar="NAME",
+                   help="a field of RUN_DIR/fields.xdmf (fluid: velocity, pressure, "
+                        "wall_shear_stress, viscosity, shear_rate, mesh_displacement) or "
+                        "solid.xdmf (structure: eta, sss, von_mises, max_principal, region)")
+    p.add_argument("--time", type=float, required=True, metavar="T",
+                   help="time in s: the stored time nearest to T (restarted runs: in the "
+                        "segment holding it)")
+    p.add_argument("--warp", type=float, metavar="S",
+                   help="draw on the nodes moved by S x the displacement (default: 1 for the "
+                        "fluid of a coupled run, its current mesh; 0 for the structure, its "
+                        "reference shape)")
+    p.add_argument("--streamlines", action="store_true",
+                   help="draw the fluid velocity's streamlines over a fluid field")
+    p.add_argument("--region", choices=["fluid", "wall", "cap", "lipid", "flag"],
+                   help="only the cells of this region (default: the field's whole mesh)")
+    p.add_argument("--component", choices=["x", "y", "magnitude"],
+                   help="of a vector field (default: magnitude)")
+    p.add_argument("--out", type=Path, required=True, metavar="FILE.png")
     return parser
 
 
@@ -108,6 +129,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(e.code or 0)
     if args.command == "report":
         return _report(args)
+    if args.command == "plot":
+        return _plot(args)
     try:
         case = config.load(args.config, args.overrides)
     except config.ConfigError as e:
@@ -287,6 +310,33 @@ def _report(args: argparse.Namespace) -> int:
                     status = EXIT_OUTPUT_FAILED
                 else:
                     log.info("wrote %s", ", ".join(str(p) for p in written))
+    return comm.bcast(status, root=0)
+
+
+def _plot(args: argparse.Namespace) -> int:
+    from fsi import plot
+
+    comm = MPI.COMM_WORLD
+    status = EXIT_OK
+    if comm.rank == 0:  # reading two files and drawing one picture: rank 0 alone
+        try:
+            plot.check_out(args.out)
+            snapshot = plot.read_field(args.run, args.field, args.time, warp=args.warp,
+                                       region=args.region)
+            flow = plot.streamline_field(snapshot) if args.streamlines else None
+            written = plot.draw(snapshot, args.out, component=args.component, flow=flow)
+        except plot.PlotError as e:
+            print(f"fsi: error: {e}", file=sys.stderr, flush=True)
+            status = EXIT_USAGE
+        except OSError as e:
+            print(f"fsi: error: --out: cannot write {args.out} ({e.strerror or e})",
+                  file=sys.stderr, flush=True)
+            status = EXIT_OUTPUT_FAILED
+        else:
+            if snapshot.time_differs:
+                print(f"{args.run}: {args.field} is stored at t = {snapshot.time:.6g} s, the "
+                      f"nearest to --time {args.time:g}", flush=True)
+            log.info("wrote %s", written)
     return comm.bcast(status, root=0)
 
 

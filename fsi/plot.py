@@ -1,0 +1,464 @@
+"""``fsi plot``: a picture of one field of a run at one time, without ParaView.
+
+Reads the field files ``fsi run`` writes (dolfinx XDMF, one HDF5 file each, global arrays
+whatever the number of ranks): ``fields.xdmf`` (the fluid, on its reference mesh; coupled runs
+add ``mesh_displacement``) and ``solid.xdmf`` (the structure: its displacement ``eta``, the
+stresses and the cell's region tag ``region``), and the segments of restarted runs,
+``fields.restart<k>.xdmf`` and ``solid.restart<k>.xdmf``. Only what dolfinx 0.5 and 0.9 write is
+read: one mesh grid (``Topology`` and ``Geometry`` HDF5 data items) and, per field, a temporal
+collection of grids holding one ``Attribute`` (``Center`` ``Node`` or ``Cell``; 2D vectors are
+stored with 3 components).
+
+:func:`read_field` gives a field's mesh, values and time as arrays (:class:`Snapshot`);
+:func:`draw` draws one as filled contours with a colour bar in readable units, optionally with
+the fluid velocity's streamlines over it; :func:`field_snapshot` does both.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from geometry.tags import Region
+
+FILES = {"fluid": "fields", "structure": "solid"}
+"""The field files' stems per domain."""
+DISPLACEMENTS = {"fluid": ("mesh_displacement",), "structure": ("displacement", "eta")}
+"""The names a domain's displacement field may have (the first present is used)."""
+STRUCTURE_REGIONS = {r.label: int(r) for r in (Region.WALL, Region.CAP, Region.LIPID,
+                                                Region.FLAG)}
+REGIONS = ("fluid", *STRUCTURE_REGIONS)
+COMPONENTS = ("x", "y", "magnitude")
+
+# Field name -> (label, quantity): the quantity picks the unit (:func:`_unit`).
+FIELDS = {
+    "velocity": ("velocity", "velocity"),
+    "pressure": ("pressure", "stress"),
+    "wall_shear_stress": ("wall shear stress", "stress"),
+    "viscosity": ("viscosity", "viscosity"),
+    "shear_rate": ("shear rate", "rate"),
+    "mesh_displacement": ("mesh displacement", "length"),
+    "eta": ("displacement η", "length"),
+    "displacement": ("displacement", "length"),
+    "sss": ("structural shear stress σ₁₂", "stress"),
+    "von_mises": ("von Mises stress", "stress"),
+    "max_principal": ("maximum principal stress", "stress"),
+    "region": ("region tag", "tag"),
+}
+
+
+class PlotError(ValueError):
+    """Bad input: the message names the run folder or file and the option."""
+
+
+@dataclass(frozen=True)
+class _Segment:
+    """One XDMF file: its mesh's HDF5 items and, per field, the stored times and HDF5 items
+    (``(h5 path, dataset)``) and where the values sit (``"node"`` or ``"cell"``)."""
+
+    xdmf: Path
+    topology: tuple[Path, str]
+    geometry: tuple[Path, str]
+    fields: dict[str, tuple[str, list[tuple[float, tuple[Path, str]]]]]
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """A field at one stored time, on the triangles of its mesh (all, or a region's).
+
+    ``reference`` holds every node of the file's mesh (m) and ``coordinates`` the drawn ones,
+    ``reference + warp · displacement``; ``triangles`` the kept cells (node indices) and
+    ``cells`` their indices in the file. ``values`` are per node (all nodes) when ``center`` is
+    ``"node"`` and per kept cell when it is ``"cell"``; a 2D vector field has 2 columns.
+    ``time`` is the stored time nearest to ``requested_time``; ``step`` the spacing of the
+    stored times there (0 if only one is stored)."""
+
+    run_dir: Path
+    name: str
+    domain: str
+    file: Path
+    time: float
+    requested_time: float
+    step: float
+    center: str
+    reference: np.ndarray
+    displacement: np.ndarray | None
+    warp: float
+    triangles: np.ndarray
+    cells: np.ndarray
+    values: np.ndarray
+    region: str | None
+
+    @property
+    def coordinates(self) -> np.ndarray:
+        if self.displacement is None or self.warp == 0.0:
+            return self.reference
+        return self.reference + self.warp * self.displacement
+
+    @property
+    def time_differs(self) -> bool:
+        """True if the stored time is further than half a step from the requested one."""
+        return abs(self.time - self.requested_time) > 0.5 * self.step + _time_tolerance(
+            self.time)
+
+
+def _time_tolerance(t: float) -> float:
+    """Times are written to the XDMF file as text: equal within this."""
+    return 1e-9 * max(1.0, abs(t))
+
+
+def _segments(run_dir: Path, stem: str) -> list[Path]:
+    """``<stem>.xdmf`` and the restart segments ``<stem>.restart<k>.xdmf`` by k (those that
+    exist), in the order they were written."""
+    found = [(-1, run_dir / f"{stem}.xdmf")] if (run_dir / f"{stem}.xdmf").is_file() else []
+    for path in run_dir.glob(f"{stem}.restart*.xdmf"):
+        k = path.name[len(stem) + len(".restart"):-len(".xdmf")]
+        if k.isdigit():
+            found.append((int(k), path))
+    return [path for _, path in sorted(found)]
+
+
+def _data_item(xdmf: Path, element: ET.Element | None, what: str) -> tuple[Path, str]:
+    """The HDF5 file and dataset a ``DataItem`` (``fields.h5:/Function/velocity/0_001``)
+    names."""
+    item = None if element is None else element.find("DataItem")
+    text = (item.text or "").strip() if item is not None else ""
+    if item is None or item.get("Format") != "HDF" or ":" not in text:
+        raise PlotError(f"{xdmf}: {what} is not an HDF5 data item (not a file written by "
+                        "fsi run)")
+    h5, dataset = text.rsplit(":", 1)
+    return xdmf.parent / h5, dataset
+
+
+def _read_segment(xdmf: Path) -> _Segment:
+    """The mesh and the time series of one XDMF file as dolfinx writes them."""
+    try:
+        domain = ET.parse(xdmf).getroot().find("Domain")
+    except (ET.ParseError, OSError) as e:
+        raise PlotError(f"{xdmf}: unreadable ({e})") from None
+    mesh = None if domain is None else domain.find("Grid[@GridType='Uniform']")
+    if mesh is None:
+        raise PlotError(f"{xdmf}: no mesh grid (not a file written by fsi run)")
+    topology = mesh.find("Topology")
+    if topology is None or topology.get("TopologyType", "").lower() != "triangle":
+        raise PlotError(f"{xdmf}: the mesh is not made of triangles")
+    fields: dict[str, tuple[str, list]] = {}
+    for collection in domain.findall("Grid[@GridType='Collection']"):
+        name = collection.get("Name", "")
+        center, series = "node", []
+        for grid in collection.findall("Grid"):
+            time, attribute = grid.find("Time"), grid.find("Attribute")
+            if time is None or attribute is None:
+                continue
+            try:
+                t = float(time.get("Value", ""))
+            except ValueError:
+                raise PlotError(f"{xdmf}: field {name!r} has a time that is not a number: "
+                                f"{time.get('Value')!r}") from None
+            center = attribute.get("Center", "Node").lower()
+            series.append((t, _data_item(xdmf, attribute, f"field {name!r} at t = {t:g}")))
+        if series:
+            fields[name] = (center, sorted(series, key=lambda s: s[0]))
+    return _Segment(xdmf, _data_item(xdmf, topology, "the topology"),
+                    _data_item(xdmf, mesh.find("Geometry"), "the geometry"), fields)
+
+
+def _read_array(item: tuple[Path, str], xdmf: Path) -> np.ndarray:
+    import h5py
+
+    h5, dataset = item
+    try:
+        with h5py.File(h5, "r") as f:
+            return np.asarray(f[dataset][...])
+    except KeyError:
+        raise PlotError(f"{h5}: no dataset {dataset} (named by {xdmf})") from None
+    except OSError as e:
+        raise PlotError(f"{h5}: unreadable ({e}; named by {xdmf})") from None
+
+
+def _series(run_dir: Path, stem: str) -> tuple[list[_Segment], dict[str, list]]:
+    """The segments of one field file and, per field, its stored times in order as
+    ``(t, segment, item)``: a later segment wins, i.e. its first time drops the times at and
+    after it that earlier segments stored (the steps a restart took again)."""
+    segments = [_read_segment(path) for path in _segments(run_dir, stem)]
+    merged: dict[str, list] = {}
+    for segment in segments:
+        for name, (_, series) in segment.fields.items():
+            first = series[0][0] - _time_tolerance(series[0][0])
+            kept = [entry for entry in merged.get(name, []) if entry[0] < first]
+            merged[name] = kept + [(t, segment, item) for t, item in series]
+    return segments, merged
+
+
+def pick_time(times: list[float], t: float, what: str) -> tuple[int, float]:
+    """The index of the stored time nearest to ``t`` and the spacing of the stored times
+    there (0 if only one is stored). Raises :class:`PlotError` naming ``what`` if ``t`` lies
+    outside the stored range by more than one step (by more than rounding if only one time
+    is stored)."""
+    times_a = np.asarray(times)
+    i = int(np.argmin(np.abs(times_a - t)))
+    gaps = np.diff(times_a)
+    if len(times_a) == 1:
+        step = 0.0
+    elif t <= times_a[0]:
+        step = float(gaps[0])
+    elif t >= times_a[-1]:
+        step = float(gaps[-1])
+    else:
+        j = int(np.searchsorted(times_a, t)) - 1  # times[j] < t <= times[j + 1]
+        step = float(gaps[j])
+    low, high = times_a[0] - step, times_a[-1] + step
+    if not low - _time_tolerance(low) <= t <= high + _time_tolerance(high):
+        raise PlotError(f"--time {t:g}: outside the times stored in {what} "
+                        f"({times_a[0]:g} to {times_a[-1]:g} s)")
+    return i, step
+
+
+def _find(run_dir: Path, name: str) -> tuple[str, list[_Segment], list]:
+    """The domain holding field ``name``, its segments and its merged time series."""
+    if not run_dir.is_dir():
+        raise PlotError(f"{run_dir}: no such folder")
+    available = {}
+    for domain, stem in FILES.items():
+        segments, merged = _series(run_dir, stem)
+        if name in merged:
+            return domain, segments, merged[name]
+        if segments:
+            available[segments[0].xdmf.name] = sorted(merged)
+    if not available:
+        raise PlotError(f"{run_dir}: no fields.xdmf or solid.xdmf (not a folder written by "
+                        "fsi run)")
+    listing = "; ".join(f"{file} has {', '.join(names) or 'none'}"
+                        for file, names in available.items())
+    raise PlotError(f"--field {name}: {run_dir} has no such field ({listing})")
+
+
+def read_field(run_dir: Path, name: str, t: float, *, warp: float | None = None,
+               region: str | None = None) -> Snapshot:
+    """Field ``name`` of the run in ``run_dir`` at the stored time nearest to ``t`` (in the
+    segment holding it; a later segment wins), on the triangles of ``region`` (``fluid`` for
+    a fluid field; ``wall``, ``cap``, ``lipid``, ``flag`` for a structure field, from its
+    ``region`` field; None: every triangle), with the nodes moved by ``warp`` × the
+    domain's displacement at that time (default: 1 for the fluid of a coupled run, its current
+    mesh; 0 for the structure). Raises :class:`PlotError` (naming the folder or file and the
+    option) for an unknown folder, field, region or a time outside the stored range."""
+    run_dir = Path(run_dir)
+    if not math.isfinite(t):
+        raise PlotError(f"--time {t}: not a finite number")
+    if warp is not None and not math.isfinite(warp):
+        raise PlotError(f"--warp {warp}: not a finite number")
+    if region is not None and region not in REGIONS:
+        raise PlotError(f"--region {region}: not one of {', '.join(REGIONS)}")
+    domain, segments, series = _find(run_dir, name)
+    file = segments[0].xdmf.name
+    if region is not None and (region == "fluid") != (domain == "fluid"):
+        expected = "fluid" if domain == "fluid" else "wall, cap, lipid or flag"
+        raise PlotError(f"--region {region}: {name!r} is a {domain} field ({file}): use "
+                        f"--region {expected}")
+    files = list(dict.fromkeys(entry[1].xdmf.name for entry in series))
+    i, step = pick_time([entry[0] for entry in series], t,
+                        f"{run_dir / files[0]}" + "".join(f", {f}" for f in files[1:]))
+    time, segment, item = series[i]
+    center = segment.fields[name][0]
+
+    reference = _read_array(segment.geometry, segment.xdmf)[:, :2]
+    triangles = _read_array(segment.topology, segment.xdmf).astype(np.int64)
+    values = _read_array(item, segment.xdmf)
+    values = values[:, :2] if values.ndim == 2 and values.shape[1] > 1 else values.reshape(-1)
+
+    displacement = _at_time(segment, DISPLACEMENTS[domain], time)
+    if warp is None:
+        warp = 1.0 if domain == "fluid" and displacement is not None else 0.0
+    if warp != 0.0 and displacement is None:
+        raise PlotError(f"--warp {warp:g}: {segment.xdmf} has no {DISPLACEMENTS[domain][0]} "
+                        f"field (the {domain} does not move in this run)")
+
+    cells = np.arange(len(triangles))
+    if region is not None and region != "fluid":
+        tags = _at_time(segment, ("region",), time)
+        if tags is None:
+            raise PlotError(f"--region {region}: {segment.xdmf} has no 'region' field (a run "
+                            "written before fsi run stored it)")
+        cells = np.flatnonzero(np.rint(tags).astype(np.int64) == STRUCTURE_REGIONS[region])
+        if len(cells) == 0:
+            raise PlotError(f"--region {region}: no {region} cells in {segment.xdmf}")
+        triangles = triangles[cells]
+        if center == "cell":
+            values = values[cells]
+    return Snapshot(run_dir, name, domain, segment.xdmf, time, t, step, center, reference,
+                    displacement, float(warp), triangles, cells, values, region)
+
+
+def _at_time(segment: _Segment, names: tuple[str, ...], time: float) -> np.ndarray | None:
+    """The first of ``names`` stored in ``segment`` at ``time`` (2D vectors as 2 columns,
+    scalars flat), or None if none is."""
+    for name in names:
+        for t, item in segment.fields.get(name, ("", []))[1]:
+            if abs(t - time) <= _time_tolerance(time):
+                values = _read_array(item, segment.xdmf)
+                return values[:, :2] if values.shape[1] > 1 else values.reshape(-1)
+    return None
+
+
+def _unit(quantity: str, largest: float) -> tuple[str, float]:
+    """A readable unit for values up to ``largest`` (SI) and the factor to it."""
+    if quantity == "stress":
+        for unit, size in (("MPa", 1e6), ("kPa", 1e3)):
+            if largest >= size:
+                return unit, 1.0 / size
+        return "Pa", 1.0
+    if quantity == "length":
+        return ("mm", 1e3) if largest >= 1e-3 else ("µm", 1e6)
+    return {"velocity": ("m/s", 1.0), "viscosity": ("mPa·s", 1e3), "rate": ("1/s", 1.0),
+            "tag": ("", 1.0)}.get(quantity, ("", 1.0))
+
+
+def _component(snapshot: Snapshot, component: str | None) -> tuple[np.ndarray, str]:
+    """The scalar to draw and its label's prefix."""
+    values = snapshot.values
+    if values.ndim == 1:
+        if component is not None:
+            raise PlotError(f"--component {component}: {snapshot.name!r} is a scalar field")
+        return values, ""
+    if component in (None, "magnitude"):
+        return np.linalg.norm(values, axis=1), "magnitude of the "
+    if component not in COMPONENTS:
+        raise PlotError(f"--component {component}: not one of {', '.join(COMPONENTS)}")
+    return values[:, COMPONENTS.index(component)], f"{component} component of the "
+
+
+def streamline_field(snapshot: Snapshot) -> Snapshot:
+    """The fluid velocity at the snapshot's time on the same nodes (the same warp), for
+    :func:`draw`'s streamlines. Raises :class:`PlotError` if the snapshot is not a fluid
+    field."""
+    if snapshot.domain != "fluid":
+        raise PlotError(f"--streamlines: draws the fluid velocity over a fluid field, but "
+                        f"{snapshot.name!r} is a {snapshot.domain} field ({snapshot.file.name})")
+    return read_field(snapshot.run_dir, "velocity", snapshot.time, warp=snapshot.warp)
+
+
+def title(snapshot: Snapshot) -> str:
+    """The run, the field and the stored time (and the requested one if it differs by more
+    than half a step)."""
+    label = FIELDS.get(snapshot.name, (snapshot.name, ""))[0]
+    where = f" ({snapshot.region})" if snapshot.region else ""
+    text = f"{snapshot.run_dir.resolve().name}: {label}{where} at t = {snapshot.time:.6g} s"
+    if snapshot.time_differs:
+        text += f" (nearest stored to {snapshot.requested_time:.6g} s)"
+    if snapshot.warp != 0.0:
+        text += (", current mesh" if snapshot.domain == "fluid" and snapshot.warp == 1.0
+                 else f", displacement ×{snapshot.warp:g}")
+    return text
+
+
+def check_out(path: Path) -> None:
+    """Raises :class:`PlotError` unless ``path`` can name the PNG file to write."""
+    path = Path(path)
+    if path.suffix.lower() != ".png":
+        raise PlotError(f"--out {path}: the picture's file name must end in .png")
+    if path.is_dir():
+        raise PlotError(f"--out {path}: is a folder, not a file name")
+    if path.parent.exists() and not path.parent.is_dir():
+        raise PlotError(f"--out {path}: {path.parent} is not a folder")
+
+
+def draw(snapshot: Snapshot, path: Path, *, component: str | None = None,
+         flow: Snapshot | None = None) -> Path:
+    """Write ``path`` (PNG): the field as filled contours (node values shaded between the
+    nodes, cell values flat) on the snapshot's coordinates in mm, equal aspect, with a colour
+    bar labelled with the field and its unit and the :func:`title`; with ``flow`` (the fluid
+    velocity on the same nodes, :func:`streamline_field`) its streamlines over it, the velocity
+    interpolated linearly on a regular grid and masked outside the fluid mesh. The file appears
+    complete or not at all (written under another name, then renamed). Raises
+    :class:`PlotError` for a bad ``component`` or ``path`` before anything is written, OSError
+    if the file cannot be written."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import matplotlib.tri as mtri
+
+    path = Path(path)
+    check_out(path)
+    values, prefix = _component(snapshot, component)
+    label, quantity = FIELDS.get(snapshot.name, (snapshot.name, ""))
+    used = np.unique(snapshot.triangles)
+    shown = values[used] if snapshot.center == "node" else values
+    unit, scale = _unit(quantity, float(np.max(np.abs(shown))) if len(shown) else 0.0)
+    values, shown = values * scale, shown * scale
+    low, high = float(np.min(shown)), float(np.max(shown))
+    cmap = "viridis"
+    if low < 0.0 < high and quantity != "tag":  # signed: zero in the middle, white
+        low, high, cmap = -max(-low, high), max(-low, high), "RdBu_r"
+    if low == high:
+        low, high = low - 1.0, high + 1.0
+
+    xy = snapshot.coordinates * 1e3  # mm
+    triangulation = mtri.Triangulation(xy[:, 0], xy[:, 1], snapshot.triangles)
+    lo, hi = xy[used].min(axis=0), xy[used].max(axis=0)
+    aspect = (hi[1] - lo[1]) / max(hi[0] - lo[0], 1e-30)
+    fig, ax = plt.subplots(figsize=(9.0, min(max(9.0 * aspect + 1.6, 3.0), 9.0)),
+                           layout="constrained")
+    if snapshot.center == "node":
+        image = ax.tripcolor(triangulation, values, shading="gouraud", cmap=cmap, vmin=low,
+                             vmax=high)
+    else:
+        image = ax.tripcolor(triangulation, facecolors=values, cmap=cmap, vmin=low, vmax=high)
+    if flow is not None:
+        _streamlines(ax, flow, lo, hi)
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_title(title(snapshot), fontsize=9)
+    wide = aspect < 0.6  # a wide picture: the colour bar below it
+    bar = fig.colorbar(image, ax=ax, label=f"{prefix}{label}" + (f" ({unit})" if unit else ""),
+                       location="bottom" if wide else "right", shrink=0.6 if wide else 0.9,
+                       aspect=40 if wide else 20)
+    if quantity == "tag":  # name the regions present
+        tags = [int(tag) for tag in np.unique(np.rint(shown))]
+        bar.set_ticks(tags)
+        bar.set_ticklabels([Region(tag).label if tag in set(Region) else str(tag)
+                            for tag in tags])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_name(path.name + ".partial")
+    try:
+        fig.savefig(partial, dpi=150, format="png")
+        os.replace(partial, path)
+    finally:
+        plt.close(fig)
+        partial.unlink(missing_ok=True)
+    return path
+
+
+def _streamlines(ax, flow: Snapshot, lo: np.ndarray, hi: np.ndarray) -> None:
+    """The velocity's streamlines over ``ax`` between the corners ``lo`` and ``hi`` (mm)."""
+    import matplotlib.tri as mtri
+
+    xy = flow.coordinates * 1e3
+    triangulation = mtri.Triangulation(xy[:, 0], xy[:, 1], flow.triangles)
+    nx = 400
+    ny = max(int(nx * (hi[1] - lo[1]) / max(hi[0] - lo[0], 1e-30)), 20)
+    x, y = np.linspace(lo[0], hi[0], nx), np.linspace(lo[1], hi[1], ny)
+    grid_x, grid_y = np.meshgrid(x, y)
+    u = [mtri.LinearTriInterpolator(triangulation, flow.values[:, k])(grid_x, grid_y)
+         for k in range(2)]
+    ax.streamplot(x, y, u[0], u[1], density=(2.0, max(2.0 * ny / nx, 0.6)), color="k",
+                  linewidth=0.5, arrowsize=0.6)
+
+
+def field_snapshot(run_dir: Path, field: str, t: float, path: Path, *,
+                   warp: float | None = None, region: str | None = None,
+                   streamlines: bool = False, component: str | None = None) -> Path:
+    """:func:`read_field` then :func:`draw` (with the velocity's streamlines if asked):
+    writes ``path`` and returns it."""
+    check_out(Path(path))
+    snapshot = read_field(run_dir, field, t, warp=warp, region=region)
+    flow = streamline_field(snapshot) if streamlines else None
+    return draw(snapshot, path, component=component, flow=flow)

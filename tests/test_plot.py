@@ -1,0 +1,223 @@
+"""``fsi plot``: field pictures from a run's XDMF/HDF5 files, checked against the files read
+directly with h5py."""
+
+import shutil
+import tempfile
+from pathlib import Path
+
+from mpi4py import MPI
+
+import h5py
+import numpy as np
+import pytest
+
+from fsi import cli, plot
+
+PNG = b"\x89PNG\r\n\x1a\n"
+CASE = "configs/stenosis_moving_newtonian.yaml"
+
+
+def steps_to(t_end: float) -> list[str]:
+    return ["--set", f"time.end={t_end}", "--set", f"time.schedule=[{{until: {t_end}, dt: 0.001}}]"]
+
+
+@pytest.fixture(scope="module")
+def run_dir():
+    """A coupled moving-wall run of 2 steps (t = 0.001, 0.002), restarted from its checkpoint
+    at step 2 for one more step: ``fields.xdmf``/``solid.xdmf`` hold t = 0, 0.001, 0.002 and
+    the restart segments ``*.restart2.xdmf`` hold t = 0.002 (again) and 0.003."""
+    comm = MPI.COMM_WORLD
+    path = Path(comm.bcast(tempfile.mkdtemp(prefix="fsi-test-") if comm.rank == 0 else None))
+    out = path / "moving"
+    assert cli.main(["run", CASE, "--out", str(out), *steps_to(0.002)]) == 0
+    assert cli.main(["run", CASE, "--out", str(out), "--restart", str(out), *steps_to(0.003)]) == 0
+    yield out
+    comm.barrier()
+    if comm.rank == 0:
+        shutil.rmtree(path, ignore_errors=True)
+
+
+def stored(h5: Path, name: str, t: float) -> np.ndarray:
+    """Field ``name`` at time ``t`` read directly from an HDF5 file dolfinx wrote (datasets
+    named by the time with '_' for '.')."""
+    with h5py.File(h5, "r") as f:
+        group = f[f"Function/{name}"]
+        keys = [k for k in group if abs(float(k.replace("_", ".")) - t) < 1e-12]
+        assert len(keys) == 1, (h5, name, t, list(group))
+        return group[keys[0]][...]
+
+
+def mesh(h5: Path) -> tuple[np.ndarray, np.ndarray]:
+    with h5py.File(h5, "r") as f:
+        return f["Mesh/mesh/geometry"][...], f["Mesh/mesh/topology"][...]
+
+
+def draw(run_dir: Path, name: str, *options: str) -> Path:
+    """``fsi plot`` on every rank; the picture's path (written by rank 0)."""
+    out = run_dir.parent / f"{name}.png"
+    assert cli.main(["plot", str(run_dir), "--out", str(out), *options]) == 0
+    return out
+
+
+def is_png(path: Path) -> bool:
+    return path.read_bytes()[:8] == PNG
+
+
+def test_a_fluid_field_is_drawn_with_the_values_of_the_file(run_dir):
+    out = draw(run_dir, "pressure", "--field", "pressure", "--time", "0.001")
+    snapshot = plot.read_field(run_dir, "pressure", 0.001)
+    pressure = stored(run_dir / "fields.h5", "pressure", 0.001)
+    assert snapshot.file.name == "fields.xdmf" and snapshot.time == pytest.approx(0.001)
+    assert snapshot.values.shape == (len(pressure),)
+    assert snapshot.values.max() == pressure.max() and snapshot.values.min() == pressure.min()
+    assert np.any(pressure != 0.0)
+    # The fluid of a coupled run is drawn on its current mesh: reference + mesh displacement.
+    reference, triangles = mesh(run_dir / "fields.h5")
+    d = stored(run_dir / "fields.h5", "mesh_displacement", 0.001)[:, :2]
+    assert np.abs(d).max() > 0.0
+    assert snapshot.warp == 1.0
+    np.testing.assert_array_equal(snapshot.coordinates, reference + d)
+    np.testing.assert_array_equal(snapshot.triangles, triangles)
+    if MPI.COMM_WORLD.rank == 0:
+        assert is_png(out)
+
+
+def test_a_structure_field_is_drawn_warped(run_dir):
+    out = draw(run_dir, "sss-warped", "--field", "sss", "--time", "0.003", "--warp", "100")
+    snapshot = plot.read_field(run_dir, "sss", 0.003, warp=100.0)
+    h5 = run_dir / "solid.restart2.h5"  # t = 0.003 is in the restarted segment only
+    assert snapshot.file.name == "solid.restart2.xdmf"
+    reference, _ = mesh(h5)
+    eta = stored(h5, "eta", 0.003)[:, :2]
+    assert np.abs(eta).max() > 1e-6
+    np.testing.assert_allclose(snapshot.coordinates, reference + 100.0 * eta, rtol=0,
+                               atol=1e-15)
+    sss = stored(h5, "sss", 0.003).reshape(-1)
+    assert snapshot.center == "cell" and snapshot.values.max() == sss.max()
+    # The structure's default is its reference shape.
+    np.testing.assert_array_equal(plot.read_field(run_dir, "sss", 0.003).coordinates, reference)
+    if MPI.COMM_WORLD.rank == 0:
+        assert is_png(out)
+        # The function the report calls: the same picture from Python.
+        api = run_dir.parent / "api.png"
+        assert plot.field_snapshot(run_dir, "sss", 0.003, api, warp=100.0) == api
+        assert is_png(api)
+
+
+def test_a_region_keeps_only_its_cells(run_dir):
+    out = draw(run_dir, "sss-cap", "--field", "sss", "--time", "0.002", "--region", "cap")
+    snapshot = plot.read_field(run_dir, "sss", 0.002, region="cap")
+    h5 = run_dir / "solid.restart2.h5"  # t = 0.002 is in both segments: the later one wins
+    assert snapshot.file.name == "solid.restart2.xdmf"
+    tags = stored(h5, "region", 0.002).reshape(-1)
+    _, triangles = mesh(h5)
+    assert set(np.unique(tags)) == {2.0, 3.0, 4.0}
+    assert np.all(tags[snapshot.cells] == 3.0)
+    assert len(snapshot.cells) == np.count_nonzero(tags == 3.0)
+    np.testing.assert_array_equal(snapshot.triangles, triangles[tags == 3.0])
+    np.testing.assert_array_equal(snapshot.values,
+                                  stored(h5, "sss", 0.002).reshape(-1)[tags == 3.0])
+    if MPI.COMM_WORLD.rank == 0:
+        assert is_png(out)
+
+
+def test_streamlines_are_drawn_over_a_fluid_field(run_dir):
+    plain = draw(run_dir, "velocity", "--field", "velocity", "--time", "0.003")
+    lines = draw(run_dir, "velocity-streamlines", "--field", "velocity", "--time", "0.003",
+                 "--streamlines")
+    snapshot = plot.read_field(run_dir, "velocity", 0.003)
+    flow = plot.streamline_field(snapshot)
+    u = stored(run_dir / "fields.restart2.h5", "velocity", 0.003)
+    assert u.shape[1] == 3 and not np.any(u[:, 2])  # 2D vectors stored with 3 components
+    np.testing.assert_array_equal(flow.values, u[:, :2])
+    np.testing.assert_array_equal(flow.coordinates, snapshot.coordinates)
+    if MPI.COMM_WORLD.rank == 0:
+        assert is_png(lines) and is_png(plain)
+        assert lines.read_bytes() != plain.read_bytes()
+
+
+def test_the_nearest_stored_time_is_taken_and_said(run_dir, capsys):
+    assert plot.read_field(run_dir, "pressure", 0.0014).time == pytest.approx(0.001)
+    assert not plot.read_field(run_dir, "pressure", 0.0014).time_differs
+    beyond = plot.read_field(run_dir, "pressure", 0.0038)  # within a step of the last time
+    assert beyond.time == pytest.approx(0.003) and beyond.time_differs
+    assert "nearest stored to 0.0038 s" in plot.title(beyond)
+    capsys.readouterr()
+    draw(run_dir, "beyond", "--field", "pressure", "--time", "0.0038")
+    if MPI.COMM_WORLD.rank == 0:
+        assert "pressure is stored at t = 0.003 s, the nearest to --time 0.0038" in (
+            capsys.readouterr().out)
+
+
+@pytest.mark.parametrize("times, t, expected", [
+    ([0.0, 0.001, 0.002], 0.0012, (1, 0.001)),
+    ([0.0, 0.001, 0.003], 0.0025, (2, 0.002)),
+    ([0.0, 0.001, 0.002], -0.001, (0, 0.001)),
+    ([0.0, 0.001, 0.002], 0.003, (2, 0.001)),
+    ([0.5], 0.5, (0, 0.0)),
+])
+def test_pick_time(times, t, expected):
+    i, step = plot.pick_time(times, t, "f.xdmf")
+    assert (i, step) == (expected[0], pytest.approx(expected[1]))
+
+
+@pytest.mark.parametrize("times, t", [([0.0, 0.001], 0.0021), ([0.0, 0.001], -0.0011),
+                                      ([0.5], 0.5001)])
+def test_pick_time_refuses_a_time_outside_the_stored_range(times, t):
+    with pytest.raises(plot.PlotError, match=r"--time .*outside the times stored in f\.xdmf"):
+        plot.pick_time(times, t, "f.xdmf")
+
+
+BAD = [
+    (["--field", "nope", "--time", "0.001"],
+     "--field nope: {run} has no such field (fields.xdmf has mesh_displacement, pressure, "
+     "shear_rate, velocity, viscosity, wall_shear_stress; solid.xdmf has eta, max_principal, "
+     "region, sss, von_mises)"),
+    (["--field", "sss", "--time", "0.001", "--region", "fluid"],
+     "--region fluid: 'sss' is a structure field (solid.xdmf): use --region wall, cap, lipid "
+     "or flag"),
+    (["--field", "velocity", "--time", "0.001", "--region", "cap"],
+     "--region cap: 'velocity' is a fluid field (fields.xdmf): use --region fluid"),
+    (["--field", "velocity", "--time", "0.0041"],
+     "--time 0.0041: outside the times stored in {run}/fields.xdmf, fields.restart2.xdmf "
+     "(0 to 0.003 s)"),
+    (["--field", "velocity", "--time", "-0.0011"],
+     "--time -0.0011: outside the times stored in {run}/fields.xdmf, fields.restart2.xdmf "
+     "(0 to 0.003 s)"),
+    (["--field", "sss", "--time", "0.001", "--region", "flag"],
+     "--region flag: no flag cells in {run}/solid.xdmf"),
+    (["--field", "pressure", "--time", "0.001", "--component", "x"],
+     "--component x: 'pressure' is a scalar field"),
+    (["--field", "sss", "--time", "0.001", "--streamlines"],
+     "--streamlines: draws the fluid velocity over a fluid field, but 'sss' is a structure "
+     "field (solid.xdmf)"),
+    (["--field", "sss", "--time", "nan"], "--time nan: not a finite number"),
+    (["--field", "sss", "--time", "0.001", "--warp", "inf"], "--warp inf: not a finite number"),
+]
+
+
+@pytest.mark.parametrize("options, message", BAD)
+def test_bad_input_is_refused_with_one_line_and_nothing_written(run_dir, options, message,
+                                                                capsys):
+    out = run_dir.parent / "refused" / "bad.png"
+    assert cli.main(["plot", str(run_dir), *options, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    if MPI.COMM_WORLD.rank == 0:
+        assert err == f"fsi: error: {message.format(run=run_dir)}\n"
+    assert not out.parent.exists()
+
+
+def test_a_missing_or_foreign_folder_and_a_bad_out_are_refused(run_dir, capsys):
+    out = run_dir.parent / "refused" / "bad.png"
+    missing = run_dir.parent / "missing"
+    cases = [([str(missing), "--out", str(out)], f"{missing}: no such folder"),
+             ([str(run_dir / "checkpoint"), "--out", str(out)],
+              f"{run_dir / 'checkpoint'}: no fields.xdmf or solid.xdmf (not a folder written "
+              "by fsi run)"),
+             ([str(run_dir), "--out", str(out.with_suffix(".jpg"))],
+              f"--out {out.with_suffix('.jpg')}: the picture's file name must end in .png")]
+    for arguments, message in cases:
+        assert cli.main(["plot", *arguments, "--field", "velocity", "--time", "0"]) == 2
+        if MPI.COMM_WORLD.rank == 0:
+            assert capsys.readouterr().err == f"fsi: error: {message}\n"
+    assert not out.parent.exists()
