@@ -1,5 +1,5 @@
-"""The command line: ``fsi run``, ``fsi mesh``, ``fsi check``, ``fsi report`` (``python -m fsi``
-is the same).
+"""The command line: ``fsi run``, ``fsi mesh``, ``fsi check``, ``fsi report``, ``fsi plot``
+(``python -m fsi`` is the same).
 
 Exit status (docs/reliability.md): 0 done; 1 an internal error (a bug: a traceback); 2 the
 configuration, the command line, ``--out`` or the checkpoint to restart from is wrong (nothing is

@@ -33,12 +33,15 @@ P(t)), and a group's magnitude is its largest |value|. The plot is
 from __future__ import annotations
 
 import json
+import logging
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from fsi import config, io
+
+log = logging.getLogger("fsi")
 
 
 class ReportError(ValueError):
@@ -477,5 +480,39 @@ def write(runs: Sequence[Run], out: Path, times: Sequence[float] | None = None) 
             pictures.append(path)
             note = SCALE_NOTES[scale].format(group=figure.group, ratio=MAGNITUDE_RATIO)
             captions.append((path.name, figure.caption + note))
+    for path, caption in snapshots(runs, out, times):
+        pictures.append(path)
+        captions.append((path.name, caption))
     (out / "report.md").write_text(markdown(runs, times, captions))
     return [out / "report.md", *pictures]
+
+
+def snapshots(runs: Sequence[Run], out: Path,
+              times: Sequence[float] | None = None) -> list[tuple[Path, str]]:
+    """Field pictures (fsi/plot.py) at the report times of every run that has field files:
+    the structural shear stress σ₁₂ on the structure (``<run>_sss_t<T>.png``) and the velocity
+    with its streamlines on the current fluid mesh (``<run>_velocity_t<T>.png``). A time the
+    run has not reached is skipped. Returns (file, caption) pairs."""
+    from fsi import plot
+
+    written = []
+    for run in runs:
+        report_times = list(times if times is not None else run.case.output.report_times)
+        last = run.rows[-1]["t"] if run.rows else -math.inf
+        pictures = [("sss", "solid.xdmf", {}, "structural shear stress σ₁₂ on the structure"),
+                    ("velocity", "fields.xdmf", {"streamlines": True},
+                     "velocity and streamlines on the current fluid mesh")]
+        for field, file, options, what in pictures:
+            if not (run.path / file).is_file():
+                continue
+            for t in report_times:
+                if t > last * (1 + 1e-9):
+                    continue
+                path = out / f"{run.path.name}_{field}_t{t:g}.png"
+                try:
+                    plot.field_snapshot(run.path, field, t, path, **options)
+                except plot.PlotError as e:  # a run written before the field existed
+                    log.warning("fsi report: no %s: %s", path.name, e)
+                    continue
+                written.append((path, f"{run.label}: {what} at t = {t:g} s"))
+    return written

@@ -221,3 +221,16 @@ def test_a_missing_or_foreign_folder_and_a_bad_out_are_refused(run_dir, capsys):
         if MPI.COMM_WORLD.rank == 0:
             assert capsys.readouterr().err == f"fsi: error: {message}\n"
     assert not out.parent.exists()
+
+
+def test_fsi_report_includes_snapshots_at_the_report_times(run_dir):
+    """``fsi report --out`` draws σ₁₂ on the structure and the velocity with streamlines at
+    each report time the run has reached, and lists them in report.md."""
+    out = run_dir.parent / "report"
+    assert cli.main(["report", str(run_dir), "--out", str(out), "--times", "0.002", "0.5"]) == 0
+    if MPI.COMM_WORLD.rank == 0:
+        name = run_dir.name
+        for field in ("sss", "velocity"):
+            assert is_png(out / f"{name}_{field}_t0.002.png")
+            assert not (out / f"{name}_{field}_t0.5.png").exists()  # not reached
+            assert f"{name}_{field}_t0.002.png" in (out / "report.md").read_text()
