@@ -1,0 +1,407 @@
+"""docs/study.md and docs/figures/study_*.png from the run folders of scripts/reproduce_study.py.
+
+Every number in the document is read from the runs' metrics.csv, summary.json and field files
+when it is written; the verdicts on the study's findings (MODEL.md §6) are comparisons of those
+numbers, with the thresholds stated next to them. A run that is missing or unfinished shows as
+'–' (and is listed), so the document can be written at any stage.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from fsi import report
+
+TIMES = (0.01, 0.02, 0.05, 0.1, 0.8)
+QUANTITIES = [("peak_velocity", "Table 1: peak velocity", "m/s", 1.0),
+              ("peak_pressure", "Table 2: peak pressure", "Pa", 1.0),
+              ("peak_displacement", "Table 3: peak displacement", "µm", 1.0e6)]
+LABELS = {"fixed_newtonian": "fixed wall, Newtonian", "fixed_carreau": "fixed wall, Carreau",
+          "moving_newtonian": "moving wall, Newtonian", "moving_carreau": "moving wall, Carreau"}
+CONFIGS = list(LABELS)
+
+
+def load(folder: Path, runs) -> dict[str, report.Run]:
+    """The runs there are (finished or not), by name."""
+    loaded = {}
+    for run in runs:
+        path = folder / run.name
+        if (path / "metrics.csv").is_file():
+            loaded[run.name] = report.load_run(path)
+    return loaded
+
+
+def finished(run: report.Run | None) -> bool:
+    return run is not None and bool(run.rows) and abs(run.rows[-1]["t"] - 0.8) < 1e-9
+
+
+def value(run: report.Run | None, t: float, column: str) -> float | None:
+    return None if run is None else report.value_at(run.rows, t, column)
+
+
+def series_max(run: report.Run | None, column: str) -> tuple[float, float] | None:
+    """(max over the run, its time) of ``column``."""
+    if run is None:
+        return None
+    rows = [r for r in run.rows if column in r]
+    if not rows:
+        return None
+    best = max(rows, key=lambda r: r[column])
+    return best[column], best["t"]
+
+
+def plaque_max(row: dict) -> float | None:
+    values = [row[c] for c in ("max_sss_cap", "max_sss_lipid") if c in row]
+    return max(values) if values else None
+
+
+def fmt(x: float | None, digits: int = 4) -> str:
+    return "–" if x is None or not math.isfinite(x) else f"{x:.{digits}g}"
+
+
+def change(coarse: float | None, fine: float | None) -> str:
+    if coarse is None or fine is None or coarse == 0:
+        return "–"
+    return f"{100 * (fine - coarse) / abs(coarse):+.1f} %"
+
+
+# --------------------------------------------------------------------------------------------
+# Tables
+
+
+def peak_table(runs: dict, column: str, unit: str, scale: float) -> str:
+    head = "| t (s) | " + " | ".join(f"{LABELS[c]}: coarse | fine | change" for c in CONFIGS)
+    lines = [head + " |", "|---" * (1 + 3 * len(CONFIGS)) + "|"]
+    for t in TIMES:
+        cells = []
+        for c in CONFIGS:
+            coarse = value(runs.get(f"{c}_coarse"), t, column)
+            fine = value(runs.get(f"{c}_fine"), t, column)
+            cells += [fmt(None if coarse is None else scale * coarse),
+                      fmt(None if fine is None else scale * fine), change(coarse, fine)]
+        lines.append(f"| {t:g} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def printed_table(runs: dict) -> str:
+    lines = ["| t (s) | " + " | ".join(f"{LABELS[c]}: |u| (m/s), p (Pa), |η| (µm)"
+                                         for c in CONFIGS) + " |",
+             "|---" * (1 + len(CONFIGS)) + "|"]
+    for t in TIMES:
+        cells = []
+        for c in CONFIGS:
+            run = runs.get(f"{c}_coarse_printed")
+            u, p, d = (value(run, t, k) for k in ("peak_velocity", "peak_pressure",
+                                                  "peak_displacement"))
+            cells.append(f"{fmt(u)}, {fmt(p)}, {fmt(None if d is None else 1e6 * d)}")
+        lines.append(f"| {t:g} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def effort_table(runs: dict, order: Sequence[str]) -> str:
+    lines = ["| run | steps | simulated (s) | ranks | coupling its/step | wall time (s) |",
+             "|---|---|---|---|---|---|"]
+    for name in order:
+        run = runs.get(name)
+        if run is None:
+            lines.append(f"| {name} | not run | | | | |")
+            continue
+        its = [r["coupling_iterations"] for r in run.rows if "coupling_iterations" in r]
+        wall = sum(r.get("wall_time_s", 0.0) for r in run.rows)
+        state = "" if finished(run) else " (unfinished)"
+        lines.append(f"| {name} | {len(run.rows)}{state} | {fmt(run.rows[-1]['t'] if run.rows else None)}"
+                     f" | {run.summary.get('ranks', '–')} | {fmt(sum(its) / len(its) if its else None, 3)}"
+                     f" | {wall:.0f} |")
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------------------------
+# Figures
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def figure_sss(runs: dict, path: Path) -> Path:
+    """Figure 6: the largest |σ₁₂| over time in the plaque (cap and lipid, as the study plots
+    it) and in the whole structure, log scale (fixed-wall values are ~50× below moving-wall
+    ones); coarse solid, fine dashed."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True, layout="constrained")
+    for ax, (title, get) in zip(axes, [("plaque (cap + lipid)", plaque_max),
+                                       ("whole structure", lambda r: r.get("max_sss"))]):
+        for k, c in enumerate(CONFIGS):
+            for level, style in (("coarse", "-"), ("fine", "--")):
+                run = runs.get(f"{c}_{level}")
+                if run is None:
+                    continue
+                pts = [(r["t"], get(r)) for r in run.rows if get(r) is not None and get(r) > 0]
+                if pts:
+                    ax.plot(*zip(*pts), style, color=f"C{k}", lw=1.2,
+                            label=f"{LABELS[c]}, {level}")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("t (s)")
+        ax.set_title(title)
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel("max |σ₁₂| (Pa)")
+    axes[1].legend(fontsize=7)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
+
+
+def figure_convergence(runs: dict, path: Path) -> Path:
+    """The coarse → fine change of the three peaks at the report times, per configuration."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), layout="constrained")
+    for ax, (column, title, _, _) in zip(axes, QUANTITIES):
+        for k, c in enumerate(CONFIGS):
+            pts = []
+            for t in TIMES:
+                coarse = value(runs.get(f"{c}_coarse"), t, column)
+                fine = value(runs.get(f"{c}_fine"), t, column)
+                if coarse and fine is not None:
+                    pts.append((t, 100 * (fine - coarse) / abs(coarse)))
+            if pts:
+                ax.plot(*zip(*pts), "o-", color=f"C{k}", label=LABELS[c])
+        ax.axhline(0, color="k", lw=0.6)
+        ax.set_xscale("log")
+        ax.set_xlabel("t (s)")
+        ax.set_title(title.split(": ")[1])
+        ax.grid(True, alpha=0.3)
+    axes[0].set_ylabel("fine − coarse (% of coarse)")
+    axes[-1].legend(fontsize=7)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
+
+
+RECIRCULATION_TIME = 0.1
+"""Figure 9's time: the recirculation zone is developed (about 6 mm long in every run)."""
+
+
+def best(runs: dict, c: str) -> report.Run | None:
+    """The fine run of configuration ``c`` if it finished, else the coarse one."""
+    fine = runs.get(f"{c}_fine")
+    return fine if finished(fine) else runs.get(f"{c}_coarse")
+
+
+def field_figures(runs: dict, figures: Path) -> list[tuple[str, Path]]:
+    """Figures 7–9 from the field files (fsi/plot.py): σ₁₂ on the deformed structure of each
+    configuration at the time of its largest SSS, the displacement ×100 as in the study (×10
+    for the moving wall, whose 0.1–0.2 mm displacement ×100 would fold the 1 mm wall across the
+    7 mm lumen); the velocity's streamlines at t = RECIRCULATION_TIME and the wall shear stress
+    along the diseased wall."""
+    from fsi import plot
+
+    out = []
+    for c in CONFIGS:
+        run = best(runs, c)
+        peak = series_max(run, "max_sss")
+        if peak is None:
+            continue
+        warp = 10.0 if c.startswith("moving") else 100.0
+        path = figures / f"study_sss_{c}.png"
+        plot.field_snapshot(run.path, "sss", peak[1], path, warp=warp)
+        out.append((f"Figure {7 if c.startswith('fixed') else 8}: σ₁₂ on the structure, "
+                    f"displacement ×{warp:g}, {LABELS[c]} ({run.path.name}), t = {peak[1]:.4g} s "
+                    f"(its largest SSS, {peak[0]:.4g} Pa)", path))
+    for c in ("fixed_newtonian", "moving_newtonian"):
+        run = best(runs, c)
+        if run is None or run.rows[-1]["t"] < RECIRCULATION_TIME:
+            continue
+        path = figures / f"study_streamlines_{c}.png"
+        plot.field_snapshot(run.path, "velocity", RECIRCULATION_TIME, path, streamlines=True)
+        out.append((f"Figure 9: velocity and streamlines, {LABELS[c]} ({run.path.name}), "
+                    f"t = {RECIRCULATION_TIME:g} s", path))
+    wss = figure_wall_shear(runs, figures / "study_figure9_wss.png")
+    if wss is not None:
+        out.append((f"Figure 9: wall shear stress along the diseased (lower) wall at t = "
+                    f"{RECIRCULATION_TIME:g} s; negative where the flow next to the wall "
+                    "reverses (the recirculation zone)", wss))
+    return out
+
+
+def boundary_nodes(triangles: np.ndarray) -> np.ndarray:
+    """The nodes on the boundary of a triangulation: those of edges that belong to one
+    triangle only."""
+    edges = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]],
+                                    triangles[:, [2, 0]]]), axis=1)
+    unique, count = np.unique(edges, axis=0, return_counts=True)
+    return np.unique(unique[count == 1])
+
+
+def figure_wall_shear(runs: dict, path: Path) -> Path | None:
+    """The signed wall shear stress along the lower wall (the plaque's side) against x, one
+    line per configuration, at t = RECIRCULATION_TIME."""
+    from fsi import plot
+
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(8, 3.6), layout="constrained")
+    drawn = False
+    for k, c in enumerate(CONFIGS):
+        run = best(runs, c)
+        if run is None or run.rows[-1]["t"] < RECIRCULATION_TIME:
+            continue
+        snap = plot.read_field(run.path, "wall_shear_stress", RECIRCULATION_TIME)
+        x, y = snap.coordinates[:, 0], snap.coordinates[:, 1]
+        nodes = boundary_nodes(snap.triangles)
+        lower = nodes[(y[nodes] < 0.5 * (y.min() + y.max())) & (x[nodes] > x.min())
+                      & (x[nodes] < x.max())]  # not the inlet's and outlet's corners
+        order = np.argsort(x[lower])
+        ax.plot(1e3 * x[lower][order], snap.values[lower][order], color=f"C{k}", lw=1.2,
+                label=f"{LABELS[c]} ({run.path.name})")
+        drawn = True
+    if not drawn:
+        plt.close(fig)
+        return None
+    ax.axhline(0, color="k", lw=0.6)
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("wall shear stress (Pa)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
+
+
+# --------------------------------------------------------------------------------------------
+# Findings
+
+
+PULSE_AMPLITUDE = 1200.0  # Pa, the shipped configs' peak inlet pressure (MODEL.md §2)
+
+
+def load_reason(newtonian: report.Run | None, carreau: report.Run | None) -> str:
+    """Why the rheology barely changes the structure's load: the wall shear stresses during
+    the pulse against the inlet pressure."""
+    def pulse_wss(run):
+        values = [max(abs(r["min_wss"]), abs(r["max_wss"])) for r in run.rows
+                  if r["t"] <= 0.01 and "max_wss" in r]
+        return max(values) if values else None
+
+    if newtonian is None or carreau is None:
+        return ""
+    wn, wc = pulse_wss(newtonian), pulse_wss(carreau)
+    if wn is None or wc is None:
+        return ""
+    return (f" Why we differ: the structure is loaded by the blood's pressure and its "
+            f"viscous traction; the pressure, up to {PULSE_AMPLITUDE:g} Pa during the 5 ms pulse, "
+            "is set by the inlet and the same for both rheologies, while the largest wall shear "
+            f"stress in the first 10 ms is {wn:.3g} Pa (Newtonian) and {wc:.3g} Pa (Carreau): "
+            f"the viscous part differs by {abs(wn - wc):.2g} Pa, "
+            f"{100 * abs(wn - wc) / PULSE_AMPLITUDE:.2g} % of the pressure. At the shear rates "
+            "of the pulse (hundreds per second) Carreau's viscosity is within about 10 % of the "
+            "Newtonian 3.5 mPa·s, so the two runs load the wall alike. A study that finds a "
+            "large difference must have loaded the wall differently (e.g. by a flow rate "
+            "instead of a pressure, or with a Carreau viscosity near μ0).")
+
+
+def findings(runs: dict) -> list[str]:
+    """The study's qualitative findings (MODEL.md §6), each with our numbers and a verdict.
+    Fine-mesh runs where finished, else coarse."""
+
+    def pick(c: str) -> report.Run | None:
+        return best(runs, c)
+
+    def peak(c: str, column: str) -> float | None:
+        found = series_max(pick(c), column)
+        return None if found is None else found[0]
+
+    def mesh(c: str) -> str:
+        run = pick(c)
+        return "–" if run is None else run.path.name
+
+    out = []
+    fn, fc = peak("fixed_newtonian", "max_sss"), peak("fixed_carreau", "max_sss")
+    if fn and fc:
+        ratio = fn / fc
+        verdict = ("confirmed" if 1.0 <= ratio <= 1.1 else
+                   "partly: nearly the same, but Carreau is higher" if 0.9 <= ratio < 1.0 else
+                   "refuted")
+        out.append(f"**Fixed wall: Newtonian and Carreau give nearly the same SSS, Newtonian "
+                   f"slightly higher.** Largest SSS over the heartbeat: Newtonian {fn:.4g} Pa "
+                   f"({mesh('fixed_newtonian')}), Carreau {fc:.4g} Pa ({mesh('fixed_carreau')}); "
+                   f"ratio {ratio:.4f} — {verdict} (confirmed if 1 ≤ ratio ≤ 1.1).")
+    mn, mc = peak("moving_newtonian", "max_sss"), peak("moving_carreau", "max_sss")
+    dn, dc = (peak("moving_newtonian", "peak_displacement"),
+              peak("moving_carreau", "peak_displacement"))
+    if mn and mc and dn and dc:
+        ratio, dratio = mn / mc, dn / dc
+        verdict = "confirmed" if ratio > 1.5 and dratio > 1.0 else "refuted"
+        out.append(f"**Moving wall: the Newtonian SSS maximum greatly exceeds the Carreau one, "
+                   f"and the Newtonian displacements are larger.** Largest SSS: Newtonian "
+                   f"{mn:.4g} Pa, Carreau {mc:.4g} Pa (ratio {ratio:.4f}); largest displacement: "
+                   f"Newtonian {1e6 * dn:.4g} µm, Carreau {1e6 * dc:.4g} µm (ratio {dratio:.4f}) "
+                   f"— {verdict} (confirmed if the SSS ratio > 1.5 and the displacement ratio "
+                   "> 1)." + load_reason(pick("moving_newtonian"), pick("moving_carreau")))
+    rf = [peak(c, "recirculation_length") for c in ("fixed_newtonian", "fixed_carreau")]
+    rm = [peak(c, "recirculation_length") for c in ("moving_newtonian", "moving_carreau")]
+    if all(rf + rm):
+        spread = (max(rf + rm) - min(rf + rm)) / max(rf + rm)
+        verdict = "confirmed" if spread < 0.1 else "refuted"
+        out.append(f"**The recirculation downstream is the same for fixed and moving walls.** "
+                   f"Longest reversed-flow zone over the heartbeat: fixed {1e3 * rf[0]:.3g} / "
+                   f"{1e3 * rf[1]:.3g} mm (Newtonian / Carreau), moving {1e3 * rm[0]:.3g} / "
+                   f"{1e3 * rm[1]:.3g} mm; spread {100 * spread:.1f} % — {verdict} (confirmed "
+                   "if within 10 %).")
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+
+
+def write(folder: Path, study_runs, docs: Path) -> Path:
+    figures = docs / "figures"
+    figures.mkdir(parents=True, exist_ok=True)
+    runs = load(folder, study_runs)
+    names = [r.name for r in study_runs]
+    missing = [n for n in names if not finished(runs.get(n))]
+    parts = ["# The study reproduced\n",
+             "Generated by `scripts/reproduce_study.py` from the runs in "
+             f"`{folder.name}/` (every number below is read from them). The four "
+             "configurations of MODEL.md §4 on the coarse and the fine mesh, the whole heartbeat "
+             "(0.8 s), with the shipped configs' resolved schedule (0.25 ms steps to 50 ms, 1 ms "
+             "to 0.1 s, 5 ms to 0.8 s: docs/wall-damping.md), on 2 MPI ranks; and the study's "
+             "printed schedule (5 ms to 0.4 s, 10 ms to 0.8 s) on the coarse mesh.\n"]
+    if missing:
+        parts.append("**Not finished yet** (shown as '–'): " + ", ".join(missing) + ".\n")
+    for column, title, unit, scale in QUANTITIES:
+        parts.append(f"## {title} ({unit})\n\n{peak_table(runs, column, unit, scale)}\n")
+    conv = figure_convergence(runs, figures / "study_mesh_convergence.png")
+    parts.append(f"Mesh convergence: the coarse → fine change of each peak.\n\n"
+                 f"![mesh convergence](figures/{conv.name})\n")
+    parts.append("## The study's printed schedule (coarse mesh)\n\n"
+                 "Its first step, 5 ms, is the whole inlet pulse, which is back to 0 at t = "
+                 "5 ms: the fluid's backward-Euler/BDF step sees P(5 ms) = 0 and the runs stay "
+                 "at rest (MODEL.md §4).\n\n" + printed_table(runs) + "\n")
+    fig6 = figure_sss(runs, figures / "study_figure6_sss.png")
+    parts.append("## Figure 6: the maximum structural shear stress over time\n\n"
+                 f"![Figure 6](figures/{fig6.name})\n\nLog scales: the fixed-wall curves are "
+                 "far below the moving-wall ones.\n")
+    fields = field_figures(runs, figures)
+    if fields:
+        parts.append("## Figures 7–9: fields\n")
+        for caption, path in fields:
+            parts.append(f"{caption}\n\n![{path.stem}](figures/{path.name})\n")
+    parts.append("## The study's findings, checked\n\n"
+                 + "\n".join(f"- {f}" for f in findings(runs)) + "\n")
+    parts.append("## Wall time on this machine (2 cores)\n\n"
+                 "Sum of the steps' wall times (metrics.csv), without start-up (mesh, "
+                 "compilation), as measured: the 2 cores were at times shared with other jobs "
+                 "(tests, the other runs' start-up), which can slow a run several-fold, so "
+                 "these are upper bounds; #11's benchmarks time unloaded runs.\n\n" + effort_table(runs, names) + "\n")
+    path = docs / "study.md"
+    path.write_text("\n".join(parts))
+    return path
