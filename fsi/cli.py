@@ -31,6 +31,8 @@ EXIT_OK, EXIT_INTERNAL, EXIT_USAGE, EXIT_SOLVE_FAILED, EXIT_OUTPUT_FAILED = 0, 1
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="fsi", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action=_Version, nargs=0,
+                        help="show the versions of fsi (and its git revision), dolfinx, Python")
     sub = parser.add_subparsers(dest="command", required=True)
 
     def with_config(p: argparse.ArgumentParser) -> None:
@@ -83,6 +85,16 @@ def _parser() -> argparse.ArgumentParser:
                    help="of a vector field (default: magnitude)")
     p.add_argument("--out", type=Path, required=True, metavar="FILE.png")
     return parser
+
+
+class _Version(argparse.Action):
+    """``--version``: looks the git revision up only when asked."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from fsi import provenance
+
+        print(provenance.version_line())
+        parser.exit()
 
 
 def _setup_logging(comm: MPI.Comm) -> None:
@@ -196,14 +208,17 @@ def _run(args: argparse.Namespace, case: config.Case) -> int:
         log.error("fsi: stopped at once; the last periodic checkpoint is in %s",
                   args.out / checkpoint.DIRECTORY)
         return 128 + signal.SIGINT
-    log.info("done: %d steps in %.1f s; wrote %s", result.steps, result.wall_time_s, args.out)
+    done = f"done: {result.steps} steps in {result.wall_time_s:.1f} s; wrote {args.out}"
+    log.info(done)
+    if comm.rank == 0:
+        io.append_to_log(args.out, [done])
     return EXIT_OK
 
 
 def _stopped(args: argparse.Namespace, e: Exception) -> int:
     """Say why a run stopped early and where its checkpoint is (rank 0: every rank has the
-    same exception); return the exit status."""
-    from fsi import simulation
+    same exception; also into DIR/run.log); return the exit status."""
+    from fsi import io, simulation
 
     if isinstance(e, simulation.Interrupted):
         status = 128 + e.signal
@@ -228,6 +243,7 @@ def _stopped(args: argparse.Namespace, e: Exception) -> int:
     if MPI.COMM_WORLD.rank == 0:
         for line in lines:
             log.error(line)
+        io.append_to_log(args.out, lines)
     return status
 
 

@@ -391,6 +391,11 @@ class RunFiles:
             (out / "config.yaml").write_text(config_yaml)
 
         on_rank0(comm, prepare, out)
+        self._log: logging.Handler | None = None
+        if comm.rank == 0:
+            collectively(comm, lambda: self._start_log(out / "run.log"), out / "run.log")
+        else:
+            collectively(comm, lambda: None)
         path = out / "metrics.csv"
         self.table = collectively(comm, lambda: MetricsTable(
             comm, path, columns, keep_until_step=first, source=metrics_source), path)
@@ -403,6 +408,21 @@ class RunFiles:
         except OutputError:
             self.close()
             raise
+
+    def _start_log(self, path: Path) -> None:
+        """``run.log``: what the progress lines and warnings say (rank 0's log), appended to
+        by a restart that continues the run."""
+        handler = logging.FileHandler(path, mode="a", encoding="utf-8")
+        handler.setFormatter(logging.Formatter("%(asctime)s %(message)s", "%Y-%m-%d %H:%M:%S"))
+        handler.setLevel(logging.INFO)
+        from fsi import provenance
+
+        with path.open("a", encoding="utf-8") as f:
+            describe = provenance.describe()
+            f.write(f"{time.strftime('%Y-%m-%d %H:%M:%S')} {provenance.version_line()}: "
+                    f"{describe['command']}\n")
+        log.addHandler(handler)
+        self._log = handler
 
     @property
     def kept(self) -> list[dict]:
@@ -417,7 +437,12 @@ class RunFiles:
             collectively(self.comm, lambda: writer.write(t, fields), writer.path)
 
     def close(self) -> None:
-        """Close every file; a failure is only logged (each row was flushed when written)."""
+        """Close every file; a failure is only logged (each row was flushed when written). The
+        run's last words (why it stopped, fsi/cli.py) are added by :func:`append_to_log`."""
+        if self._log is not None:
+            log.removeHandler(self._log)
+            self._log.close()
+            self._log = None
         for close, path in [(self.table.close, self.table.path),
                             *[(w.close, w.path) for w, _ in self.writers]]:
             try:
@@ -431,11 +456,25 @@ SPACE_MARGIN = 64 * 1024
 """Bytes kept free beyond what a write needs (:func:`ensure_space`)."""
 
 
-RUN_FILES = ("config.yaml", "metrics.csv", "metrics.csv.partial", "summary.json", "fields*.xdmf", "fields*.h5",
-             "solid*.xdmf", "solid*.h5", "checkpoint", "checkpoint.partial",
-             "checkpoint.previous")
+RUN_FILES = ("config.yaml", "metrics.csv", "metrics.csv.partial", "summary.json", "run.log",
+             "fields*.xdmf", "fields*.h5", "solid*.xdmf", "solid*.h5", "checkpoint",
+             "checkpoint.partial", "checkpoint.previous")
 """What ``fsi run`` writes into its ``--out`` folder (glob patterns); ``--overwrite`` deletes
 these and nothing else."""
+
+
+def append_to_log(out: Path, lines: list[str]) -> None:
+    """Add ``lines`` to ``out/run.log`` if the run wrote one (rank 0 only; a failure to write
+    is ignored: the lines went to stderr too)."""
+    path = out / "run.log"
+    if not path.is_file():
+        return
+    stamp = time.strftime("%Y-%m-%d %H:%M:%S")
+    try:
+        with path.open("a", encoding="utf-8") as f:
+            f.writelines(f"{stamp} {line}\n" for line in lines)
+    except OSError:
+        pass
 
 
 class RunFolderError(Exception):

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import logging
 import math
-import platform
 import time as wallclock
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,7 +23,8 @@ from mpi4py import MPI
 import dolfinx
 import numpy as np
 
-from fsi import checkpoint, config, coupling, fluid, io, mesh, metrics, partitioned, solid
+from fsi import (checkpoint, config, coupling, fluid, io, mesh, metrics, partitioned,
+                 provenance, solid)
 from fsi.mesh_motion import MeshQualityError
 from fsi.timestepping import Step, steps
 from geometry import turek_hron
@@ -284,7 +284,7 @@ def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start:
         "wall_time_s": wallclock.perf_counter() - start,
         "mean_step_time_s": sum(r.get("wall_time_s", 0.0) for r in every) / max(len(every), 1),
         "newton_iterations": newton, "mean_newton_iterations": newton / max(len(every), 1),
-        "ranks": comm.size, "dolfinx": dolfinx.__version__, "python": platform.python_version(),
+        "ranks": comm.size, **comm.bcast(provenance.describe() if comm.rank == 0 else None),
         "retried_steps": sorted({s.index for s in retried}),
         **stepper.summary(),
         "checkpoint": None if saved is None else str(saved[0]),

@@ -155,6 +155,8 @@ def test_a_write_failing_on_rank_0_alone_ends_every_rank(shared_tmp, monkeypatch
     assert metrics_steps(out) == [1, 2]
     assert checkpoint_step(out) == 2
     assert not (out / "checkpoint.partial").exists()
+    log = (out / "run.log").read_text()  # the progress and the reason, with the restart command
+    assert "step 2/4" in log and "No space left" in log and f"--restart {out}" in log
 
 
 def test_a_checkpoint_that_cannot_be_written_keeps_the_previous_one(shared_tmp, monkeypatch,

@@ -4,9 +4,11 @@ import json
 
 from mpi4py import MPI
 
+import dolfinx
 import numpy as np
 import pytest
 
+import fsi
 from fsi import cli, config, io, simulation
 
 SHORT = ["structure.mode=rigid", "time.end=0.004", "time.schedule=[{until: 0.004, dt: 0.001}]"]
@@ -27,6 +29,14 @@ def test_rigid_run_writes_the_contract_files(shared_tmp):
     assert 0 < max(r["peak_pressure"] for r in rows) <= 1200 * 1.01
     summary = json.loads((out / "summary.json").read_text())
     assert summary["steps"] == 4 and summary["ranks"] == MPI.COMM_WORLD.size
+    # Provenance: versions, the git revision of this checkout, the process's command line.
+    assert summary["fsi"] == fsi.__version__ and summary["dolfinx"] == dolfinx.__version__
+    assert summary["git"] is None or len(summary["git"].removesuffix("+dirty")) == 40
+    assert "pytest" in summary["command"] or "fsi" in summary["command"]
+    log = (out / "run.log").read_text().splitlines()  # the header, a line per step, the end
+    assert f"fsi {fsi.__version__}" in log[0]
+    assert [line.split()[3] for line in log[1:5]] == ["1/4", "2/4", "3/4", "4/4"]
+    assert "done: 4 steps" in log[-1]
     assert config.load(out / "config.yaml").structure.mode == "rigid"
     fields = (out / "fields.xdmf").read_text()
     for name in ("velocity", "pressure", "viscosity", "shear_rate", "wall_shear_stress"):
@@ -181,3 +191,9 @@ def test_structure_alone_turek_hron_writes_point_a(shared_tmp):
             assert a[key] == pytest.approx(b[key], rel=1e-8), key
     assert world[-1]["uy_A"] == pytest.approx(-66.10e-3, rel=0.01)
     assert world[-1]["ux_A"] == pytest.approx(-7.187e-3, rel=0.01)
+
+
+def test_version(capsys):
+    assert cli.main(["--version"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"fsi {fsi.__version__}") and f"dolfinx {dolfinx.__version__}" in out
