@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fsi.units import UNITS, choose_unit
 from geometry.tags import Region
 
 FILES = {"fluid": "fields", "structure": "solid"}
@@ -42,9 +43,9 @@ FIELDS = {
     "wall_shear_stress": ("wall shear stress", "stress"),
     "viscosity": ("viscosity", "viscosity"),
     "shear_rate": ("shear rate", "rate"),
-    "mesh_displacement": ("mesh displacement", "length"),
-    "eta": ("displacement η", "length"),
-    "displacement": ("displacement", "length"),
+    "mesh_displacement": ("mesh displacement", "displacement"),
+    "eta": ("displacement η", "displacement"),
+    "displacement": ("displacement", "displacement"),
     "sss": ("structural shear stress σ₁₂", "stress"),
     "von_mises": ("von Mises stress", "stress"),
     "max_principal": ("maximum principal stress", "stress"),
@@ -306,16 +307,12 @@ def _at_time(segment: _Segment, names: tuple[str, ...], time: float) -> np.ndarr
 
 
 def _unit(quantity: str, largest: float) -> tuple[str, float]:
-    """A readable unit for values up to ``largest`` (SI) and the factor to it."""
-    if quantity == "stress":
-        for unit, size in (("MPa", 1e6), ("kPa", 1e3)):
-            if largest >= size:
-                return unit, 1.0 / size
-        return "Pa", 1.0
-    if quantity == "length":
-        return ("mm", 1e3) if largest >= 1e-3 else ("µm", 1e6)
-    return {"velocity": ("m/s", 1.0), "viscosity": ("mPa·s", 1e3), "rate": ("1/s", 1.0),
-            "tag": ("", 1.0)}.get(quantity, ("", 1.0))
+    """A readable unit for values up to ``largest`` (SI) and the factor to it
+    (:func:`fsi.units.choose_unit`; a region tag has none)."""
+    if quantity not in UNITS:
+        return "", 1.0
+    unit = choose_unit(quantity, [largest])
+    return unit.name, unit.scale
 
 
 def _component(snapshot: Snapshot, component: str | None) -> tuple[np.ndarray, str]:

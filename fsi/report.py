@@ -13,8 +13,8 @@ the tables; a plot that no run has a line for is not written. ``report.md`` list
 with a caption line. Reads only the files ``fsi run`` writes: ``config.yaml``, ``metrics.csv``,
 ``summary.json``.
 
-Units (:func:`choose_unit`). ``metrics.csv`` holds SI units; each table and plot shows its
-quantity in one of a few units (:data:`UNITS`: stress and pressure Pa, kPa or MPa; displacement
+Units (:func:`fsi.units.choose_unit`). ``metrics.csv`` holds SI units; each table and plot shows its
+quantity in one of a few units (:data:`fsi.units.UNITS`: stress and pressure Pa, kPa or MPa; displacement
 µm or mm; velocity cm/s or m/s; length mm; flow rate per unit depth cm²/s): the largest unit in
 which the largest magnitude shown is at least 1 (17 kPa, 300 Pa, 230 µm, 1.5 mm, 30 cm/s), the
 smallest one when there is none. Tables keep 4 significant digits.
@@ -40,6 +40,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fsi import config, io
+from fsi.units import choose_unit
 
 log = logging.getLogger("fsi")
 
@@ -101,37 +102,9 @@ def _summary(path: Path) -> dict:
 # Units and scales
 
 
-@dataclass(frozen=True)
-class Unit:
-    """A display unit: a value in it is ``scale`` × the SI value."""
-
-    name: str
-    scale: float
-
-
-STRESS_UNITS = (Unit("Pa", 1.0), Unit("kPa", 1.0e-3), Unit("MPa", 1.0e-6))
-UNITS: dict[str, tuple[Unit, ...]] = {  # per quantity, from the smallest unit to the largest
-    "stress": STRESS_UNITS,
-    "pressure": STRESS_UNITS,
-    "displacement": (Unit("µm", 1.0e6), Unit("mm", 1.0e3)),
-    "length": (Unit("mm", 1.0e3),),
-    "velocity": (Unit("cm/s", 1.0e2), Unit("m/s", 1.0)),
-    "flow_rate": (Unit("cm²/s", 1.0e4),),  # per unit depth: mL/s per cm of depth
-    "count": (Unit("", 1.0),),
-}
-
 MAGNITUDE_RATIO = 10.0
 """Groups of lines whose magnitudes (largest |value|) differ by more than this factor are not
 drawn on one linear axis (:func:`choose_scale`)."""
-
-
-def choose_unit(quantity: str, values: Sequence[float]) -> Unit:
-    """The unit of ``UNITS[quantity]`` to show ``values`` (SI) in: the largest one in which the
-    largest finite |value| is at least 1; the smallest one if there is none (or no values)."""
-    units = UNITS[quantity]
-    peak = max((abs(v) for v in values if math.isfinite(v)), default=0.0)
-    fitting = [unit for unit in units if peak * unit.scale >= 1.0]
-    return fitting[-1] if fitting else units[0]
 
 
 def choose_scale(series: Sequence[Sequence[float]]) -> str:

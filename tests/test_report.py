@@ -12,7 +12,7 @@ from mpi4py import MPI
 
 import pytest
 
-from fsi import cli, config, io, report
+from fsi import cli, config, io, report, units
 
 SHORT = ["structure.mode=rigid", "time.end=0.004", "time.schedule=[{until: 0.004, dt: 0.001}]",
          "output.report_times=[0.002, 0.004]"]
@@ -37,7 +37,7 @@ def test_tables_hold_the_rows_at_the_report_times(run_dir, capsys):
     rows = io.read_metrics(run_dir / "metrics.csv")
     by_t = {round(r["t"], 9): r for r in rows}
     table = report.peaks_table([run], "peak_velocity", "Peak velocity", "velocity")
-    unit = report.choose_unit("velocity", [by_t[t]["peak_velocity"] for t in (0.002, 0.004)])
+    unit = units.choose_unit("velocity", [by_t[t]["peak_velocity"] for t in (0.002, 0.004)])
     assert table.startswith(f"| Peak velocity ({unit.name}) | t = 0.002 s | t = 0.004 s |")
     cells = table.splitlines()[2].split("|")[2:-1]
     assert [float(c) for c in cells] == [
@@ -190,7 +190,7 @@ def test_a_damaged_summary_is_refused(run_dir, shared_tmp, capsys):
 ])
 def test_the_unit_is_the_largest_one_the_largest_value_is_at_least_1_in(quantity, values, unit,
                                                                          shown):
-    chosen = report.choose_unit(quantity, values)
+    chosen = units.choose_unit(quantity, values)
     assert chosen.name == unit
     if shown is not None:
         assert chosen.scale * max(values, key=abs) == pytest.approx(math.copysign(shown, max(
