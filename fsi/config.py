@@ -29,6 +29,7 @@ from typing import Any, Literal, Union
 
 import yaml
 
+from fsi.timestepping import steps
 from geometry import stenosis as stenosis_geometry
 from geometry import turek_hron as turek_hron_geometry
 
@@ -1165,8 +1166,6 @@ def _validate_inlet(case: Case) -> None:
     inlet = case.fluid.inlet
     if not isinstance(inlet, InletPressure):
         return  # the pulse is closed-form; a table holds finite numbers and interpolates
-    from fsi.timestepping import steps  # not at the top: fsi.timestepping imports this module
-
     pressure = time_function(inlet.formula)
     try:
         pressure(0.0)

@@ -8,9 +8,19 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterator
+from typing import Iterator, Protocol, Sequence
 
-from fsi.config import Time
+
+class Segment(Protocol):
+    until: float
+    dt: float
+
+
+class Schedule(Protocol):
+    """What :func:`steps` reads of a case's ``time`` section (:class:`fsi.config.Time`)."""
+
+    end: float
+    schedule: Sequence[Segment]
 
 
 @dataclass(frozen=True)
@@ -22,7 +32,7 @@ class Step:
     dt: float
 
 
-def steps(time: Time, t0: float = 0.0, index0: int = 0) -> Iterator[Step]:
+def steps(time: Schedule, t0: float = 0.0, index0: int = 0) -> Iterator[Step]:
     """The steps of the schedule after time ``t0`` (step ``index0``), up to ``time.end``.
 
     Each segment's last step is shortened so that it ends exactly on the segment's ``until``
