@@ -1037,12 +1037,12 @@ def validate(case: Case) -> None:
     if schedule[-1].until < case.time.end * (1 - 1e-12):
         raise ConfigError("", f"time.schedule[{len(schedule) - 1}].until",
                           f"at least time.end = {case.time.end} s", schedule[-1].until)
-    steps = count_steps(case.time)
-    if steps > case.time.max_steps:
-        raise_limit = (f"raise the limit (--set time.max_steps={int(steps)}) if you mean it"
-                       if math.isfinite(steps) else "no limit can be that high")
+    count = count_steps(case.time)
+    if count > case.time.max_steps:
+        raise_limit = (f"raise the limit (--set time.max_steps={int(count)}) if you mean it"
+                       if math.isfinite(count) else "no limit can be that high")
         raise ConfigError("", "time.schedule", reason=(
-            f"{_count(steps)} steps to time.end = {case.time.end:g} s, more than "
+            f"{_count(count)} steps to time.end = {case.time.end:g} s, more than "
             f"time.max_steps = {case.time.max_steps:,}: use larger dt, or {raise_limit}"))
 
     if (case.time.scheme == "steady" and case.structure.mode != "rigid"
