@@ -214,9 +214,11 @@ def field_figures(runs: dict, figures: Path) -> list[tuple[str, Path]]:
         warp = 10.0 if c.startswith("moving") else 100.0
         path = figures / f"study_sss_{c}.png"
         plot.field_snapshot(run.path, "sss", peak[1], path, warp=warp)
+        x, y, region = largest_at(run, "sss", peak[1])
         out.append((f"Figure {7 if c.startswith('fixed') else 8}: σ₁₂ on the structure, "
                     f"displacement ×{warp:g}, {LABELS[c]} ({run.path.name}), t = {peak[1]:.4g} s "
-                    f"(its largest SSS, {peak[0]:.4g} Pa)", path))
+                    f"(its largest SSS, {peak[0]:.4g} Pa, in the {region} at x = {1e3 * x:.2f} "
+                    f"mm, y = {1e3 * y:.2f} mm)", path))
     for c in ("fixed_newtonian", "moving_newtonian"):
         run = best(runs, c)
         if run is None or run.rows[-1]["t"] < RECIRCULATION_TIME:
@@ -231,6 +233,19 @@ def field_figures(runs: dict, figures: Path) -> list[tuple[str, Path]]:
                     f"{RECIRCULATION_TIME:g} s; negative where the flow next to the wall "
                     "reverses (the recirculation zone)", wss))
     return out
+
+
+def largest_at(run: report.Run, field: str, t: float) -> tuple[float, float, str]:
+    """Where the cell field's largest |value| is at time t: the cell's centroid (reference
+    coordinates, m) and its region."""
+    from fsi import plot
+    from geometry.tags import Region
+
+    values = plot.read_field(run.path, field, t, warp=0.0)
+    regions = plot.read_field(run.path, "region", t, warp=0.0)
+    k = int(np.argmax(np.abs(values.values)))
+    centroid = values.coordinates[values.triangles[k]].mean(axis=0)
+    return centroid[0], centroid[1], Region(int(round(regions.values[k]))).label
 
 
 def boundary_nodes(triangles: np.ndarray) -> np.ndarray:
@@ -346,6 +361,20 @@ def findings(runs: dict) -> list[str]:
                    f"Newtonian {1e6 * dn:.4g} µm, Carreau {1e6 * dc:.4g} µm (ratio {dratio:.4f}) "
                    f"— {verdict} (confirmed if the SSS ratio > 1.5 and the displacement ratio "
                    "> 1)." + load_reason(pick("moving_newtonian"), pick("moving_carreau")))
+    run = pick("moving_newtonian")
+    found = series_max(run, "max_sss")
+    if found is not None and (run.path / "solid.xdmf").is_file():
+        x, y, region = largest_at(run, "sss", found[1])
+        plaque = max((plaque_max(r) or 0.0) for r in run.rows)
+        if region == "wall":
+            out.append(f"*Not a finding of the study, but needed to read Figure 6:* the moving "
+                       f"wall's largest SSS ({found[0]:.4g} Pa at t = {found[1]:.4g} s, "
+                       f"{run.path.name}) is in the vessel wall next to its clamped upstream "
+                       f"end (x = {1e3 * x:.2f} mm, y = {1e3 * y:.2f} mm), where the held edge "
+                       "meets the loaded lumen side. The elastic stress is singular at that "
+                       "corner of the boundary conditions, so this maximum grows as the mesh is "
+                       "refined and says nothing about the plaque; the plaque's largest SSS, "
+                       f"{plaque:.4g} Pa, is the one to compare (Figure 6, left).")
     rf = [peak(c, "recirculation_length") for c in ("fixed_newtonian", "fixed_carreau")]
     rm = [peak(c, "recirculation_length") for c in ("moving_newtonian", "moving_carreau")]
     if all(rf + rm):
