@@ -52,6 +52,9 @@ FORMAT = 1
 DIRECTORY, PARTIAL, PREVIOUS = "checkpoint", "checkpoint.partial", "checkpoint.previous"
 METADATA = "checkpoint.json"
 VARIABLE = ("coupling.", "predictor.", "counters.")
+ADDED = ("wall_indices.",)
+"""Groups of state arrays added after checkpoints were first written: a checkpoint without
+them still restarts (the stepper starts those from the restart; fsi.simulation.FluidOutputs)."""
 """Groups of state arrays whose number and shape may change between runs (accelerations,
 predictor order, counters); every other array of a fresh stepper's state must be restored."""
 MATCH_TOLERANCE = 1e-9
@@ -546,8 +549,11 @@ def localize(checkpoint: Checkpoint, layouts: dict[str, Layout], current: dict[s
     state: dict[str, np.ndarray] = {}
     message = ""
     indices: dict[str, np.ndarray] = {}
+    added = {layout.name for key, layout in layouts.items() if key.startswith(ADDED)}
     for name, layout in {layout.name: layout for layout in layouts.values()}.items():
         key = f"keys.{name}"
+        if name in added and all(key not in f for f in files):
+            continue  # written before these arrays existed
         if any(key not in f for f in files):
             message = f"{source}: no keys of {name!r} (written by another kind of run)"
             break
@@ -597,12 +603,16 @@ def localize(checkpoint: Checkpoint, layouts: dict[str, Layout], current: dict[s
 def _check_restored(state: dict[str, np.ndarray], current: dict[str, np.ndarray],
                     source: Path) -> str:
     """'' if ``state`` has each array of ``current`` outside :data:`VARIABLE` with its shape (a
-    number or None where it has one); else the first that is missing or of another shape."""
+    number or None where it has one), those of :data:`ADDED` only if it has any of them; else
+    the first that is missing or of another shape."""
     def scalar(a: np.ndarray) -> bool:  # a number, or None (an empty array)
         return a.ndim == 0 or a.shape == (0,)
 
+    has_added = {group for group in ADDED if any(k.startswith(group) for k in state)}
     for key, value in current.items():
         if key.startswith(VARIABLE):
+            continue
+        if key.startswith(ADDED) and not any(key.startswith(g) for g in has_added):
             continue
         if key not in state:
             return f"{source}: array {key!r} is missing (written by another kind of run)"

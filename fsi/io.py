@@ -457,6 +457,7 @@ SPACE_MARGIN = 64 * 1024
 
 
 RUN_FILES = ("config.yaml", "metrics.csv", "metrics.csv.partial", "summary.json", "run.log",
+             "wall_indices.csv", "wall_indices.csv.partial",
              "fields*.xdmf", "fields*.h5", "solid*.xdmf", "solid*.h5", "checkpoint",
              "checkpoint.partial", "checkpoint.previous")
 """What ``fsi run`` writes into its ``--out`` folder (glob patterns); ``--overwrite`` deletes
@@ -518,3 +519,23 @@ def _check_folder(out: Path, earlier_run: bool) -> str:
         return (f"{out} holds an earlier run ({names}): continue it with --restart {out},"
                 " replace it with --overwrite, or choose another --out")
     return ""
+
+
+def write_table(comm: MPI.Comm, path: Path, columns: list[str], rows: list[list]) -> None:
+    """A table as CSV, written by rank 0 from its ``rows`` (lists in column order; the other
+    ranks' are ignored): floats with 10 significant digits (as metrics.csv), NaN as an empty
+    cell, infinity as ``inf``. Written to ``<path>.partial`` and renamed, so ``path`` is always
+    a complete table. Collective (:func:`on_rank0`: :class:`OutputError` on every rank if it
+    cannot be written)."""
+    def cell(value) -> str:
+        return "" if isinstance(value, float) and math.isnan(value) else _format(value)
+
+    def write() -> None:
+        partial = path.with_name(path.name + ".partial")
+        with partial.open("w", newline="") as f:
+            writer = csv.writer(f)
+            writer.writerow(columns)
+            writer.writerows([cell(v) for v in row] for row in rows)
+        os.replace(partial, path)
+
+    on_rank0(comm, write, path)

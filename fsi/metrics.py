@@ -1,8 +1,9 @@
-"""Fluid metrics (MODEL.md §6): peaks, wall shear stress, recirculation, forces, flow rates, and
-the shear rate and effective viscosity as fields.
+"""Fluid metrics (MODEL.md §6): peaks, wall shear stress, recirculation, the hemodynamic indices
+TAWSS, OSI and RRT, forces, flow rates, and the shear rate and effective viscosity as fields.
 
 Every function here is collective over the mesh's communicator and returns the same value on
-every rank (peaks, forces and flow rates are reduced, wall samples are gathered).
+every rank (peaks, forces and flow rates are reduced, wall samples are gathered); the per-rank
+exceptions say so (:meth:`WallSampler.local`, :class:`WallIndices` of a rank's samples).
 """
 
 from __future__ import annotations
@@ -89,62 +90,102 @@ def _facet_points() -> np.ndarray:
     return np.array(points)  # (6, 2): facet k's points are rows 2k, 2k + 1
 
 
-def wall_shear_stress(u: dolfinx.fem.Function, p: dolfinx.fem.Function,
-                      law: rheology.ViscosityLaw, facet_tags: dolfinx.mesh.MeshTags,
-                      tags: Sequence[int], direction: Sequence[float] = (1.0, 0.0)
-                      ) -> WallShearStress:
-    """τ_w = t·(σ n) at two Gauss points of every facet of the walls ``tags``.
+class WallSampler:
+    """The wall shear stress τ_w = t·(σ n) at two Gauss points of every facet of the walls
+    ``tags`` that this rank owns, always in the same order: this rank's wall facets in facet-tag
+    order, two points each. The Gauss points are fixed in the reference cell, so on a moving
+    mesh (affine cells) each sample stays at the same fraction of its facet: it follows the
+    same material wall point.
 
     ``n`` is the wall's unit normal pointing into the fluid, so σ n is the traction the blood
     exerts on the wall, and ``t`` the unit tangent with t·direction ≥ 0: τ_w > 0 where the flow
     next to the wall goes along ``direction``, < 0 where it reverses (recirculation).
     σ = −p I + 2 μ(s(u)) D(u) is evaluated inside each wall cell (gradients are per cell).
-    """
-    mesh = u.function_space.mesh
-    comm, tdim = mesh.comm, mesh.topology.dim
-    fdim = tdim - 1
-    mesh.topology.create_connectivity(fdim, tdim)
-    mesh.topology.create_connectivity(tdim, fdim)
-    facets = facet_tags.indices[np.isin(facet_tags.values, [int(t) for t in tags])]
-    facets = facets[facets < mesh.topology.index_map(fdim).size_local].astype(np.int32)
 
-    f2c = mesh.topology.connectivity(fdim, tdim)
-    c2f = mesh.topology.connectivity(tdim, fdim)
-    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
-    local_facet = np.array([int(np.flatnonzero(c2f.links(c) == f)[0])
-                            for c, f in zip(cells, facets)], dtype=np.int64)
+    Built once per solver (the expression is compiled here); :meth:`local` and :meth:`gather`
+    read the solution and the mesh coordinates as they are when called. ``walls`` holds each
+    local sample's facet tag, ``reference`` its coordinates when the sampler was built (the
+    reference configuration if built before the mesh moves), both (size,) and (size, 2)."""
 
-    x = ufl.SpatialCoordinate(mesh)
-    sigma = rheology.cauchy_stress(u, p, law)
-    values = ufl.as_vector([sigma[0, 0], sigma[0, 1], sigma[1, 0], sigma[1, 1], x[0], x[1]])
-    expression = dolfinx.fem.Expression(values, _facet_points())
-    data = compat.eval_expression(expression, mesh, cells).reshape(len(cells), 6, 6)
-    rows = np.stack([2 * local_facet, 2 * local_facet + 1], axis=1)  # (nf, 2)
-    data = np.take_along_axis(data, rows[:, :, None], axis=1)  # (nf, 2 points, 6)
+    def __init__(self, u: dolfinx.fem.Function, p: dolfinx.fem.Function,
+                 law: rheology.ViscosityLaw, facet_tags: dolfinx.mesh.MeshTags,
+                 tags: Sequence[int], direction: Sequence[float] = (1.0, 0.0)):
+        mesh = u.function_space.mesh
+        self.mesh, self.comm = mesh, mesh.comm
+        tdim = mesh.topology.dim
+        fdim = tdim - 1
+        mesh.topology.create_connectivity(fdim, tdim)
+        mesh.topology.create_connectivity(tdim, fdim)
+        chosen = np.isin(facet_tags.values, [int(t) for t in tags])
+        facets, values = facet_tags.indices[chosen], facet_tags.values[chosen]
+        owned = facets < mesh.topology.index_map(fdim).size_local
+        self.facets = facets[owned].astype(np.int32)
+        f2c = mesh.topology.connectivity(fdim, tdim)
+        c2f = mesh.topology.connectivity(tdim, fdim)
+        self.cells = np.array([f2c.links(f)[0] for f in self.facets], dtype=np.int32)
+        local_facet = np.array([int(np.flatnonzero(c2f.links(c) == f)[0])
+                                for c, f in zip(self.cells, self.facets)], dtype=np.int64)
+        self._rows = np.stack([2 * local_facet, 2 * local_facet + 1], axis=1)  # (nf, 2)
+        x = ufl.SpatialCoordinate(mesh)
+        sigma = rheology.cauchy_stress(u, p, law)
+        values_at = ufl.as_vector([sigma[0, 0], sigma[0, 1], sigma[1, 0], sigma[1, 1],
+                                   x[0], x[1]])
+        self._expression = dolfinx.fem.Expression(values_at, _facet_points())
+        self._direction = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+        self.walls = np.repeat(values[owned].astype(np.int64), 2)
+        self.reference = self.local().x.copy()
 
-    # Normal into the fluid: from the facet towards the cell's centroid (affine triangles).
-    nodes = compat.entities_to_geometry(mesh, fdim, facets).reshape(len(facets), 2)
-    ends = mesh.geometry.x[nodes][:, :, :2]
-    tangent = ends[:, 1] - ends[:, 0]
-    tangent /= np.linalg.norm(tangent, axis=1)[:, None]
-    cell_nodes = compat.entities_to_geometry(mesh, tdim, cells).reshape(len(cells), 3)
-    centroid = mesh.geometry.x[cell_nodes][:, :, :2].mean(axis=1)
-    normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])
-    inward = np.sign(np.einsum("ij,ij->i", centroid - ends.mean(axis=1), normal))
-    normal *= inward[:, None]
-    e = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
-    tangent *= np.where(tangent @ e >= 0, 1.0, -1.0)[:, None]
+    @property
+    def size(self) -> int:
+        """The number of samples on this rank (two per owned wall facet)."""
+        return 2 * len(self.facets)
 
-    sigma_pts = data[:, :, :4].reshape(-1, 2, 2, 2)  # (nf, point, i, j)
-    traction = np.einsum("fpij,fj->fpi", sigma_pts, normal)
-    tau = np.einsum("fpi,fi->fp", traction, tangent).ravel()
-    points = data[:, :, 4:].reshape(-1, 2)
-    points = np.concatenate(comm.allgather(points))
-    tau = np.concatenate(comm.allgather(tau))
-    normal = np.concatenate(comm.allgather(np.repeat(normal, 2, axis=0))).reshape(-1, 2)
-    s = points @ e
-    order = np.argsort(s, kind="stable")
-    return WallShearStress(s[order], points[order], tau[order], normal[order])
+    def local(self) -> WallShearStress:
+        """This rank's samples in the sampler's fixed order (not sorted by ``s``)."""
+        mesh, fdim, tdim = self.mesh, self.mesh.topology.dim - 1, self.mesh.topology.dim
+        nf = len(self.facets)
+        data = compat.eval_expression(self._expression, mesh, self.cells).reshape(nf, 6, 6)
+        data = np.take_along_axis(data, self._rows[:, :, None], axis=1)  # (nf, 2 points, 6)
+
+        # Normal into the fluid: from the facet towards the cell's centroid (affine triangles).
+        nodes = compat.entities_to_geometry(mesh, fdim, self.facets).reshape(nf, 2)
+        ends = mesh.geometry.x[nodes][:, :, :2]
+        tangent = ends[:, 1] - ends[:, 0]
+        tangent /= np.linalg.norm(tangent, axis=1)[:, None]
+        cell_nodes = compat.entities_to_geometry(mesh, tdim, self.cells).reshape(nf, 3)
+        centroid = mesh.geometry.x[cell_nodes][:, :, :2].mean(axis=1)
+        normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])
+        inward = np.sign(np.einsum("ij,ij->i", centroid - ends.mean(axis=1), normal))
+        normal *= inward[:, None]
+        e = self._direction
+        tangent *= np.where(tangent @ e >= 0, 1.0, -1.0)[:, None]
+
+        sigma_pts = data[:, :, :4].reshape(-1, 2, 2, 2)  # (nf, point, i, j)
+        traction = np.einsum("fpij,fj->fpi", sigma_pts, normal)
+        tau = np.einsum("fpi,fi->fp", traction, tangent).ravel()
+        points = data[:, :, 4:].reshape(-1, 2)
+        return WallShearStress(points @ e, points, tau, np.repeat(normal, 2, axis=0))
+
+    def gather(self, samples: WallShearStress | None = None) -> WallShearStress:
+        """Every rank's samples (``samples``, default :meth:`local`), on every rank, ordered by
+        ``s``. Collective."""
+        samples = self.local() if samples is None else samples
+        points = np.concatenate(self.comm.allgather(samples.x)).reshape(-1, 2)
+        tau = np.concatenate(self.comm.allgather(samples.tau))
+        normal = np.concatenate(self.comm.allgather(samples.normal)).reshape(-1, 2)
+        s = points @ self._direction
+        order = np.argsort(s, kind="stable")
+        return WallShearStress(s[order], points[order], tau[order], normal[order])
+
+
+def wall_shear_stress(u: dolfinx.fem.Function, p: dolfinx.fem.Function,
+                      law: rheology.ViscosityLaw, facet_tags: dolfinx.mesh.MeshTags,
+                      tags: Sequence[int], direction: Sequence[float] = (1.0, 0.0)
+                      ) -> WallShearStress:
+    """τ_w = t·(σ n) at two Gauss points of every facet of the walls ``tags``, gathered on
+    every rank and ordered by ``s`` (:class:`WallSampler`, built for this one call: a loop
+    keeps a sampler instead). Collective."""
+    return WallSampler(u, p, law, facet_tags, tags, direction).gather()
 
 
 def lumen_sides(wss: WallShearStress) -> dict[str, WallShearStress]:
@@ -199,6 +240,89 @@ def reattachment_point(s: np.ndarray, tau: np.ndarray) -> float | None:
     """Where the longest reversed-flow zone ends (the flow reattaches), or None."""
     zones = recirculation_zones(s, tau)
     return max(zones, key=lambda z: z[1] - z[0])[1] if zones else None
+
+
+# --------------------------------------------------------------------------------------------
+# Hemodynamic indices: TAWSS, OSI, RRT (docs/hemodynamic-indices.md)
+
+
+class WallIndices:
+    """The time-averaged wall shear stress (TAWSS), the oscillatory shear index (OSI) and the
+    relative residence time (RRT) of wall samples whose signed wall shear stress τ_i(t) is
+    given step by step (:meth:`add`), over the window from ``start`` to the last step's end::
+
+        TAWSS = (1/T) ∫ |τ| dt,   OSI = ½ (1 − |∫ τ dt| / ∫ |τ| dt),   RRT = T / |∫ τ dt|
+
+    (RRT = 1 / ((1 − 2 OSI) TAWSS); in 2D τ is a scalar with a sign, so |∫ τ dt| is the
+    magnitude of the time-averaged WSS vector). The integrals use each step's true length and
+    its end value (the rectangle rule over (t_{n−1}, t_n] with τ(t_n), the value the implicit
+    step computed for that interval): a constant τ gives TAWSS = |τ|, OSI = 0 and RRT = 1/|τ|
+    exactly, for any steps. Steps before ``start`` count for nothing, a step across it for its
+    part after it. The state (:meth:`state`) is the two integrals per sample, the time of the
+    last step and the window's length T so far."""
+
+    def __init__(self, size: int, start: float = 0.0, time: float = 0.0):
+        self.start = float(start)
+        self.time = float(time)  # the end of the last step added
+        self.duration = 0.0  # T, the part of the window covered so far
+        self.integrals = np.zeros((size, 2))  # per sample: ∫ τ dt, ∫ |τ| dt
+
+    def add(self, t: float, tau: np.ndarray) -> None:
+        """Add the step (time, t] with the end values ``tau`` (one per sample)."""
+        if not t > self.time:
+            raise ValueError(f"a step must end after the last one ({self.time!r}), got t = {t!r}")
+        tau = np.asarray(tau, dtype=float)
+        if tau.shape != (len(self.integrals),):
+            raise ValueError(f"expected {len(self.integrals)} wall shear stresses, got "
+                             f"{tau.shape}")
+        weight = t - max(self.time, self.start) if t > self.start else 0.0
+        self.integrals[:, 0] += weight * tau
+        self.integrals[:, 1] += weight * np.abs(tau)
+        self.duration += weight
+        self.time = float(t)
+
+    @property
+    def tawss(self) -> np.ndarray:
+        """(1/T) ∫ |τ| dt (Pa); NaN before the window has any length."""
+        if self.duration <= 0:
+            return np.full(len(self.integrals), np.nan)
+        return self.integrals[:, 1] / self.duration
+
+    @property
+    def osi(self) -> np.ndarray:
+        """½ (1 − |∫ τ dt| / ∫ |τ| dt), in [0, ½]; NaN where ∫ |τ| dt = 0 (no shear at all:
+        undefined)."""
+        mean, magnitude = np.abs(self.integrals[:, 0]), self.integrals[:, 1]
+        osi = np.full(len(mean), np.nan)
+        sheared = magnitude > 0
+        osi[sheared] = 0.5 * (1.0 - np.minimum(mean[sheared] / magnitude[sheared], 1.0))
+        return osi
+
+    @property
+    def rrt(self) -> np.ndarray:
+        """T / |∫ τ dt| = 1 / ((1 − 2 OSI) TAWSS) (1/Pa); +inf where the mean shear is zero,
+        NaN before the window has any length."""
+        mean = np.abs(self.integrals[:, 0])
+        if self.duration <= 0:
+            return np.full(len(mean), np.nan)
+        rrt = np.full(len(mean), np.inf)
+        rrt[mean > 0] = self.duration / mean[mean > 0]
+        return rrt
+
+    def state(self) -> dict[str, np.ndarray]:
+        """``integrals`` (size, 2): ∫ τ dt and ∫ |τ| dt per sample; ``window`` (2,): the time
+        of the last step and T."""
+        return {"integrals": self.integrals.copy(),
+                "window": np.array([self.time, self.duration])}
+
+    def load_state(self, state: dict[str, np.ndarray]) -> None:
+        """Continue from :meth:`state`'s arrays (the integrals of the same samples)."""
+        integrals = np.asarray(state["integrals"], dtype=float).reshape(-1, 2)
+        if len(integrals) != len(self.integrals):
+            raise ValueError(f"expected integrals of {len(self.integrals)} samples, got "
+                             f"{len(integrals)}")
+        self.integrals = integrals.copy()
+        self.time, self.duration = (float(v) for v in state["window"])
 
 
 # --------------------------------------------------------------------------------------------

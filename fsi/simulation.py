@@ -337,16 +337,22 @@ class _Snapshot:
 
     def write(self, out: Path, comm: MPI.Comm, case: config.Case,
               layouts: dict[str, checkpoint.Layout]) -> tuple[Path, int, float] | None:
-        """Write it as ``out/checkpoint``; return (the folder, step, t), or on failure log why
+        """Write it as ``out/checkpoint``, then the files derived from the state
+        (``wall_indices.csv``); return (the folder, step, t), or if the checkpoint fails log why
         and return None (the previous checkpoint stays). Collective."""
         try:
             folder = checkpoint.write(out, comm, self.state, layouts,
                                       checkpoint.metadata(case, comm, self.step, self.t, self.dt))
-            return folder, self.step, self.t
         except checkpoint.CheckpointError as e:  # raised on every rank: said once
             if comm.rank == 0:
                 log.error("fsi: no checkpoint of step %d: %s", self.step, e)
             return None
+        try:  # the files derived from the checkpointed state: wall_indices.csv
+            FluidOutputs.write_indices(out, comm, self.state)
+        except io.OutputError as e:  # raised on every rank; the checkpoint holds the values
+            if comm.rank == 0:
+                log.error("fsi: %s", e)
+        return folder, self.step, self.t
 
 
 # --------------------------------------------------------------------------------------------
@@ -356,7 +362,23 @@ class _Snapshot:
 class FluidOutputs:
     """The fluid's derived output: viscosity, shear rate and wall shear stress fields (on every
     no-slip or moving wall), for channel-like lumens the WALL_COLUMNS of the metrics row and,
-    where the fluid mesh has an inlet and an outlet, the FLOW_COLUMNS."""
+    where the fluid mesh has an inlet and an outlet, the FLOW_COLUMNS; and the hemodynamic
+    indices TAWSS, OSI and RRT at two Gauss points of every wall facet, accumulated over the
+    run by :meth:`update` (fsi.metrics.WallIndices, docs/hemodynamic-indices.md).
+
+    The indices are state: :meth:`state`, :meth:`layouts` and :meth:`load_state` put them into
+    the stepper's checkpoint, keyed by the samples' reference coordinates, and
+    :meth:`write_indices` writes ``wall_indices.csv`` from such a state. Build it before the
+    fluid mesh moves (the samples' reference coordinates are taken then)."""
+
+    SIDES = ("", "lower", "upper")
+    """``side`` of a sample: ``lower`` where the wall's normal into the lumen points up (+y),
+    ``upper`` where it points down; empty off channel-like lumens (Turek–Hron)."""
+    INDEX_COLUMNS = ["wall", "side", "x", "y", "TAWSS", "OSI", "RRT"]
+    """wall_indices.csv: the wall's boundary label, its side, the sample's reference
+    coordinates (m), TAWSS (Pa), OSI (1) and RRT (1/Pa)."""
+    INDEX_ARRAYS = ("integrals", "points", "walls", "sides")
+    """The state's per-sample arrays ``wall_indices.<name>`` (:meth:`layouts`)."""
 
     def __init__(self, case: config.Case, solver: fluid.FluidSolver):
         self.solver = solver
@@ -375,6 +397,15 @@ class FluidOutputs:
         self.columns = (WALL_COLUMNS if self.lumen else []) + list(self.flow_rates)
         self.derived = metrics.FluidFields(solver.u, solver.p, solver.law, solver.facet_tags,
                                            self.walls)
+        self.sampler = metrics.WallSampler(solver.u, solver.p, solver.law, solver.facet_tags,
+                                           self.walls)
+        self.indices = metrics.WallIndices(self.sampler.size, time=solver.time)
+        self.sides = np.zeros(self.sampler.size, dtype=np.int64)
+        if self.lumen:
+            normal_y = self.sampler.local().normal[:, 1]
+            self.sides[normal_y > 0] = self.SIDES.index("lower")
+            self.sides[normal_y < 0] = self.SIDES.index("upper")
+        self._layout = checkpoint.interface_layout("wall_samples", self.sampler.reference, 1)
 
     @property
     def fields(self) -> list:
@@ -382,16 +413,99 @@ class FluidOutputs:
 
     def update(self) -> dict:
         """Recompute the fields for the current solution; return the row's wall and flow
-        columns."""
+        columns. If the fluid's time has advanced since the last update (a step was taken), the
+        wall shear stress now is added to the indices over that step, (t_last, t]; a restored
+        state (same time) adds nothing."""
         s = self.solver
         self.derived.update()
+        samples = self.sampler.local()
+        if s.time > self.indices.time:
+            self.indices.add(s.time, samples.tau)
         row = {}
         if self.lumen:
-            row.update(metrics.wall_shear_summary(metrics.wall_shear_stress(
-                s.u, s.p, s.law, s.facet_tags, self.walls)))
+            row.update(metrics.wall_shear_summary(self.sampler.gather(samples)))
         for column, (form, sign) in self.flow_rates.items():
             row[column] = sign * metrics.total(form, s.comm)
         return row
+
+    def state(self) -> dict[str, np.ndarray]:
+        """The indices' accumulators, ``wall_indices.integrals`` (∫ τ dt, ∫ |τ| dt per sample)
+        and ``wall_indices.window`` (the last step's time, the window's length T), and what the
+        samples are: ``wall_indices.points`` (reference coordinates), ``.walls`` (facet tags),
+        ``.sides`` (:data:`SIDES` indices), so that wall_indices.csv can be written from a
+        checkpoint's state alone (:meth:`write_indices`)."""
+        accumulators = self.indices.state()
+        return {"wall_indices.integrals": accumulators["integrals"],
+                "wall_indices.window": accumulators["window"],
+                "wall_indices.points": self.sampler.reference.copy(),
+                "wall_indices.walls": self.sampler.walls.copy(),
+                "wall_indices.sides": self.sides.copy()}
+
+    def layouts(self) -> dict[str, checkpoint.Layout]:
+        """The per-sample arrays of :meth:`state`: one row per owned sample, keyed by its
+        reference coordinates (``window`` is global)."""
+        return {f"wall_indices.{name}": self._layout for name in self.INDEX_ARRAYS}
+
+    def load_state(self, state: dict[str, np.ndarray]) -> None:
+        """Continue the indices from :meth:`state`'s arrays (on this run's samples); a
+        checkpoint written before they existed (fsi.checkpoint.ADDED) starts them at the
+        restart's time, with a warning."""
+        if "wall_indices.integrals" not in state:
+            self.indices = metrics.WallIndices(self.sampler.size, start=self.solver.time,
+                                               time=self.solver.time)
+            if self.solver.comm.rank == 0:
+                log.warning("fsi: the checkpoint holds no wall shear stress indices (written by "
+                            "an earlier version): wall_indices.csv averages from t = %g s on",
+                            self.solver.time)
+            return
+        self.indices.load_state({"integrals": state["wall_indices.integrals"],
+                                 "window": state["wall_indices.window"]})
+
+    def summary(self) -> dict:
+        """For channel-like lumens, over every sample of their walls: ``min_tawss`` (Pa),
+        ``max_osi`` and ``max_rrt`` (1/Pa); None where undefined (no step yet) or, for RRT,
+        infinite (a zero mean shear). Collective."""
+        if not self.lumen:
+            return {}
+        extremes = {"min_tawss": (self.indices.tawss, MPI.MIN),
+                    "max_osi": (self.indices.osi, MPI.MAX),
+                    "max_rrt": (self.indices.rrt, MPI.MAX)}
+        result = {}
+        for key, (values, op) in extremes.items():
+            values = values[~np.isnan(values)]
+            if len(values):
+                local = float(values.min() if op == MPI.MIN else values.max())
+            else:
+                local = np.inf if op == MPI.MIN else -np.inf
+            found = self.solver.comm.allreduce(local, op=op)
+            result[key] = found if math.isfinite(found) else None
+        return result
+
+    @classmethod
+    def write_indices(cls, out: Path, comm: MPI.Comm, state: dict[str, np.ndarray]) -> None:
+        """``out/wall_indices.csv`` from a stepper state that holds ``wall_indices.*`` arrays
+        (:meth:`state`; nothing for one without): a row per wall sample, :data:`INDEX_COLUMNS`,
+        sorted by wall, side and x; x, y in the reference configuration; an empty cell where a
+        value is undefined (no step yet; OSI where there was no shear), ``inf`` for the RRT
+        of a zero mean shear. Collective (gathered to rank 0, written there; raises
+        :class:`fsi.io.OutputError` on every rank if it cannot be written)."""
+        if "wall_indices.integrals" not in state:
+            return
+        arrays = [np.asarray(state[f"wall_indices.{name}"]) for name in cls.INDEX_ARRAYS]
+        gathered = comm.gather(arrays, root=0)
+        rows = []
+        if comm.rank == 0:
+            integrals, points, walls, sides = (
+                np.concatenate([a[i] for a in gathered]) for i in range(len(arrays)))
+            indices = metrics.WallIndices(len(walls))
+            indices.load_state({"integrals": integrals, "window": state["wall_indices.window"]})
+            values = zip(walls, sides, points.reshape(-1, 2), indices.tawss, indices.osi,
+                         indices.rrt)
+            rows = [[Boundary(int(wall)).label, cls.SIDES[int(side)], float(x), float(y),
+                     float(tawss), float(osi), float(rrt)]
+                    for wall, side, (x, y), tawss, osi, rrt in values]
+            rows.sort(key=lambda r: (r[0], r[1], r[2]))
+        io.write_table(comm, out / "wall_indices.csv", cls.INDEX_COLUMNS, rows)
 
 
 # --------------------------------------------------------------------------------------------
@@ -449,16 +563,19 @@ class RigidStepper:
         W = self.solver.W
         return {"mean_coupling_iterations": 0.0,
                 "fluid_dofs": global_dofs(W),
-                "cells": self.cells}
+                "cells": self.cells,
+                **self.outputs.summary()}
 
     def state(self) -> dict[str, np.ndarray]:
-        return checkpoint.to_arrays("fluid.", self.solver.save_state())
+        return {**checkpoint.to_arrays("fluid.", self.solver.save_state()),
+                **self.outputs.state()}
 
     def layouts(self) -> dict[str, checkpoint.Layout]:
-        return self._layouts
+        return {**self._layouts, **self.outputs.layouts()}
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
         self.solver.restore_state(checkpoint.from_arrays(fluid.FluidState, "fluid.", state))
+        self.outputs.load_state(state)
         self.outputs.update()
 
 
@@ -548,14 +665,17 @@ class CoupledStepper:
                 "solid_newton_iterations": self.solid_newton,
                 "fluid_dofs": global_dofs(W),
                 "solid_dofs": global_dofs(V),
-                "cells": self.cells}
+                "cells": self.cells,
+                **self.outputs.summary()}
 
     def state(self) -> dict[str, np.ndarray]:
         """The fluid's (solution, BDF history, mesh displacement history, step counter) and the
         solid's (η, Newmark/generalized-α history, loads) states, the acceleration's memory
-        (Aitken's ω, IQN-ILS's columns of past steps), the predictor's history, the counters."""
+        (Aitken's ω, IQN-ILS's columns of past steps), the predictor's history, the counters,
+        the wall indices' accumulators (:meth:`FluidOutputs.state`)."""
         p = self.problem
         return {**checkpoint.to_arrays("fluid.", p.fluid.save_state()),
+                **self.outputs.state(),
                 **checkpoint.to_arrays("solid.", p.solid.save_state()),
                 **{f"coupling.{k}": v for k, v in p.acceleration.state().items()},
                 **{f"predictor.{k}": v for k, v in p.predictor.state().items()},
@@ -563,7 +683,7 @@ class CoupledStepper:
                 "counters.solid_newton_iterations": np.array(self.solid_newton)}
 
     def layouts(self) -> dict[str, checkpoint.Layout]:
-        return self._layouts
+        return {**self._layouts, **self.outputs.layouts()}
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
         p = self.problem
@@ -573,6 +693,7 @@ class CoupledStepper:
         p.predictor.load_state(checkpoint.subset("predictor.", state))
         self.iterations = [int(n) for n in state["counters.coupling_iterations"]]
         self.solid_newton = int(state["counters.solid_newton_iterations"])
+        self.outputs.load_state(state)
         self.outputs.update()
 
 
