@@ -759,7 +759,9 @@ class MeshMotion:
 
 @dataclass(frozen=True)
 class Output:
-    fields: Literal["xdmf", "vtx"] = "xdmf"
+    # XDMF only: Debian 12's dolfinx has no ADIOS2 (no VTX), and 0.9's VTX writer takes one
+    # element per file, where a run writes P1 and per-cell fields side by side.
+    fields: Literal["xdmf"] = "xdmf"
     fields_every: int = at_least(1, 1)
     checkpoint_every: int = at_least(10, 1)
     report_times: tuple[float, ...] = _check((0.01, 0.02, 0.05, 0.1, 0.8),

@@ -115,8 +115,6 @@ def unsupported(case: config.Case) -> str | None:
             return (f"structure.degree: the coupling pairs the fluid's P2 velocity nodes with "
                     f"the structure's interface nodes, so structure.mode '{mode}' needs "
                     f"structure.degree 2, got {case.structure.degree}")
-    if case.output.fields == "vtx" and not hasattr(dolfinx.io, "VTXWriter"):
-        return "output.fields: 'vtx' needs dolfinx built with ADIOS2 (not Debian 12's); use 'xdmf'"
     return None
 
 

@@ -137,3 +137,11 @@ def test_scientific_notation_without_a_dot_is_a_number():
     # PyYAML follows YAML 1.1, where a plain 4e6 is a string; the loader reads YAML 1.2 floats.
     case = config.from_dict(config.parse_yaml("structure: {wall: {young_modulus: 4e6}}"))
     assert case.structure.wall.young_modulus == 4.0e6
+
+
+def test_vtx_output_is_refused_by_check(capsys):
+    """No VTX writer exists (Debian 12's dolfinx lacks ADIOS2): ``fsi check`` says so on both
+    releases instead of a run failing, or silently writing XDMF, later."""
+    assert cli.main(["check", "configs/channel_poiseuille.yaml", "--set",
+                     "output.fields=vtx"]) == 2
+    assert "output.fields: expected one of 'xdmf'" in capsys.readouterr().err
