@@ -20,7 +20,6 @@ from typing import Callable, Protocol
 
 from mpi4py import MPI
 
-import dolfinx
 import numpy as np
 
 from fsi import (checkpoint, config, coupling, fluid, io, mesh, metrics, partitioned,
