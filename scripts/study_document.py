@@ -323,12 +323,36 @@ def load_reason(newtonian: report.Run | None, carreau: report.Run | None) -> str
             "instead of a pressure, or with a Carreau viscosity near μ0).")
 
 
+def convergence_of_maxima(runs: dict) -> str:
+    """The coarse → fine change of the structure's stress maxima, for each moving-wall
+    configuration that has both runs finished."""
+    parts = []
+    for c in ("moving_newtonian", "moving_carreau"):
+        coarse, fine = runs.get(f"{c}_coarse"), runs.get(f"{c}_fine")
+        if not (finished(coarse) and finished(fine)):
+            continue
+        values = {}
+        for label, get in (("whole structure", lambda r: r.get("max_sss")),
+                           ("plaque", plaque_max),
+                           ("cap's largest principal stress", lambda r: r.get("max_principal_cap"))):
+            pair = [max((get(r) or 0.0) for r in run.rows) for run in (coarse, fine)]
+            values[label] = (f"{label} {pair[0]:.4g} → {pair[1]:.4g} Pa "
+                             f"({change(pair[0], pair[1])})")
+        parts.append(f"{LABELS[c]}, coarse → fine: " + "; ".join(values.values()))
+    if not parts:
+        return ""
+    return (" Measured: " + ". ".join(parts) + ". The plaque's maxima converge; the whole "
+            "structure's, set at the clamped corner, does not.")
+
+
 def findings(runs: dict) -> list[str]:
     """The study's qualitative findings (MODEL.md §6), each with our numbers and a verdict.
-    Fine-mesh runs where finished, else coarse."""
+    They compare configurations, so all on one mesh: the fine one once its four runs have
+    finished, else the coarse one."""
+    level = "fine" if all(finished(runs.get(f"{c}_fine")) for c in CONFIGS) else "coarse"
 
     def pick(c: str) -> report.Run | None:
-        return best(runs, c)
+        return runs.get(f"{c}_{level}")
 
     def peak(c: str, column: str) -> float | None:
         found = series_max(pick(c), column)
@@ -337,6 +361,10 @@ def findings(runs: dict) -> list[str]:
     def mesh(c: str) -> str:
         run = pick(c)
         return "–" if run is None else run.path.name
+
+    def plaque_peak(c: str) -> float:
+        run = pick(c)
+        return max((plaque_max(r) or 0.0) for r in run.rows) if run else math.nan
 
     out = []
     fn, fc = peak("fixed_newtonian", "max_sss"), peak("fixed_carreau", "max_sss")
@@ -360,7 +388,10 @@ def findings(runs: dict) -> list[str]:
                    f"{mn:.4g} Pa, Carreau {mc:.4g} Pa (ratio {ratio:.4f}); largest displacement: "
                    f"Newtonian {1e6 * dn:.4g} µm, Carreau {1e6 * dc:.4g} µm (ratio {dratio:.4f}) "
                    f"— {verdict} (confirmed if the SSS ratio > 1.5 and the displacement ratio "
-                   "> 1)." + load_reason(pick("moving_newtonian"), pick("moving_carreau")))
+                   f"> 1). In the plaque alone: {plaque_peak('moving_newtonian'):.4g} Pa vs "
+                   f"{plaque_peak('moving_carreau'):.4g} Pa ({mesh('moving_newtonian')}, "
+                   f"{mesh('moving_carreau')})."
+                   + load_reason(pick("moving_newtonian"), pick("moving_carreau")))
     run = pick("moving_newtonian")
     found = series_max(run, "max_sss")
     if found is not None and (run.path / "solid.xdmf").is_file():
@@ -374,7 +405,8 @@ def findings(runs: dict) -> list[str]:
                        "meets the loaded lumen side. The elastic stress is singular at that "
                        "corner of the boundary conditions, so this maximum grows as the mesh is "
                        "refined and says nothing about the plaque; the plaque's largest SSS, "
-                       f"{plaque:.4g} Pa, is the one to compare (Figure 6, left).")
+                       f"{plaque:.4g} Pa, is the one to compare (Figure 6, left)."
+                       + convergence_of_maxima(runs))
     rf = [peak(c, "recirculation_length") for c in ("fixed_newtonian", "fixed_carreau")]
     rm = [peak(c, "recirculation_length") for c in ("moving_newtonian", "moving_carreau")]
     if all(rf + rm):
@@ -436,8 +468,9 @@ def write(folder: Path, study_runs, docs: Path) -> Path:
         for caption, path in fields:
             parts.append(f"{caption}\n\n![{path.stem}](figures/{path.name})\n")
     parts.append("## The study's findings, checked\n\n"
-                 "Each with the fine-mesh runs where they finished, else the coarse ones (the "
-                 "run is named beside its numbers).\n\n"
+                 "All on one mesh, as they compare configurations: the fine one once its four "
+                 "runs have finished, else the coarse one (the run is named beside its "
+                 "numbers).\n\n"
                  + "\n".join(f"- {f}" for f in findings(runs)) + "\n")
     parts.append("## Wall time on this machine (2 cores)\n\n"
                  "Sum of the steps' wall times (metrics.csv), without start-up (mesh, "

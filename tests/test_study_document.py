@@ -43,13 +43,12 @@ def test_the_study_s_findings_refuted():
     assert verdicts(runs) == ["refuted", "refuted", "refuted"]
 
 
-def test_a_finished_fine_run_is_preferred_to_the_coarse_one():
-    runs = {"fixed_newtonian_coarse": run("coarse", 300.0),
-            "fixed_newtonian_fine": run("fine", 500.0),
-            "fixed_carreau_coarse": run("b", 300.0),
-            "fixed_carreau_fine": run("unfinished", 900.0, end=0.1)}
-    text = study_document.findings(runs)[0]
-    assert "Newtonian 500 Pa (fine)" in text and "Carreau 300 Pa (b)" in text
+def test_the_findings_use_the_fine_mesh_once_its_four_runs_finished():
+    coarse = {f"{c}_coarse": run(f"{c}_coarse", 300.0) for c in study_document.CONFIGS}
+    fine = {f"{c}_fine": run(f"{c}_fine", 500.0) for c in study_document.CONFIGS}
+    assert "(fixed_newtonian_fine)" in study_document.findings({**coarse, **fine})[0]
+    fine["fixed_carreau_fine"] = run("fixed_carreau_fine", 500.0, end=0.1)  # unfinished
+    assert "(fixed_newtonian_coarse)" in study_document.findings({**coarse, **fine})[0]
 
 
 def test_the_peak_tables_give_coarse_fine_and_their_change():
