@@ -12,7 +12,8 @@ is not finite; nest YAML deeper than :data:`MAX_YAML_DEPTH` levels or repeat a k
 :func:`check_petsc_options` (no viewers, monitors, Python types, options files or file paths);
 ask for more than ``time.max_steps`` steps or, by :func:`estimated_cells`, more than
 ``mesh.max_cells`` triangles; give an inlet formula longer than :data:`MAX_FORMULA_LENGTH`
-characters or one that fails at t = 0 or at a step time of the schedule.
+characters or one that fails at t = 0 or at a step time of the schedule; give a
+``pressure_file`` inlet whose CSV file cannot be read or is not a waveform (:func:`read_waveform`).
 """
 
 from __future__ import annotations
@@ -485,14 +486,34 @@ def _is_time_table(rows: tuple) -> bool:
             and all(b[0] > a[0] for a, b in zip(rows, rows[1:])))
 
 
+def _period() -> Any:
+    return non_negative(0.0, " (s; 0: no repetition)")
+
+
 @dataclass(frozen=True)
 class InletPressureTable:
     """Inlet normal traction σ n = −P(t) n from rows [t (s), P (Pa)]: linear between rows,
-    constant beyond the first and last."""
+    constant beyond the first and last; with ``period`` T > 0, P(t) = P_table(t mod T), and the
+    rows must cover [0, T] (checked by :func:`validate`)."""
 
     kind: Literal["pressure_table"] = "pressure_table"
     table: tuple[tuple[float, ...], ...] = _check(
         ((0.0, 0.0),), _is_time_table, "a non-empty list of [t, P] pairs with increasing t")
+    period: float = _period()
+
+
+@dataclass(frozen=True)
+class InletPressureFile:
+    """A :class:`InletPressureTable` whose rows come from the CSV file ``file`` (relative to
+    the case file's folder; to the current directory when ``--set`` gives it), read once by
+    :func:`from_dict` into ``table`` (:func:`read_waveform` says what the file may hold).
+    :func:`to_dict` writes it as a ``pressure_table`` of those rows, so a run's config.yaml
+    does not need the file."""
+
+    kind: Literal["pressure_file"] = "pressure_file"
+    file: str = ""
+    period: float = _period()
+    table: tuple[tuple[float, ...], ...] = ()  # filled by from_dict, not a YAML key
 
 
 @dataclass(frozen=True)
@@ -506,7 +527,8 @@ class ParabolicInflow:
     ramp_time: float = non_negative(2.0, " (s)")
 
 
-Inlet = Union[InletPulse, InletPressure, InletPressureTable, ParabolicInflow]
+Inlet = Union[InletPulse, InletPressure, InletPressureTable, InletPressureFile,
+              ParabolicInflow]
 
 
 @dataclass(frozen=True)
@@ -861,6 +883,7 @@ def from_dict(data: dict, source: str = "<dict>", overridden: set[str] | None = 
     overridden = overridden or set()
     try:
         case = _build(Case, data, "")
+        case = _read_inlet_file(case, source, overridden)
         validate(case)
     except ConfigError as e:
         from_command_line = any(e.key == k or e.key.startswith((k + ".", k + "["))
@@ -1166,6 +1189,8 @@ def _validate_inlet(case: Case) -> None:
     """Evaluate an inlet formula at t = 0 and at every step time of the schedule: one that
     fails (division by zero, log(0), overflow, ...) is refused now, not mid-run."""
     inlet = case.fluid.inlet
+    if isinstance(inlet, (InletPressureTable, InletPressureFile)):
+        _validate_period(inlet)
     if not isinstance(inlet, InletPressure):
         return  # the pulse is closed-form; a table holds finite numbers and interpolates
     pressure = time_function(inlet.formula)
@@ -1308,7 +1333,9 @@ def _validate_turek_hron(g: TurekHronGeometry) -> None:
 
 
 def to_dict(case: Case) -> dict:
-    """The resolved configuration as plain YAML-ready data (tuples as lists)."""
+    """The resolved configuration as plain YAML-ready data (tuples as lists); a
+    ``pressure_file`` inlet as the ``pressure_table`` of its rows and period, so that
+    :func:`load` of the data needs no CSV file and gives the same P(t)."""
 
     def plain(v: Any) -> Any:
         if isinstance(v, dict):
@@ -1317,7 +1344,12 @@ def to_dict(case: Case) -> dict:
             return [plain(x) for x in v]
         return v
 
-    return plain(dataclasses.asdict(case))
+    data = plain(dataclasses.asdict(case))
+    inlet = case.fluid.inlet
+    if isinstance(inlet, InletPressureFile):  # self-contained: the rows, not the file
+        data["fluid"]["inlet"] = plain(dataclasses.asdict(
+            InletPressureTable(table=inlet.table, period=inlet.period)))
+    return data
 
 
 def to_yaml(case: Case) -> str:
@@ -1327,3 +1359,112 @@ def to_yaml(case: Case) -> str:
 
 def dump(case: Case, path: str | Path) -> None:
     Path(path).write_text(to_yaml(case))
+
+
+# --------------------------------------------------------------------------------------------
+# Inlet waveforms from CSV files
+
+
+class WaveformError(ValueError):
+    """A waveform CSV file cannot be used: the message names the file and, for bad content, the
+    line (``waveforms/x.csv: line 7: 'abc' is not a number``)."""
+
+
+def read_waveform(path: str | Path) -> tuple[tuple[float, float], ...]:
+    """The rows (t (s), P (Pa)) of the CSV file ``path``.
+
+    Guaranteed on return: at least 2 rows, every value a finite float, t strictly increasing.
+    The file: UTF-8 text (a byte-order mark allowed) of at most :data:`MAX_FILE_BYTES`; one row
+    ``t, P`` per line, comma-separated; blank lines and lines starting with ``#`` are skipped;
+    the first other line may be a header (no cell of it a number: ``t,P``). Raises
+    :class:`WaveformError` naming the file (and the line) otherwise, ``OSError`` if the file
+    cannot be read.
+    """
+    with Path(path).open("rb") as f:
+        raw = f.read(MAX_FILE_BYTES + 1)  # bounded, as a case file
+    if len(raw) > MAX_FILE_BYTES:
+        raise WaveformError(f"{path}: larger than {MAX_FILE_BYTES} bytes")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise WaveformError(f"{path}: not UTF-8 text (byte 0x{raw[e.start]:02x} at offset "
+                            f"{e.start})") from None
+    rows: list[tuple[float, float]] = []
+    header_allowed = True
+    for number, line in enumerate(text.splitlines(), start=1):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        cells = [cell.strip() for cell in line.split(",")]
+        first, header_allowed = header_allowed, False
+        values = [_number(cell) for cell in cells]
+        if first and all(value is None for value in values):
+            continue  # the header
+        where = f"{path}: line {number}"
+        if len(cells) != 2:
+            raise WaveformError(f"{where}: expected 2 columns t, P, got {len(cells)}")
+        for cell, value in zip(cells, values):
+            if value is None:
+                raise WaveformError(f"{where}: {_shorten(repr(cell), 40)} is not a number")
+        t, pressure = values
+        for name, value in (("t", t), ("P", pressure)):
+            if not math.isfinite(value):
+                raise WaveformError(f"{where}: {name} = {value} is not a finite number")
+        if rows and t <= rows[-1][0]:
+            raise WaveformError(f"{where}: t = {t:g} is not after the previous row's t = "
+                                f"{rows[-1][0]:g}")
+        rows.append((t, pressure))
+    if len(rows) < 2:
+        raise WaveformError(f"{path}: {len(rows)} row{'s' if len(rows) != 1 else ''} of t, P; "
+                            "at least 2 are needed")
+    return tuple(rows)
+
+
+def _number(cell: str) -> float | None:
+    """The float ``cell`` spells, or None (``float`` also takes inf and nan: checked after)."""
+    try:
+        return float(cell)
+    except ValueError:
+        return None
+
+
+def _read_inlet_file(case: Case, source: str, overridden: set[str]) -> Case:
+    """``case`` with a ``pressure_file`` inlet's rows read into its ``table`` (other inlets
+    unchanged). ``file`` is relative to the folder of ``source`` (the case file), or to the
+    current directory when ``--set`` gave it (or ``source`` is not a file: ``<dict>``); the
+    path kept in the case is the one opened."""
+    inlet = case.fluid.inlet
+    if not isinstance(inlet, InletPressureFile):
+        return case
+    if inlet.table:
+        raise ConfigError("", "fluid.inlet.table", reason="not a key of kind 'pressure_file' "
+                          "(its rows come from fluid.inlet.file; use kind 'pressure_table' to "
+                          "give them inline)")
+    if not inlet.file:
+        raise ConfigError("", "fluid.inlet.file", "the name of a CSV file of rows t, P "
+                          "(relative to the case file's folder)")
+    from_command_line = bool({"fluid", "fluid.inlet", "fluid.inlet.file"} & overridden)
+    path = Path(inlet.file)
+    if not path.is_absolute() and not from_command_line and source not in ("<dict>", "--set"):
+        path = Path(source).parent / path
+    try:
+        rows = read_waveform(path)
+    except OSError as e:
+        raise ConfigError("", "fluid.inlet.file", reason=f"cannot read {path} "
+                          f"({e.strerror or type(e).__name__})") from None
+    except WaveformError as e:
+        raise ConfigError("", "fluid.inlet.file", reason=str(e)) from None
+    inlet = dataclasses.replace(inlet, file=str(path), table=rows)
+    return dataclasses.replace(case, fluid=dataclasses.replace(case.fluid, inlet=inlet))
+
+
+def _validate_period(inlet: InletPressureTable | InletPressureFile) -> None:
+    """A periodic table must cover one period: first t <= 0 and last t >= period."""
+    period = inlet.period
+    first, last = inlet.table[0][0], inlet.table[-1][0]
+    if period > 0 and not (first <= 0 <= period <= last):
+        rows = (f"the rows of {inlet.file}" if isinstance(inlet, InletPressureFile)
+                else "fluid.inlet.table")
+        raise ConfigError("", "fluid.inlet.period", reason=(
+            f"{rows} cover t in [{first:g}, {last:g}] s, not the whole period [0, {period:g}] s "
+            "(the first t must be <= 0 and the last >= period)"))

@@ -91,8 +91,8 @@ class Velocity:
 @dataclass(frozen=True)
 class Inflow:
     """The configured inlet on ``tags``: a normal traction σ n = −P(t) n (``traction_pulse``,
-    ``pressure``, ``pressure_table``; in the ``do_nothing`` form μ∇u n − p n = −P n) or a
-    parabolic velocity (``parabolic_velocity``). A traction inlet with
+    ``pressure``, ``pressure_table``, ``pressure_file``; in the ``do_nothing`` form
+    μ∇u n − p n = −P n) or a parabolic velocity (``parabolic_velocity``). A traction inlet with
     ``inflow_stabilization`` β > 0 adds −β/2 ρ min(u·n, 0) u to σ n (as :class:`Outflow`)."""
 
     tags: tuple[int, ...]
@@ -154,14 +154,22 @@ def study_boundaries(fluid: config.Fluid, walls: Sequence[Boundary] = (Boundary.
 
 def inlet_pressure(spec: config.Inlet) -> Callable[[float], float]:
     """P(t) (Pa) of a traction inlet, σ n = −P n: the study's pulse (A/2)(1 − cos(2πt/T)) on
-    [0, T] and 0 after, a formula in t, or a table (linear, constant beyond its ends)."""
+    [0, T] and 0 after, a formula in t, or a table, inline or read from a CSV file (linear
+    between rows; with a period T > 0, P(t) = P_table(t mod T), else constant beyond its ends).
+    A ``pressure_file`` inlet must come from :func:`config.load` (which reads its rows)."""
     if isinstance(spec, config.InletPulse):
         A, T = spec.amplitude, spec.duration
         return lambda t: A / 2 * (1 - math.cos(2 * math.pi * t / T)) if 0 <= t <= T else 0.0
     if isinstance(spec, config.InletPressure):
         return config.time_function(spec.formula)
-    if isinstance(spec, config.InletPressureTable):
+    if isinstance(spec, (config.InletPressureTable, config.InletPressureFile)):
+        if not spec.table:
+            raise ValueError(f"fluid.inlet ({spec.kind}) has no rows (a pressure_file inlet "
+                             "is read by config.load or config.from_dict)")
         times, values = np.array(spec.table, dtype=float).T
+        period = spec.period
+        if period > 0:
+            return lambda t: float(np.interp(t % period, times, values))
         return lambda t: float(np.interp(t, times, values))
     raise TypeError(f"{type(spec).__name__} is not a traction inlet")
 

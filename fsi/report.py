@@ -313,8 +313,9 @@ def _describe(inlet: config.Inlet) -> str:
     if isinstance(inlet, config.InletPressure):
         formula = inlet.formula if len(inlet.formula) <= 60 else inlet.formula[:57] + "..."
         return f"P = {formula}"
-    if isinstance(inlet, config.InletPressureTable):
-        return f"table of {len(inlet.table)} rows"
+    if isinstance(inlet, (config.InletPressureTable, config.InletPressureFile)):
+        period = f", period {inlet.period:g} s" if inlet.period > 0 else ""
+        return f"table of {len(inlet.table)} rows{period}"
     return inlet.kind
 
 
