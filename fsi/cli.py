@@ -276,8 +276,13 @@ class _StopOnSignal:
         if self.signal is not None:
             raise KeyboardInterrupt
         self.signal = signum
-        log.warning("fsi: %s received: stopping after this step with a checkpoint (again: "
-                    "stop at once)", signal.Signals(signum).name)
+        if MPI.COMM_WORLD.rank == 0:  # a plain write: the handler may interrupt one to stderr
+            message = (f"fsi: {signal.Signals(signum).name} received: stopping after this step "
+                       "with a checkpoint (again: stop at once)\n")
+            try:
+                os.write(sys.stderr.fileno(), message.encode())
+            except (OSError, ValueError):  # no usable stderr (closed, or captured in memory)
+                pass
 
 
 def _mesh(args: argparse.Namespace, case: config.Case) -> int:
