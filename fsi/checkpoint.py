@@ -450,6 +450,10 @@ class Checkpoint:
     def dt(self) -> float | None:
         return self.meta.get("dt")
 
+    def continues(self, out: Path) -> bool:
+        """Whether a restart into ``out`` continues this checkpoint's own run folder."""
+        return self.run_dir.resolve() == Path(out).resolve()
+
 
 def locate(path: Path) -> tuple[Path, Path]:
     """(checkpoint folder, run folder) for ``path``, a run folder (its ``checkpoint/``, or

@@ -187,7 +187,7 @@ def _run(args: argparse.Namespace, case: config.Case) -> int:
     except checkpoint.CheckpointError as e:
         _error(comm, f"--restart: {e}")
         return EXIT_USAGE
-    continuing = restart is not None and restart.run_dir.resolve() == args.out.resolve()
+    continuing = restart is not None and restart.continues(args.out)
     try:
         io.check_folder(comm, args.out, earlier_run=continuing or args.overwrite)
     except io.RunFolderError as e:

@@ -392,10 +392,7 @@ class RunFiles:
 
         on_rank0(comm, prepare, out)
         self._log: logging.Handler | None = None
-        if comm.rank == 0:
-            collectively(comm, lambda: self._start_log(out / "run.log"), out / "run.log")
-        else:
-            collectively(comm, lambda: None)
+        on_rank0(comm, lambda: self._start_log(out / "run.log"), out / "run.log")
         path = out / "metrics.csv"
         self.table = collectively(comm, lambda: MetricsTable(
             comm, path, columns, keep_until_step=first, source=metrics_source), path)

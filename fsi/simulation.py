@@ -209,7 +209,7 @@ def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start:
         loaded = checkpoint.localize(restart, layouts, stepper.state(), comm)
     files = stepper.field_files()
 
-    continuing = restart is not None and restart.run_dir.resolve() == out.resolve()
+    continuing = restart is not None and restart.continues(out)
     try:
         # The field writers store the mesh now, in its reference configuration (the state,
         # which may move the fluid mesh, is loaded after).
