@@ -7,22 +7,23 @@ raise :class:`ConfigError` naming the file, the key and what is expected, before
 computed. The schema is documented in docs/configuration.md.
 
 What a configuration may not do (each refused with a :class:`ConfigError`): hold a number that
-is not finite; nest YAML deeper than :data:`MAX_YAML_DEPTH` levels or repeat a key; exceed
-:data:`MAX_FILE_BYTES`; give PETSc any option outside the allow-list of
-:func:`check_petsc_options` (no viewers, monitors, Python types, options files or file paths);
-ask for more than ``time.max_steps`` steps or, by :func:`estimated_cells`, more than
-``mesh.max_cells`` triangles; give an inlet formula longer than :data:`MAX_FORMULA_LENGTH`
-characters or one that fails at t = 0 or at a step time of the schedule; give a
-``pressure_file`` inlet whose CSV file cannot be read or is not a waveform (:func:`read_waveform`).
+is not finite; break the file limits of :mod:`fsi.config_reader` (size, nesting, repeated keys);
+give PETSc any option outside the allow-list of :mod:`fsi.petsc_options` (no viewers,
+monitors, Python types, options files or file paths); ask for more than ``time.max_steps``
+steps or, by :func:`fsi.run_size.estimated_cells`, more than ``mesh.max_cells`` triangles;
+give an inlet formula the language of :mod:`fsi.boundary_data` refuses or one that fails at
+t = 0 or at a step time of the schedule; give a ``pressure_file`` inlet whose CSV file cannot be
+read or is not a waveform (:func:`fsi.boundary_data.read_waveform`).
+
+Reading and building live in :mod:`fsi.config_reader`; this module is the schema (the
+dataclasses and their defaults), the checks that involve several keys (:func:`validate`) and
+the conversion back to YAML (:func:`to_dict`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-import re
-import reprlib
-import types
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,169 +31,14 @@ from typing import Any, Literal, Union
 
 import yaml
 
+from fsi.boundary_data import (FORMULA_NAMES, FormulaError, WaveformError, read_waveform,
+                               time_function)
+from fsi.config_reader import (ConfigError, apply_overrides, at_least, build, checked,
+                               non_negative, open_interval, positive, read_case_file)
+from fsi.petsc_options import check_petsc_options
+from fsi.run_size import BYTES_PER_CELL, count_steps, estimated_cells, format_count
 from fsi.timestepping import steps
 from geometry import stenosis as stenosis_geometry
-from geometry import turek_hron as turek_hron_geometry
-
-MAX_FILE_BYTES = 1 << 20
-"""A case file is at most 1 MiB (the shipped ones are < 4 kB; a 50,000-row pressure table fits)."""
-
-MAX_YAML_DEPTH = 32
-"""Nesting levels of YAML lists and mappings (the schema needs 6): deeper is refused before
-PyYAML's recursive composer reaches Python's recursion limit."""
-
-
-class YAMLTooDeep(yaml.YAMLError):
-    """YAML nested more than :data:`MAX_YAML_DEPTH` levels, at ``line`` (1-based)."""
-
-    def __init__(self, mark: yaml.Mark):
-        self.line, self.column = mark.line + 1, mark.column + 1
-        super().__init__(f"YAML nested more than {MAX_YAML_DEPTH} levels deep (line {self.line},"
-                         f" column {self.column})")
-
-
-class _Loader(yaml.SafeLoader):
-    """PyYAML's safe loader with YAML 1.2 floats (plain ``4e6`` and ``1.0e-3`` are numbers) and
-    a nesting limit of :data:`MAX_YAML_DEPTH` levels."""
-
-    _depth = 0
-
-    def compose_node(self, parent, index):
-        self._depth += 1
-        try:
-            if self._depth > MAX_YAML_DEPTH:
-                raise YAMLTooDeep(self.peek_event().start_mark)
-            return super().compose_node(parent, index)
-        finally:
-            self._depth -= 1
-
-
-_Loader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9][0-9_]*\.[0-9_]*(?:[eE][-+]?[0-9]+)?|\.[0-9_]+(?:[eE][-+]?[0-9]+)?"
-               r"|[0-9][0-9_]*[eE][-+]?[0-9]+|\.inf|\.Inf|\.INF|\.nan|\.NaN|\.NAN)$"),
-    list("-+0123456789."),
-)
-
-
-def parse_yaml(text: str, source: str = "<string>", key: str = ""):
-    """The data of one YAML document (safe types only).
-
-    Raises ``yaml.YAMLError`` for invalid YAML (:class:`YAMLTooDeep` for nesting deeper than
-    :data:`MAX_YAML_DEPTH`), and :class:`ConfigError` (``source``, the key path below ``key``)
-    for a key that a mapping repeats: PyYAML would silently keep the last one.
-    """
-    loader = _Loader(text)
-    try:
-        node = loader.get_single_node()
-        if node is None:
-            return None
-        _refuse_duplicate_keys(node, source, key)
-        try:
-            return loader.construct_document(node)
-        except (ValueError, TypeError, OverflowError) as e:  # 5000 digits, month 13, ...
-            raise yaml.YAMLError(f"a value cannot be read: {_shorten(str(e))}") from None
-    finally:
-        loader.dispose()
-
-
-def _refuse_duplicate_keys(root: yaml.Node, source: str, root_key: str) -> None:
-    """Walk the composed YAML graph once per node (aliases share nodes, so an alias "bomb" is
-    not expanded) and raise :class:`ConfigError` at the first mapping that repeats a key."""
-    seen: set[int] = set()
-    stack = [(root, root_key)]
-    while stack:
-        node, key = stack.pop()
-        if id(node) in seen:
-            continue
-        seen.add(id(node))
-        if isinstance(node, yaml.MappingNode):
-            first: dict[tuple, yaml.Mark] = {}
-            for key_node, value_node in node.value:
-                name = str(key_node.value) if isinstance(key_node, yaml.ScalarNode) else "?"
-                sub = f"{key}.{name}" if key else name
-                identity = (key_node.tag, name) if isinstance(key_node, yaml.ScalarNode) else (
-                    id(key_node),)
-                mark = key_node.start_mark
-                if identity in first:
-                    a = first[identity]
-                    where = (f"lines {a.line + 1} and {mark.line + 1}" if a.line != mark.line else
-                             f"line {a.line + 1}, columns {a.column + 1} and {mark.column + 1}")
-                    raise ConfigError(source, sub, reason=f"duplicate key ({where})")
-                first[identity] = mark
-                stack.append((value_node, sub))
-        elif isinstance(node, yaml.SequenceNode):
-            stack.extend((item, f"{key}[{i}]") for i, item in enumerate(node.value))
-
-
-class ConfigError(Exception):
-    """A configuration value is wrong: ``source: key: expected ..., got ...``, or, when there
-    is no single expected value, ``source: key: reason`` (``source: reason`` without a key)."""
-
-    def __init__(self, source: str, key: str, expected: str = "",
-                 got: Any = dataclasses.MISSING, reason: str | None = None):
-        self.source, self.key, self.expected, self.got = source, key, expected, got
-        self.reason = reason
-        where = f"{source}: {key}" if key else source
-        if reason is not None:
-            message = f"{where}: {reason}"
-        else:
-            message = f"{where}: expected {expected}"
-            if got is not dataclasses.MISSING:
-                message += f", got {_show(got)}"
-        super().__init__(message)
-
-    def from_source(self, source: str) -> ConfigError:
-        """The same error, attributed to ``source`` (a file, or ``--set``)."""
-        return ConfigError(source, self.key, self.expected, self.got, self.reason)
-
-
-def _shorten(text: str, limit: int = 80) -> str:
-    """``text``, or its start and its length when longer than ``limit`` (a 1 MB formula)."""
-    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
-
-
-_REPR = reprlib.Repr()
-_REPR.maxlevel, _REPR.maxlist, _REPR.maxtuple, _REPR.maxdict = 2, 8, 8, 8
-_REPR.maxlong, _REPR.maxother = 40, 40
-
-
-def _show(value: Any) -> str:
-    """A value for a message, bounded: a string by :func:`_shorten`, containers by
-    ``reprlib`` (YAML aliases can make a list of 10⁹ shared items, too long to ``repr``)."""
-    return _shorten(repr(value) if isinstance(value, str) else _REPR.repr(value))
-
-
-def _finite(value: Any) -> bool:
-    """False only for a float inf or nan (the builder refuses those for every number)."""
-    return not isinstance(value, float) or math.isfinite(value)
-
-
-def _check(default: Any, check: typing.Callable[[Any], bool], expected: str) -> Any:
-    """A dataclass field with a range check and the words that describe the allowed range.
-
-    ``check`` returns whether a value is allowed; it may instead raise ``ValueError`` whose
-    ``reason`` (or message) is added to the error. A non-finite number is refused before
-    ``check`` sees it, with ``expected`` as "a finite ...".
-    """
-    return field(default=default, metadata={"check": check, "expected": expected})
-
-
-def positive(default: float, unit: str = "") -> Any:
-    return _check(default, lambda v: v > 0, f"a positive number{unit}")
-
-
-def non_negative(default: float, unit: str = "") -> Any:
-    return _check(default, lambda v: v >= 0, f"a number >= 0{unit}")
-
-
-def at_least(default: int, low: int) -> Any:
-    return _check(default, lambda v: v >= low, f"an integer >= {low}")
-
-
-def open_interval(default: float, low: float, high: float, unit: str = "") -> Any:
-    return _check(default, lambda v: low < v < high, f"a number in ({low}, {high}){unit}")
-
 
 # --------------------------------------------------------------------------------------------
 # Geometry and mesh
@@ -262,7 +108,7 @@ class MeshSettings:
 
 def quadrature(default: int) -> Any:
     """A quadrature degree in [1, :data:`MAX_QUADRATURE_DEGREE`]."""
-    return _check(default, lambda v: 1 <= v <= MAX_QUADRATURE_DEGREE,
+    return checked(default, lambda v: 1 <= v <= MAX_QUADRATURE_DEGREE,
                   f"an integer in [1, {MAX_QUADRATURE_DEGREE}]")
 
 
@@ -355,117 +201,6 @@ class InletPulse:
     duration: float = positive(0.005, " (s)")
 
 
-_FORMULA_NAMES = ("sin", "cos", "tan", "exp", "log", "sqrt", "tanh", "abs", "min", "max")
-
-MAX_FORMULA_LENGTH = 2000
-"""Characters of an inlet formula: ample for a pulse of several harmonics, and short enough
-that parsing and compiling it are instant."""
-
-MAX_FORMULA_DEPTH = 100
-"""Levels of nested operations in an inlet formula (a formula of several harmonics needs
-about 10): deeper is refused the same way on every Python (3.11 cannot compile a few hundred
-levels, 3.13 can)."""
-
-
-class FormulaError(ValueError):
-    """An inlet formula is not an allowed expression (``t`` None), or its value at time ``t``
-    is not a finite real number: division by zero, a math domain error (``log(0)``,
-    ``sqrt(-1)``), an overflow, a complex result, inf or nan. ``reason`` says which."""
-
-    def __init__(self, formula: str, reason: str, t: float | None = None):
-        self.formula, self.reason, self.t = formula, reason, t
-        at = "" if t is None else f" at t = {t:.6g} s"
-        super().__init__(f"formula {_shorten(repr(formula), 60)}{at}: {reason}")
-
-
-def _depth(tree) -> int:
-    """The depth of a syntax tree (without recursion: the tree may be deep)."""
-    import ast
-
-    deepest, stack = 0, [(tree, 1)]
-    while stack:
-        node, depth = stack.pop()
-        deepest = max(deepest, depth)
-        stack.extend((child, depth + 1) for child in ast.iter_child_nodes(node))
-    return deepest
-
-
-def time_function(formula: str) -> typing.Callable[[float], float]:
-    """``formula``, an arithmetic expression in the time ``t`` (s), as a function of t.
-
-    Allowed: numbers, ``t``, ``pi``, ``e``, ``+ - * / ** %``, parentheses, comparisons (true = 1,
-    e.g. ``600*(1 - cos(2*pi*t/0.005))*(t <= 0.005)``) and the functions sin, cos, tan, exp, log,
-    sqrt, tanh, abs, min, max, in at most :data:`MAX_FORMULA_LENGTH` characters. Raises
-    :class:`FormulaError` (a ValueError) for anything else (names, attributes, strings, nesting
-    too deep to compile). The function returned returns a finite float or raises
-    :class:`FormulaError` naming the formula and t; it raises nothing else.
-    """
-    import ast
-
-    if len(formula) > MAX_FORMULA_LENGTH:
-        raise FormulaError(formula, f"longer than {MAX_FORMULA_LENGTH} characters")
-    try:
-        tree = ast.parse(formula, mode="eval")
-    except SyntaxError as e:
-        raise FormulaError(formula, f"not an expression: {e.msg}") from None
-    except (ValueError, RecursionError, MemoryError) as e:  # null bytes; nesting
-        raise FormulaError(formula, f"not an expression: {_nesting(e)}") from None
-    if _depth(tree) > MAX_FORMULA_DEPTH:
-        raise FormulaError(formula, f"nested more than {MAX_FORMULA_DEPTH} levels deep")
-    allowed = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Compare, ast.Call, ast.Name, ast.Load,
-               ast.Constant, ast.operator, ast.unaryop, ast.cmpop)
-    for node in ast.walk(tree):
-        if not isinstance(node, allowed) or isinstance(node, (ast.MatMult, ast.BitAnd, ast.BitOr,
-                                                              ast.BitXor, ast.LShift, ast.RShift,
-                                                              ast.FloorDiv, ast.Invert, ast.Not,
-                                                              ast.Is, ast.IsNot, ast.In,
-                                                              ast.NotIn)):
-            raise FormulaError(formula, f"{type(node).__name__} is not allowed")
-        if isinstance(node, ast.Constant):
-            if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
-                raise FormulaError(formula, f"{_shorten(repr(node.value), 40)} is not a number")
-            try:
-                node.value = float(node.value)  # float powers overflow instead of running forever
-            except OverflowError:
-                raise FormulaError(formula, "a number too large for a float") from None
-        if isinstance(node, ast.Name) and node.id not in ("t", "pi", "e", *_FORMULA_NAMES):
-            raise FormulaError(formula, f"unknown name {node.id!r}")
-        if isinstance(node, ast.Call) and (node.keywords or not isinstance(node.func, ast.Name)
-                                           or node.func.id not in _FORMULA_NAMES):
-            raise FormulaError(formula, "only calls of " + ", ".join(_FORMULA_NAMES))
-    try:
-        code = compile(tree, "<formula>", "eval")
-    except (ValueError, RecursionError, MemoryError) as e:
-        raise FormulaError(formula, f"cannot be compiled: {_nesting(e)}") from None
-    names = {"__builtins__": {}, "pi": math.pi, "e": math.e, "abs": abs, "min": min, "max": max}
-    names.update({f: getattr(math, f) for f in _FORMULA_NAMES if hasattr(math, f)})
-
-    def value(t: float) -> float:
-        try:
-            result = eval(code, names, {"t": float(t)})  # noqa: S307 (checked above)
-        except ZeroDivisionError:
-            raise FormulaError(formula, "division by zero", t) from None
-        except OverflowError:
-            raise FormulaError(formula, "overflow", t) from None
-        except (ArithmeticError, ValueError, TypeError, RecursionError, MemoryError) as e:
-            raise FormulaError(formula, str(e) or type(e).__name__, t) from None
-        if isinstance(result, complex):  # a negative number to a fractional power
-            raise FormulaError(formula, f"complex result {result}", t)
-        result = float(result)
-        if not math.isfinite(result):
-            raise FormulaError(formula, f"the result is {result}", t)
-        return result
-
-    return value
-
-
-def _nesting(error: Exception) -> str:
-    """Words for a parser/compiler failure: nesting too deep (recursion, memory) or its message."""
-    if isinstance(error, (RecursionError, MemoryError)):
-        return "nested too deeply"
-    return str(error)
-
-
 def _is_time_formula(text: str) -> bool:
     """True, or :class:`FormulaError` saying why ``text`` is not an allowed formula."""
     time_function(text)
@@ -477,8 +212,8 @@ class InletPressure:
     """Inlet normal traction σ n = −P(t) n (P pushes blood in) with P (Pa) a formula in t."""
 
     kind: Literal["pressure"] = "pressure"
-    formula: str = _check("0", _is_time_formula, "an expression in t (numbers, + - * / ** %,"
-                          " comparisons, pi, e, " + ", ".join(_FORMULA_NAMES) + ")")
+    formula: str = checked("0", _is_time_formula, "an expression in t (numbers, + - * / ** %,"
+                          " comparisons, pi, e, " + ", ".join(FORMULA_NAMES) + ")")
 
 
 def _is_time_table(rows: tuple) -> bool:
@@ -497,7 +232,7 @@ class InletPressureTable:
     rows must cover [0, T] (checked by :func:`validate`)."""
 
     kind: Literal["pressure_table"] = "pressure_table"
-    table: tuple[tuple[float, ...], ...] = _check(
+    table: tuple[tuple[float, ...], ...] = checked(
         ((0.0, 0.0),), _is_time_table, "a non-empty list of [t, P] pairs with increasing t")
     period: float = _period()
 
@@ -638,7 +373,7 @@ class GeneralizedAlpha:
     damps the structure's unresolved modes (their periods are far below the 5 ms step)."""
 
     scheme: Literal["generalized_alpha"] = "generalized_alpha"
-    spectral_radius: float = _check(0.5, lambda v: 0 <= v <= 1, "a number in [0, 1]")
+    spectral_radius: float = checked(0.5, lambda v: 0 <= v <= 1, "a number in [0, 1]")
 
 
 @dataclass(frozen=True)
@@ -691,10 +426,10 @@ class Structure:
     lipid: Material = field(default_factory=Material)
     flag: FlagMaterial = field(default_factory=FlagMaterial)
     support: TissueSupport = field(default_factory=TissueSupport)
-    body_force: tuple[float, ...] = _check(
+    body_force: tuple[float, ...] = checked(
         (0.0, 0.0), lambda v: len(v) == 2, "a list of two numbers [gx, gy] (m/s^2)")
     time_integration: StructuralTimeIntegration = field(default_factory=GeneralizedAlpha)
-    degree: int = _check(2, lambda v: 1 <= v <= 3, "an integer in [1, 3]")
+    degree: int = checked(2, lambda v: 1 <= v <= 3, "an integer in [1, 3]")
     quadrature_degree: int = quadrature(4)
     solver: SolverSettings = field(default_factory=SolverSettings)
 
@@ -730,7 +465,7 @@ class Time:
     end: float = positive(0.8, " (s)")
     scheme: Literal["backward_euler", "bdf2", "steady"] = "bdf2"
     schedule: tuple[TimeSegment, ...] = (TimeSegment(0.4, 5.0e-3), TimeSegment(0.8, 1.0e-2))
-    retries: int = _check(0, lambda v: 0 <= v <= 8, "an integer in [0, 8]")
+    retries: int = checked(0, lambda v: 0 <= v <= 8, "an integer in [0, 8]")
     max_steps: int = at_least(1_000_000, 1)
 
 
@@ -747,7 +482,7 @@ class Coupling:
     acceleration: Literal["constant", "aitken", "iqn-ils"] = "aitken"
     tolerance: float = positive(1.0e-6)
     max_iterations: int = at_least(50, 1)
-    initial_relaxation: float = _check(0.5, lambda v: 0 < v <= 1, "a number in (0, 1]")
+    initial_relaxation: float = checked(0.5, lambda v: 0 < v <= 1, "a number in (0, 1]")
     max_relaxation: float = positive(1.0)
     iqn_reuse: int = at_least(4, 0)
     iqn_filter: float = positive(1.0e-2)  # 1e-8 kept stale columns: IQN diverged on the stenosis
@@ -786,7 +521,7 @@ class Output:
     fields: Literal["xdmf"] = "xdmf"
     fields_every: int = at_least(1, 1)
     checkpoint_every: int = at_least(10, 1)
-    report_times: tuple[float, ...] = _check((0.01, 0.02, 0.05, 0.1, 0.8),
+    report_times: tuple[float, ...] = checked((0.01, 0.02, 0.05, 0.1, 0.8),
                                              lambda v: all(t >= 0 for t in v),
                                              "a list of times >= 0 (s)")
 
@@ -812,65 +547,13 @@ class Case:
 def load(path: str | Path, overrides: typing.Sequence[str] = ()) -> Case:
     """Read a case from YAML, apply ``key.path=value`` overrides, build and validate it.
 
-    Every failure is a :class:`ConfigError` naming the file (or ``--set``) and the key: an
-    unreadable file, one larger than :data:`MAX_FILE_BYTES` or not UTF-8 text, invalid or too
-    deeply nested YAML, a repeated key, and whatever :func:`from_dict` refuses.
+    Every failure is a :class:`ConfigError` naming the file (or ``--set``) and the key: what
+    :func:`fsi.config_reader.read_case_file` refuses (unreadable, too large, not UTF-8, invalid
+    or too deeply nested YAML, a repeated key) and whatever :func:`from_dict` refuses.
     """
-    path = Path(path)
-    source = str(path)
-    try:
-        with path.open("rb") as f:
-            raw = f.read(MAX_FILE_BYTES + 1)  # bounded: /dev/zero is refused, not read for ever
-    except OSError as e:
-        raise ConfigError(source, "<file>", "a readable YAML file", e.strerror) from None
-    if len(raw) > MAX_FILE_BYTES:
-        raise ConfigError(source, "", reason=f"larger than {MAX_FILE_BYTES} bytes: not a case "
-                                              "file")
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as e:
-        raise ConfigError(source, "", reason=f"not UTF-8 text (byte 0x{raw[e.start]:02x} at "
-                                              f"offset {e.start}): not a case file") from None
-    try:
-        data = parse_yaml(text, source)
-    except YAMLTooDeep as e:
-        raise ConfigError(source, "", reason=str(e)) from None
-    except yaml.YAMLError as e:
-        raise ConfigError(source, "<file>", f"valid YAML ({e})".replace("\n", " ")) from None
-    if data is None:
-        data = {}
-    if not isinstance(data, dict):
-        raise ConfigError(source, "<top level>", "a mapping of sections", type(data).__name__)
+    data = read_case_file(path)
     overridden = apply_overrides(data, overrides)
-    return from_dict(data, source, overridden)
-
-
-def apply_overrides(data: dict, overrides: typing.Sequence[str]) -> set[str]:
-    """Set ``key.path=value`` (value parsed as YAML) in ``data``; return the keys set and the
-    sections the overrides created (a section not in ``data`` comes from the command line)."""
-    keys = set()
-    for item in overrides:
-        key, sep, text = item.partition("=")
-        if not sep or not key or any(not part for part in key.split(".")):
-            raise ConfigError("--set", _shorten(item), "key.path=value")
-        try:
-            value = parse_yaml(text, "--set", key)
-        except YAMLTooDeep as e:
-            raise ConfigError("--set", key, reason=str(e)) from None
-        except yaml.YAMLError:
-            raise ConfigError("--set", key, "a YAML value", text) from None
-        node = data
-        parts = key.split(".")
-        for i, part in enumerate(parts[:-1]):
-            if part not in node:
-                keys.add(".".join(parts[: i + 1]))
-            child = node.setdefault(part, {})
-            if not isinstance(child, dict):
-                raise ConfigError("--set", ".".join(parts[: i + 1]), "a section", child)
-            node = child
-        node[parts[-1]] = value
-        keys.add(key)
-    return keys
+    return from_dict(data, str(path), overridden)
 
 
 def from_dict(data: dict, source: str = "<dict>", overridden: set[str] | None = None) -> Case:
@@ -882,7 +565,7 @@ def from_dict(data: dict, source: str = "<dict>", overridden: set[str] | None = 
     ``--set`` instead of ``source``."""
     overridden = overridden or set()
     try:
-        case = _build(Case, data, "")
+        case = build(Case, data, "")
         case = _read_inlet_file(case, source, overridden)
         validate(case)
     except ConfigError as e:
@@ -890,119 +573,6 @@ def from_dict(data: dict, source: str = "<dict>", overridden: set[str] | None = 
                                 or k.startswith(e.key + ".") for k in overridden)
         raise e.from_source("--set" if from_command_line else source) from None
     return case
-
-
-def _describe(tp: Any) -> str:
-    origin = typing.get_origin(tp)
-    if tp is float:
-        return "a number"
-    if tp is int:
-        return "an integer"
-    if tp is str:
-        return "a string"
-    if tp is bool:
-        return "true or false"
-    if origin is Literal:
-        return "one of " + ", ".join(repr(a) for a in typing.get_args(tp))
-    if origin is tuple:
-        return "a list of " + _describe(typing.get_args(tp)[0]).removeprefix("a ").removeprefix("an ")
-    if dataclasses.is_dataclass(tp):
-        return "a mapping"
-    if origin in (Union, types.UnionType):
-        return " or ".join(_describe(a) for a in typing.get_args(tp))
-    return str(tp)
-
-
-def _build(tp: Any, value: Any, key: str) -> Any:
-    """Convert a YAML value to type ``tp`` strictly (no str→bool, no bool→number, no float→int,
-    no inf or nan for any number)."""
-    origin = typing.get_origin(tp)
-    if dataclasses.is_dataclass(tp):
-        if not isinstance(value, dict):
-            raise ConfigError("", key or "<top level>", "a mapping", value)
-        fields = {f.name: f for f in dataclasses.fields(tp)}
-        unknown = sorted(set(value) - set(fields), key=str)
-        if unknown:
-            k = f"{key}.{unknown[0]}" if key else str(unknown[0])
-            raise ConfigError("", k, "one of the keys " + ", ".join(fields), "unknown key")
-        kwargs = {}
-        hints = typing.get_type_hints(tp)
-        for name, f in fields.items():
-            if name not in value:
-                continue
-            sub = f"{key}.{name}" if key else name
-            expected = f.metadata.get("expected")
-            if hints[name] is float and expected is not None and not _finite(value[name]):
-                # "a positive number (s)" -> "a finite positive number (s)"
-                raise ConfigError("", sub, "a finite " + expected.removeprefix("a "), value[name])
-            v = _build(hints[name], value[name], sub)
-            if "check" in f.metadata:
-                try:
-                    allowed = f.metadata["check"](v)
-                except ValueError as e:
-                    raise ConfigError("", sub, f"{expected} ({getattr(e, 'reason', e)})",
-                                      v) from None
-                if not allowed:
-                    raise ConfigError("", sub, expected, v)
-            kwargs[name] = v
-        return tp(**kwargs)
-    if origin in (Union, types.UnionType):
-        options = typing.get_args(tp)
-        if all(dataclasses.is_dataclass(o) for o in options):
-            return _build_tagged(options, value, key)
-        if float in options and not _finite(value):
-            raise ConfigError("", key, "a finite number", value)
-        for option in options:
-            try:
-                return _build(option, value, key)
-            except ConfigError:
-                continue
-        raise ConfigError("", key, _describe(tp), value)
-    if origin is Literal:
-        if value not in typing.get_args(tp) or isinstance(value, bool):
-            raise ConfigError("", key, _describe(tp), value)
-        return value
-    if origin is tuple:
-        if not isinstance(value, list):
-            raise ConfigError("", key, _describe(tp), value)
-        item = typing.get_args(tp)[0]
-        return tuple(_build(item, v, f"{key}[{i}]") for i, v in enumerate(value))
-    if origin is dict:
-        if not isinstance(value, dict):
-            raise ConfigError("", key, "a mapping", value)
-        value_type = typing.get_args(tp)[1]
-        return {str(k): _build(value_type, v, f"{key}.{k}") for k, v in value.items()}
-    if tp is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError("", key, "a number", value)
-        try:
-            number = float(value)
-        except OverflowError:  # an integer of hundreds of digits
-            number = math.inf
-        if not math.isfinite(number):
-            raise ConfigError("", key, "a finite number", value)
-        return number
-    if tp is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError("", key, "an integer", value)
-        return value
-    if tp is str or tp is bool:
-        if not isinstance(value, tp):
-            raise ConfigError("", key, _describe(tp), value)
-        return value
-    raise TypeError(f"unsupported configuration type {tp!r} at {key}")
-
-
-def _build_tagged(options: tuple, value: Any, key: str) -> Any:
-    """Choose among dataclasses by their first field, a Literal tag (``kind``, ``model``)."""
-    tag = dataclasses.fields(options[0])[0].name
-    choices = {typing.get_args(typing.get_type_hints(o)[tag])[0]: o for o in options}
-    if not isinstance(value, dict):
-        raise ConfigError("", key, "a mapping", value)
-    chosen = value.get(tag, typing.get_args(typing.get_type_hints(options[0])[tag])[0])
-    if chosen not in choices:
-        raise ConfigError("", f"{key}.{tag}", "one of " + ", ".join(map(repr, choices)), chosen)
-    return _build(choices[chosen], value, key)
 
 
 def validate(case: Case) -> None:
@@ -1067,7 +637,7 @@ def validate(case: Case) -> None:
         raise_limit = (f"raise the limit (--set time.max_steps={int(count)}) if you mean it"
                        if math.isfinite(count) else "no limit can be that high")
         raise ConfigError("", "time.schedule", reason=(
-            f"{_count(count)} steps to time.end = {case.time.end:g} s, more than "
+            f"{format_count(count)} steps to time.end = {case.time.end:g} s, more than "
             f"time.max_steps = {case.time.max_steps:,}: use larger dt, or {raise_limit}"))
 
     if (case.time.scheme == "steady" and case.structure.mode != "rigid"
@@ -1094,81 +664,6 @@ def validate(case: Case) -> None:
     _validate_inlet(case)  # last: it walks the schedule, now known to be of bounded length
 
 
-def _count(n: float) -> str:
-    """A step or cell count for a message: ``1,234,567``, ``8e+12`` if huge, ``over 1e308`` if
-    it overflowed."""
-    if not math.isfinite(n):
-        return "over 1e308"
-    return f"{n:.3g}" if n >= 1e12 else f"{int(n):,}"
-
-
-def count_steps(time: Time) -> float:
-    """The number of steps :func:`fsi.timestepping.steps` takes from t = 0 to ``time.end``,
-    counted per segment arithmetically (a schedule of 10¹² steps costs no more than one of 10;
-    inf for a dt so small that the count overflows). Each segment's steps end on its ``until``
-    (or ``end``), a remainder below 1e-9 dt merged into the last step, as ``steps`` does."""
-    t, n = 0.0, 0
-    for segment in time.schedule:
-        stop = min(segment.until, time.end)
-        if stop - t > 1e-9 * segment.dt:
-            segment_steps = (stop - t) / segment.dt
-            n += math.ceil(segment_steps - 1e-9) if segment_steps < 2.0**52 else segment_steps
-            t = stop
-        if time.end <= segment.until:
-            break
-    return n
-
-
-TRIANGLE_AREA = math.sqrt(3) / 4
-"""Area of an equilateral triangle of side 1: a gmsh triangle of size h covers about
-``TRIANGLE_AREA · h²``."""
-
-
-def estimated_cells(case: Case) -> float:
-    """About how many triangles :func:`fsi.mesh.build` makes for ``case``, from the geometry
-    alone (no gmsh): area / (TRIANGLE_AREA h²), × 4 per uniform refinement of ``mesh.level``.
-
-    The size field h is modelled per geometry: ``size`` everywhere in a channel; in the
-    stenosis ``local_size`` over the box under each plaque (stenosis_length × plaque height)
-    and ``size`` elsewhere; in Turek–Hron ``local_size + grading · d`` up to ``size`` at the
-    distance d from the cylinder and the flag (the builder's Threshold field, integrated over
-    bands around the obstacle). Within a factor 1.5 of gmsh's count on the shipped cases (its
-    tests check a factor 3); meant for refusing absurd sizes, not for planning.
-    """
-    g, m = case.geometry, case.mesh
-    size, local = m.size, min(m.local_size, m.size)
-    if isinstance(g, StenosisGeometry):
-        total = stenosis_geometry.analytic_areas(g)["total"]
-        fine_area = len(g.plaque_sides) * stenosis_geometry.plaque_height(g) * g.stenosis_length
-        per_size2 = (total - fine_area) / size / size + fine_area / local / local
-    elif isinstance(g, TurekHronGeometry):
-        per_size2 = _turek_hron_cells_area(g, size, local)
-    else:
-        per_size2 = g.length * g.height / size / size
-    return per_size2 / TRIANGLE_AREA * 4.0**m.refinements
-
-
-def _turek_hron_cells_area(g: TurekHronGeometry, size: float, local: float) -> float:
-    """∫ dA / h² over the Turek–Hron channel with h(d) = min(size, local + k d), k the
-    builder's grading and d the distance to the obstacle (perimeter P, convex): the band
-    d < D = (size − local)/k, whose level line at d has length P + 2π d, gives
-    ``∫₀^D (P + 2π d) / (local + k d)² dd``; the rest of the channel is at ``size``."""
-    k = turek_hron_geometry.GRADING
-    r, t = g.cylinder_radius, g.flag_thickness
-    x_joint = g.cylinder_centre[0] + math.sqrt(r * r - t * t / 4)
-    perimeter = 2 * math.pi * r + 2 * (turek_hron_geometry.tip_x(g) - x_joint) + t
-    band = (size - local) / k
-    near = (perimeter / k * (1 / local - 1 / size)
-            + 2 * math.pi / k**2 * (math.log(size / local) + local / size - 1))
-    total = turek_hron_geometry.analytic_areas(g)["total"]
-    rest = max(total - perimeter * band - math.pi * band**2, 0.0)
-    return near + rest / size / size
-
-
-BYTES_PER_CELL = 18e3
-"""Memory per triangle of a coupled run, measured: the fine stenosis (51k triangles) ~0.9 GB."""
-
-
 def _validate_cell_count(case: Case) -> None:
     """Refuse a mesh whose :func:`estimated_cells` exceeds ``mesh.max_cells``, before gmsh."""
     cells = estimated_cells(case)
@@ -1178,7 +673,7 @@ def _validate_cell_count(case: Case) -> None:
         memory = (f"{gigabytes:.2g} GB" if gigabytes < 10 else f"{gigabytes:,.0f} GB"
                   if gigabytes < 1e9 else "too much")
         raise ConfigError("", "mesh", reason=(
-            f"{_count(cells)} triangles estimated (mesh.size = {m.size:g} m, mesh.local_size = "
+            f"{format_count(cells)} triangles estimated (mesh.size = {m.size:g} m, mesh.local_size = "
             f"{m.local_size:g} m, mesh.level = {m.level}), more than mesh.max_cells = "
             f"{m.max_cells:,} (a coupled run needs ~{BYTES_PER_CELL / 1e3:.0f} kB per triangle:"
             f" {memory}): use larger sizes or a coarser level, or raise mesh.max_cells if you "
@@ -1201,115 +696,6 @@ def _validate_inlet(case: Case) -> None:
     except FormulaError as e:
         raise ConfigError("", "fluid.inlet.formula",
                           reason=f"evaluation fails at t = {e.t:.6g} s ({e.reason})") from None
-
-
-# --------------------------------------------------------------------------------------------
-# PETSc options: an allow-list, since PETSc options can run code and write files
-
-# Sub-solver prefixes inside one solver's options: the blocks of block Jacobi / ASM (sub_),
-# the redundant PC, multigrid levels, fieldsplit blocks and a smoother's eigenvalue estimator.
-_PETSC_SUBSOLVER = (r"(?:(?:sub|redundant|mg_coarse|mg_levels(?:_[0-9]+)?|fieldsplit_[a-z0-9]+"
-                    r"|esteig)_)*")
-
-_PETSC_OPTIONS = (
-    # Krylov method: type, tolerances, iteration limits, restart lengths
-    r"ksp_(?:type|rtol|atol|divtol|max_it|norm_type|pc_side|initial_guess_nonzero"
-    r"|error_if_not_converged|reuse_preconditioner|gmres_restart|gcr_restart"
-    r"|gmres_modifiedgramschmidt|gmres_cgs_refinement_type|richardson_scale"
-    r"|chebyshev_eigenvalues|chebyshev_esteig)",
-    # preconditioner type; LU / ILU / Cholesky factorisations and the package that does them
-    r"pc_(?:type|factor_mat_solver_type|factor_mat_ordering_type|factor_levels|factor_fill"
-    r"|factor_shift_type|factor_shift_amount|factor_nonzeros_along_diagonal"
-    r"|factor_pivot_in_blocks|jacobi_type|sor_omega|sor_its|sor_symmetric|asm_overlap|asm_type"
-    r"|bjacobi_blocks)",
-    # MUMPS (not ICNTL 1-4: output streams and print level; not 22: out-of-core files; 37, 48
-    # and 58 need PETSc >= 3.20, older ones ignore them)
-    r"mat_mumps_icntl_(?:6|7|8|10|11|12|13|14|23|24|25|27|28|29|35|36|37|38|48|58)",
-    r"mat_mumps_cntl_[1-57]",
-    r"mat_superlu_dist_(?:rowperm|colperm|equil|replacetinypivot|iterrefine)",
-    # hypre BoomerAMG
-    r"pc_hypre_type",
-    r"pc_hypre_boomeramg_(?:strong_threshold|coarsen_type|interp_type|agg_nl|agg_num_paths"
-    r"|max_iter|tol|max_levels|truncfactor|p_max|max_row_sum|cycle_type|relax_type_(?:all|down"
-    r"|up|coarse)|grid_sweeps_(?:all|down|up|coarse)|relax_weight_all|outer_relax_weight_all"
-    r"|nodal_coarsen|vec_interp_variant|numfunctions|measure_type|no_cf|smooth_type"
-    r"|smooth_num_levels)",
-    # GAMG and geometric/algebraic multigrid cycles
-    r"pc_gamg_(?:type|threshold|threshold_scale|agg_nsmooths|square_graph|aggressive_coarsening"
-    r"|coarse_eq_limit|process_eq_limit|reuse_interpolation|repartition"
-    r"|esteig_ksp_type|esteig_ksp_max_it|use_sa_esteig|asm_use_agg"
-    r"|use_parallel_coarse_grid_solver)",
-    r"pc_mg_(?:levels|cycle_type|type|smoothup|smoothdown|galerkin|distinct_smoothup)",
-    # fieldsplit and Schur complements
-    r"pc_fieldsplit_(?:type|schur_fact_type|schur_precondition|schur_scale|detect_saddle_point"
-    r"|block_size|diag_use_amat|off_diag_use_amat|[a-z0-9]+_fields)",
-)
-_PETSC_ALLOWED = re.compile(_PETSC_SUBSOLVER + "(?:" + "|".join(_PETSC_OPTIONS) + ")")
-
-# Why a name is refused: patterns (searched in the lower-case name) of dangerous options.
-_PETSC_REFUSED = (
-    ("python", "a Python type imports and runs code the configuration names"),
-    ("view", "viewers write to any file their value names (ascii:/path)"),
-    ("monitor", "monitors write to any file their value names"),
-    ("options", "options files and aliases read or inject other options"),
-    (r"mat_mumps_icntl_[1-4]$", "MUMPS ICNTL 1-4 choose output streams and printing"),
-    (r"mat_mumps_icntl_22$", "MUMPS ICNTL 22 writes out-of-core files"),
-    ("print", "printing options write output"),
-    ("log", "logging options write files"),
-    ("dump", "dump options write files"),
-    ("draw", "drawing options open windows or write files"),
-)
-_PETSC_TYPE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,63}")
-_HYPRE_NAMES = frozenset((
-    "Jacobi", "sequential-Gauss-Seidel", "seqboundary-Gauss-Seidel", "SOR/Jacobi",
-    "backward-SOR/Jacobi", "symmetric-SOR/Jacobi", "l1scaled-SOR/Jacobi",
-    "Gaussian-elimination", "l1-Gauss-Seidel", "backward-l1-Gauss-Seidel", "CG", "Chebyshev",
-    "FCF-Jacobi", "l1scaled-Jacobi", "CLJP", "Ruge-Stueben", "modifiedRuge-Stueben", "Falgout",
-    "PMIS", "HMIS", "classical", "direct", "multipass", "multipass-wts", "ext+i", "ext+i-cc",
-    "standard", "standard-wts", "FF", "FF1", "ext", "ext-mm", "ext+i-mm", "ext+e-mm"))
-"""BoomerAMG's smoother, coarsening and interpolation names: fixed words of PETSc's hypre
-interface, accepted although they contain ``/``, ``-`` or ``+``."""
-_NUMBER = r"[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?"
-_PETSC_NUMBERS = re.compile(f"{_NUMBER}(?:,{_NUMBER}){{0,63}}")  # "0.01", "0,1", "0.1,1.1"
-
-
-def check_petsc_options(options: dict[str, str | int | float], key: str) -> None:
-    """Raise :class:`ConfigError` naming ``key.<name>`` unless every option is on the allow-list.
-
-    A configuration sets PETSc options under its solver's prefix (``fluid_``, ``solid_``,
-    ``mesh_``), and PETSc options can run code (``pc_type: python`` with
-    ``pc_python_type: module.Attr``) or write any file (``ksp_view: ascii:/path``). Allowed
-    names (case-insensitive, as PETSc's; optionally behind sub-solver prefixes ``sub_``,
-    ``redundant_``, ``mg_levels_[N_]``, ``mg_coarse_``, ``fieldsplit_<name>_``, ``esteig_``):
-    Krylov types, tolerances, iteration limits and restarts; PC types and factorisations;
-    MUMPS ICNTL/CNTL tuning (not its output streams or out-of-core files), SuperLU_dist;
-    hypre BoomerAMG, GAMG, multigrid and fieldsplit/Schur tuning (``_PETSC_OPTIONS``). Allowed
-    values: finite numbers, numbers as text or comma-separated lists of them, and type names
-    of letters, digits and ``_`` (not ``python``).
-    """
-    for name, value in options.items():
-        sub = f"{key}.{name}"
-        lower = name.lower()
-        if len(name) > 100 or not re.fullmatch(r"[a-z0-9_]+", lower):
-            raise ConfigError("", _shorten(sub), reason="not a PETSc option name: letters, "
-                              "digits and _ only, without the leading '-' (the prefix is added)")
-        for pattern, why in _PETSC_REFUSED:
-            if re.search(pattern, lower):
-                raise ConfigError("", sub, reason=f"refused PETSc option: {why}")
-        if not _PETSC_ALLOWED.fullmatch(lower):
-            raise ConfigError("", sub, reason="not an allowed PETSc option (solver and "
-                              "preconditioner types, tolerances, iteration limits and tuning: "
-                              "the list is in docs/configuration.md)")
-        if isinstance(value, str) and value not in _HYPRE_NAMES:
-            if "python" in value.lower():
-                raise ConfigError("", sub, reason=f"refused value {_shorten(repr(value))}: a "
-                                  "Python type imports and runs code the configuration names")
-            if any(c in value for c in ":/\\~"):
-                raise ConfigError("", sub, reason=f"refused value {_shorten(repr(value))}: no "
-                                  "file paths or viewer specifications")
-            if not (_PETSC_TYPE_NAME.fullmatch(value) or _PETSC_NUMBERS.fullmatch(value)):
-                raise ConfigError("", sub, "a type name (letters, digits, _), a number or "
-                                  "comma-separated numbers", value)
 
 
 def _validate_turek_hron(g: TurekHronGeometry) -> None:
@@ -1359,73 +745,6 @@ def to_yaml(case: Case) -> str:
 
 def dump(case: Case, path: str | Path) -> None:
     Path(path).write_text(to_yaml(case))
-
-
-# --------------------------------------------------------------------------------------------
-# Inlet waveforms from CSV files
-
-
-class WaveformError(ValueError):
-    """A waveform CSV file cannot be used: the message names the file and, for bad content, the
-    line (``waveforms/x.csv: line 7: 'abc' is not a number``)."""
-
-
-def read_waveform(path: str | Path) -> tuple[tuple[float, float], ...]:
-    """The rows (t (s), P (Pa)) of the CSV file ``path``.
-
-    Guaranteed on return: at least 2 rows, every value a finite float, t strictly increasing.
-    The file: UTF-8 text (a byte-order mark allowed) of at most :data:`MAX_FILE_BYTES`; one row
-    ``t, P`` per line, comma-separated; blank lines and lines starting with ``#`` are skipped;
-    the first other line may be a header (no cell of it a number: ``t,P``). Raises
-    :class:`WaveformError` naming the file (and the line) otherwise, ``OSError`` if the file
-    cannot be read.
-    """
-    with Path(path).open("rb") as f:
-        raw = f.read(MAX_FILE_BYTES + 1)  # bounded, as a case file
-    if len(raw) > MAX_FILE_BYTES:
-        raise WaveformError(f"{path}: larger than {MAX_FILE_BYTES} bytes")
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as e:
-        raise WaveformError(f"{path}: not UTF-8 text (byte 0x{raw[e.start]:02x} at offset "
-                            f"{e.start})") from None
-    rows: list[tuple[float, float]] = []
-    header_allowed = True
-    for number, line in enumerate(text.splitlines(), start=1):
-        line = line.strip()
-        if not line or line.startswith("#"):
-            continue
-        cells = [cell.strip() for cell in line.split(",")]
-        first, header_allowed = header_allowed, False
-        values = [_number(cell) for cell in cells]
-        if first and all(value is None for value in values):
-            continue  # the header
-        where = f"{path}: line {number}"
-        if len(cells) != 2:
-            raise WaveformError(f"{where}: expected 2 columns t, P, got {len(cells)}")
-        for cell, value in zip(cells, values):
-            if value is None:
-                raise WaveformError(f"{where}: {_shorten(repr(cell), 40)} is not a number")
-        t, pressure = values
-        for name, value in (("t", t), ("P", pressure)):
-            if not math.isfinite(value):
-                raise WaveformError(f"{where}: {name} = {value} is not a finite number")
-        if rows and t <= rows[-1][0]:
-            raise WaveformError(f"{where}: t = {t:g} is not after the previous row's t = "
-                                f"{rows[-1][0]:g}")
-        rows.append((t, pressure))
-    if len(rows) < 2:
-        raise WaveformError(f"{path}: {len(rows)} row{'s' if len(rows) != 1 else ''} of t, P; "
-                            "at least 2 are needed")
-    return tuple(rows)
-
-
-def _number(cell: str) -> float | None:
-    """The float ``cell`` spells, or None (``float`` also takes inf and nan: checked after)."""
-    try:
-        return float(cell)
-    except ValueError:
-        return None
 
 
 def _read_inlet_file(case: Case, source: str, overridden: set[str]) -> Case:

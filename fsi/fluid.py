@@ -41,7 +41,7 @@ import dolfinx.nls.petsc
 import numpy as np
 import ufl
 
-from fsi import compat, config, rheology
+from fsi import boundary_data, compat, config, rheology
 from fsi.newton import NewtonCallbacks
 from fsi.timestepping import bdf_weights
 from geometry.tags import Boundary
@@ -161,7 +161,7 @@ def inlet_pressure(spec: config.Inlet) -> Callable[[float], float]:
         A, T = spec.amplitude, spec.duration
         return lambda t: A / 2 * (1 - math.cos(2 * math.pi * t / T)) if 0 <= t <= T else 0.0
     if isinstance(spec, config.InletPressure):
-        return config.time_function(spec.formula)
+        return boundary_data.time_function(spec.formula)
     if isinstance(spec, (config.InletPressureTable, config.InletPressureFile)):
         if not spec.table:
             raise ValueError(f"fluid.inlet ({spec.kind}) has no rows (a pressure_file inlet "

@@ -39,7 +39,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from fsi import config, io
+from fsi import boundary_data, config, io
 from fsi.units import choose_unit
 
 log = logging.getLogger("fsi")
@@ -297,7 +297,7 @@ def inlet_pressure_groups(runs: Sequence[Run]) -> list[Group]:
         for time in sorted(times):
             try:
                 y.append(pressure(time))
-            except config.FormulaError:
+            except boundary_data.FormulaError:
                 continue
             t.append(time)
         label = f"{', '.join(run.path.name for run in sharing)}: {_describe(inlet)}"

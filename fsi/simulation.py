@@ -22,8 +22,8 @@ from mpi4py import MPI
 
 import numpy as np
 
-from fsi import (checkpoint, config, coupling, fluid, io, mesh, metrics, partitioned,
-                 provenance, solid)
+from fsi import (boundary_data, checkpoint, config, coupling, fluid, io, mesh, metrics,
+                 partitioned, provenance, solid)
 from fsi.mesh_motion import MeshQualityError
 from fsi.timestepping import Step, steps
 from geometry import turek_hron
@@ -308,7 +308,7 @@ def advance(stepper: Stepper, step: Step, before: dict, retries: int,
     Collective (the failure is raised on every rank)."""
     try:
         return stepper.step(step)
-    except config.FormulaError as e:
+    except boundary_data.FormulaError as e:
         raise SolveFailed(f"step {step.index} to t = {step.t:g} s: fluid.inlet: {e}") from e
     except SolveFailed as e:
         if retries <= 0:

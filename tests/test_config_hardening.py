@@ -11,7 +11,7 @@ from mpi4py import MPI
 
 import pytest
 
-from fsi import cli, config
+from fsi import boundary_data, cli, config, config_reader, petsc_options, run_size
 from fsi.timestepping import steps
 
 ROOT = Path(__file__).parents[1]
@@ -169,7 +169,7 @@ def test_binary_and_non_utf8_files_exit_2_naming_the_file(shared_tmp, capsys):
 
 
 def test_a_file_over_1_mib_is_refused_unread(shared_tmp, capsys):
-    path = write(shared_tmp / "big.yaml", "#" * config.MAX_FILE_BYTES + "\n")
+    path = write(shared_tmp / "big.yaml", "#" * config_reader.MAX_FILE_BYTES + "\n")
     assert_refused(*cli_error(capsys, "check", str(path)), str(path), "", "larger than 1048576")
 
 
@@ -260,7 +260,7 @@ def test_set_values_have_the_file_limits(capsys):
 @pytest.mark.parametrize("path", sorted((ROOT / "configs").glob("*.yaml")), ids=lambda p: p.stem)
 def test_step_count_is_that_of_the_schedule(path):
     time_ = config.load(path).time
-    assert config.count_steps(time_) == sum(1 for _ in steps(time_))
+    assert run_size.count_steps(time_) == sum(1 for _ in steps(time_))
 
 
 @pytest.mark.parametrize("end,schedule", [
@@ -273,7 +273,7 @@ def test_step_count_is_that_of_the_schedule(path):
 def test_step_count_matches_odd_schedules(end, schedule):
     time_ = config.from_dict({"time": {"end": end, "schedule": [
         {"until": until, "dt": dt} for until, dt in schedule]}}).time
-    assert config.count_steps(time_) == sum(1 for _ in steps(time_))
+    assert run_size.count_steps(time_) == sum(1 for _ in steps(time_))
 
 
 def test_too_many_steps_fail_at_once_with_the_count_and_how_to_raise_the_limit(capsys):
@@ -304,13 +304,13 @@ def test_cell_estimate_is_within_a_factor_3_of_gmsh(path):
 
     case = config.load(path)
     built = mesh.build(case, MPI.COMM_WORLD).mesh.topology.index_map(2).size_global
-    assert built / 3 < config.estimated_cells(case) < 3 * built, (config.estimated_cells(case),
+    assert built / 3 < run_size.estimated_cells(case) < 3 * built, (run_size.estimated_cells(case),
                                                                   built)
 
 
 @pytest.mark.parametrize("path", [STENOSIS, TUREK_HRON, CHANNEL], ids=lambda p: p.stem)
 def test_cell_estimate_grows_4_times_per_refinement(path):
-    coarse, medium, fine = (config.estimated_cells(config.load(path, [f"mesh.level={level}"]))
+    coarse, medium, fine = (run_size.estimated_cells(config.load(path, [f"mesh.level={level}"]))
                             for level in ("coarse", "medium", "fine"))
     assert medium == pytest.approx(4 * coarse, rel=1e-12)
     assert fine == pytest.approx(16 * coarse, rel=1e-12)
@@ -319,9 +319,9 @@ def test_cell_estimate_grows_4_times_per_refinement(path):
 def test_cell_estimate_follows_the_sizes():
     base = config.load(STENOSIS)
     halved = config.load(STENOSIS, ["mesh.size=3.0e-4", "mesh.local_size=1.1e-4"])
-    assert config.estimated_cells(halved) == pytest.approx(4 * config.estimated_cells(base))
+    assert run_size.estimated_cells(halved) == pytest.approx(4 * run_size.estimated_cells(base))
     channel = config.load(CHANNEL)
-    assert config.estimated_cells(channel) == pytest.approx(
+    assert run_size.estimated_cells(channel) == pytest.approx(
         0.02 * 0.007 / (math.sqrt(3) / 4 * 5e-4**2))
 
 
@@ -362,8 +362,8 @@ def test_a_tiny_mesh_size_fails_at_once_with_the_estimate(shared_tmp, capsys):
     ("max(t)", 0.0, "not iterable"),
 ])
 def test_a_formula_failing_when_evaluated_raises_formula_error(formula, t, reason):
-    pressure = config.time_function(formula)
-    with pytest.raises(config.FormulaError) as error:
+    pressure = boundary_data.time_function(formula)
+    with pytest.raises(boundary_data.FormulaError) as error:
         pressure(t)
     assert reason in error.value.reason and error.value.t == t
     assert repr(formula) in str(error.value) and f"at t = {t:.6g} s" in str(error.value)
@@ -380,8 +380,8 @@ def test_a_formula_failing_when_evaluated_raises_formula_error(formula, t, reaso
     ("1" * 400, "too large"),
 ])
 def test_a_formula_that_cannot_be_compiled_raises_formula_error(formula, reason):
-    with pytest.raises(config.FormulaError, match=reason) as error:
-        config.time_function(formula)
+    with pytest.raises(boundary_data.FormulaError, match=reason) as error:
+        boundary_data.time_function(formula)
     assert error.value.t is None
 
 
@@ -421,7 +421,7 @@ ALLOWED = {
 def test_the_allowed_petsc_options_load_in_every_solver():
     for key in ("fluid.solver.petsc_options", "structure.solver.petsc_options",
                 "mesh_motion.petsc_options"):
-        config.check_petsc_options(ALLOWED, key)
+        petsc_options.check_petsc_options(ALLOWED, key)
         section, *rest = key.split(".")
         data: dict = {}
         node = data.setdefault(section, {})
@@ -438,7 +438,7 @@ def test_the_defaults_are_allowed_petsc_options():
     for key, options in [("fluid", case.fluid.solver.petsc_options),
                          ("structure", case.structure.solver.petsc_options),
                          ("mesh_motion", case.mesh_motion.petsc_options)]:
-        config.check_petsc_options(options, key)
+        petsc_options.check_petsc_options(options, key)
 
 
 @pytest.mark.parametrize("name,value,why", [
@@ -464,6 +464,6 @@ def test_the_defaults_are_allowed_petsc_options():
 ])
 def test_refused_petsc_options_name_the_key_and_why(name, value, why):
     with pytest.raises(config.ConfigError, match=why) as error:
-        config.check_petsc_options({"ksp_type": "cg", name: value},
+        petsc_options.check_petsc_options({"ksp_type": "cg", name: value},
                                    "structure.solver.petsc_options")
     assert error.value.key.startswith("structure.solver.petsc_options." + name[:40])

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import ufl
 
-from fsi import compat, config, fluid, mesh, metrics, rheology
+from fsi import compat, config, config_reader, fluid, mesh, metrics, rheology
 from geometry.tags import Boundary, Region
 
 WALL, INLET, OUTLET = Boundary.RIGID_WALL, Boundary.INLET, Boundary.OUTLET
@@ -117,7 +117,7 @@ def test_inlet_pressure_laws():
 ])
 def test_bad_inlet_is_refused_naming_the_key(text, key, expected):
     with pytest.raises(config.ConfigError) as error:
-        config.from_dict(config.parse_yaml(f"fluid: {{inlet: {text}}}"), "case.yaml")
+        config.from_dict(config_reader.parse_yaml(f"fluid: {{inlet: {text}}}"), "case.yaml")
     assert error.value.key == key and expected in str(error.value), str(error.value)
 
 

@@ -8,7 +8,7 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 
-from fsi import cli, config, fluid, io
+from fsi import cli, config, config_reader, fluid, io
 
 CHANNEL = "configs/channel_poiseuille.yaml"
 THREE_STEPS = ["time.end=0.003", "time.schedule=[{until: 0.003, dt: 0.001}]"]
@@ -177,8 +177,8 @@ def test_a_periodic_inline_table_must_cover_its_period():
     inlet = "{kind: pressure_table, table: [[0, 1], [0.5, 2]], period: 0.6}"
     with pytest.raises(config.ConfigError, match=r"case.yaml: fluid.inlet.period: "
                                                  r"fluid.inlet.table cover t in \[0, 0.5\] s"):
-        config.from_dict(config.parse_yaml(f"fluid: {{inlet: {inlet}}}"), "case.yaml")
-    periodic = config.from_dict(config.parse_yaml(
+        config.from_dict(config_reader.parse_yaml(f"fluid: {{inlet: {inlet}}}"), "case.yaml")
+    periodic = config.from_dict(config_reader.parse_yaml(
         "fluid: {inlet: {kind: pressure_table, table: [[0, 1], [0.5, 2]], period: 0.5}}"))
     pressure = fluid.inlet_pressure(periodic.fluid.inlet)
     assert pressure(0.25) == pytest.approx(1.5) and pressure(0.75) == pytest.approx(1.5)

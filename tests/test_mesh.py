@@ -7,7 +7,7 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 
-from fsi import cli, compat, config, mesh
+from fsi import cli, compat, config, config_reader, mesh
 from geometry import stenosis
 from geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 from mesh_checks import boundary_vertices
@@ -104,7 +104,7 @@ def test_plaque_on_the_top_or_both_sides(sides):
 
 
 def test_channel_mesh():
-    case = config.from_dict(config.parse_yaml(
+    case = config.from_dict(config_reader.parse_yaml(
         "geometry: {kind: channel, length: 0.02, height: 0.007}\nstructure: {mode: rigid}"))
     tagged = mesh.build(case)
     s = mesh.summary(tagged, case)

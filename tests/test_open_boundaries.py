@@ -14,7 +14,7 @@ import dolfinx.mesh
 import numpy as np
 import pytest
 
-from fsi import config, fluid, metrics, rheology, simulation
+from fsi import config, config_reader, fluid, metrics, rheology, simulation
 from fsi.timestepping import steps
 from geometry.tags import Boundary
 
@@ -28,7 +28,7 @@ L, H = 0.02, 0.007  # the channel (configs/channel_poiseuille.yaml)
 
 def study_fluid(rheology: str, **changes) -> dict:
     """The fluid section of the study config with ``rheology``, with ``changes``."""
-    fluid_section = config.parse_yaml(open(STUDY[rheology]).read())["fluid"]
+    fluid_section = config_reader.parse_yaml(open(STUDY[rheology]).read())["fluid"]
     return {**fluid_section, **changes}
 
 

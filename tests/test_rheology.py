@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import ufl
 
-from fsi import compat, config, metrics, rheology
+from fsi import compat, config, config_reader, metrics, rheology
 
 MODELS = ["newtonian", "carreau", "carreau_yasuda", "cross", "power_law", "casson"]
 
@@ -129,7 +129,7 @@ def test_shear_rate_is_regularised_at_rest():
 ])
 def test_bad_rheology_is_refused_naming_the_key(text, key, expected):
     with pytest.raises(config.ConfigError) as error:
-        config.from_dict(config.parse_yaml(f"fluid: {{rheology: {text}}}"), "case.yaml")
+        config.from_dict(config_reader.parse_yaml(f"fluid: {{rheology: {text}}}"), "case.yaml")
     assert error.value.key == key and expected in str(error.value)
     assert str(error.value).startswith(f"case.yaml: {key}: expected")
 

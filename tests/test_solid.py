@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 import ufl
 
-from fsi import compat, config, materials, mesh, simulation, solid
+from fsi import compat, config, config_reader, materials, mesh, simulation, solid
 from fsi.config import Material, SolverSettings
 from fsi.timestepping import NewmarkFamily, steps
 from geometry import turek_hron
@@ -112,7 +112,7 @@ def value_at_point(V, f: dolfinx.fem.Function, point) -> np.ndarray:
 ])
 def test_structure_config_errors_name_the_key(text, key, words):
     with pytest.raises(config.ConfigError) as error:
-        config.from_dict(config.parse_yaml(text), "case.yaml")
+        config.from_dict(config_reader.parse_yaml(text), "case.yaml")
     assert error.value.key == key
     assert words in str(error.value) and str(error.value).startswith("case.yaml: ")
 
@@ -123,7 +123,7 @@ def test_structure_config_defaults_and_partial_materials():
     assert s.body_force == (0.0, 0.0) and s.degree == 2
     assert (s.flag.density, s.flag.young_modulus, s.flag.poisson_ratio) == (1000, 1.4e6, 0.4)
     # A partial mapping keeps the region's own defaults (not the plaque's).
-    s = config.from_dict(config.parse_yaml(
+    s = config.from_dict(config_reader.parse_yaml(
         "structure: {wall: {density: 1100}, flag: {young_modulus: 5.6e6},"
         " time_integration: {scheme: newmark}, body_force: [0, -2]}")).structure
     assert s.wall.young_modulus == 4e6 and s.wall.density == 1100
@@ -136,7 +136,7 @@ def test_structure_config_defaults_and_partial_materials():
     assert all(getattr(s, r).viscous_relaxation_time == 0.0
                for r in ("wall", "cap", "lipid", "flag"))
     assert (s.support.stiffness, s.support.damping) == (0.0, 0.0)
-    case = config.from_dict(config.parse_yaml(
+    case = config.from_dict(config_reader.parse_yaml(
         "structure: {wall: {viscous_relaxation_time: 3.0e-4}, support: {damping: 100}}"))
     s = case.structure
     assert s.wall.viscous_relaxation_time == 3e-4 and s.wall.young_modulus == 4e6

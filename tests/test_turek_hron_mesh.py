@@ -8,7 +8,7 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 
-from fsi import cli, compat, config, mesh
+from fsi import cli, compat, config, config_reader, mesh
 from geometry import turek_hron
 from geometry.tags import Boundary, Region
 from mesh_checks import boundary_vertices
@@ -190,7 +190,7 @@ def test_benchmark_configs_are_valid(path):
 ])  # fmt: skip
 def test_invalid_geometry_is_rejected(text, key, expected):
     with pytest.raises(config.ConfigError) as e:
-        config.from_dict(config.parse_yaml(text + "\nstructure: {mode: rigid}"))
+        config.from_dict(config_reader.parse_yaml(text + "\nstructure: {mode: rigid}"))
     assert e.value.key == key and expected in e.value.expected
 
 

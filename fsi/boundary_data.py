@@ -1,0 +1,189 @@
+"""Time-dependent boundary data: the inlet formula language and waveform CSV files.
+
+:func:`time_function` turns a formula in ``t`` (a restricted arithmetic language, checked
+before it runs) into a function of time that returns a finite float or raises
+:class:`FormulaError`; :func:`read_waveform` reads rows (t, P) from a CSV file or raises
+:class:`WaveformError` naming the file and line.
+"""
+
+from __future__ import annotations
+
+import math
+import typing
+from pathlib import Path
+
+from fsi.config_reader import MAX_FILE_BYTES, shorten
+
+FORMULA_NAMES = ("sin", "cos", "tan", "exp", "log", "sqrt", "tanh", "abs", "min", "max")
+
+MAX_FORMULA_LENGTH = 2000
+"""Characters of an inlet formula: ample for a pulse of several harmonics, and short enough
+that parsing and compiling it are instant."""
+
+MAX_FORMULA_DEPTH = 100
+"""Levels of nested operations in an inlet formula (a formula of several harmonics needs
+about 10): deeper is refused the same way on every Python (3.11 cannot compile a few hundred
+levels, 3.13 can)."""
+
+
+class FormulaError(ValueError):
+    """An inlet formula is not an allowed expression (``t`` None), or its value at time ``t``
+    is not a finite real number: division by zero, a math domain error (``log(0)``,
+    ``sqrt(-1)``), an overflow, a complex result, inf or nan. ``reason`` says which."""
+
+    def __init__(self, formula: str, reason: str, t: float | None = None):
+        self.formula, self.reason, self.t = formula, reason, t
+        at = "" if t is None else f" at t = {t:.6g} s"
+        super().__init__(f"formula {shorten(repr(formula), 60)}{at}: {reason}")
+
+
+def _depth(tree) -> int:
+    """The depth of a syntax tree (without recursion: the tree may be deep)."""
+    import ast
+
+    deepest, stack = 0, [(tree, 1)]
+    while stack:
+        node, depth = stack.pop()
+        deepest = max(deepest, depth)
+        stack.extend((child, depth + 1) for child in ast.iter_child_nodes(node))
+    return deepest
+
+
+def time_function(formula: str) -> typing.Callable[[float], float]:
+    """``formula``, an arithmetic expression in the time ``t`` (s), as a function of t.
+
+    Allowed: numbers, ``t``, ``pi``, ``e``, ``+ - * / ** %``, parentheses, comparisons (true = 1,
+    e.g. ``600*(1 - cos(2*pi*t/0.005))*(t <= 0.005)``) and the functions sin, cos, tan, exp, log,
+    sqrt, tanh, abs, min, max, in at most :data:`MAX_FORMULA_LENGTH` characters. Raises
+    :class:`FormulaError` (a ValueError) for anything else (names, attributes, strings, nesting
+    too deep to compile). The function returned returns a finite float or raises
+    :class:`FormulaError` naming the formula and t; it raises nothing else.
+    """
+    import ast
+
+    if len(formula) > MAX_FORMULA_LENGTH:
+        raise FormulaError(formula, f"longer than {MAX_FORMULA_LENGTH} characters")
+    try:
+        tree = ast.parse(formula, mode="eval")
+    except SyntaxError as e:
+        raise FormulaError(formula, f"not an expression: {e.msg}") from None
+    except (ValueError, RecursionError, MemoryError) as e:  # null bytes; nesting
+        raise FormulaError(formula, f"not an expression: {_nesting(e)}") from None
+    if _depth(tree) > MAX_FORMULA_DEPTH:
+        raise FormulaError(formula, f"nested more than {MAX_FORMULA_DEPTH} levels deep")
+    allowed = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Compare, ast.Call, ast.Name, ast.Load,
+               ast.Constant, ast.operator, ast.unaryop, ast.cmpop)
+    for node in ast.walk(tree):
+        if not isinstance(node, allowed) or isinstance(node, (ast.MatMult, ast.BitAnd, ast.BitOr,
+                                                              ast.BitXor, ast.LShift, ast.RShift,
+                                                              ast.FloorDiv, ast.Invert, ast.Not,
+                                                              ast.Is, ast.IsNot, ast.In,
+                                                              ast.NotIn)):
+            raise FormulaError(formula, f"{type(node).__name__} is not allowed")
+        if isinstance(node, ast.Constant):
+            if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
+                raise FormulaError(formula, f"{shorten(repr(node.value), 40)} is not a number")
+            try:
+                node.value = float(node.value)  # float powers overflow instead of running forever
+            except OverflowError:
+                raise FormulaError(formula, "a number too large for a float") from None
+        if isinstance(node, ast.Name) and node.id not in ("t", "pi", "e", *FORMULA_NAMES):
+            raise FormulaError(formula, f"unknown name {node.id!r}")
+        if isinstance(node, ast.Call) and (node.keywords or not isinstance(node.func, ast.Name)
+                                           or node.func.id not in FORMULA_NAMES):
+            raise FormulaError(formula, "only calls of " + ", ".join(FORMULA_NAMES))
+    try:
+        code = compile(tree, "<formula>", "eval")
+    except (ValueError, RecursionError, MemoryError) as e:
+        raise FormulaError(formula, f"cannot be compiled: {_nesting(e)}") from None
+    names = {"__builtins__": {}, "pi": math.pi, "e": math.e, "abs": abs, "min": min, "max": max}
+    names.update({f: getattr(math, f) for f in FORMULA_NAMES if hasattr(math, f)})
+
+    def value(t: float) -> float:
+        try:
+            result = eval(code, names, {"t": float(t)})  # noqa: S307 (checked above)
+        except ZeroDivisionError:
+            raise FormulaError(formula, "division by zero", t) from None
+        except OverflowError:
+            raise FormulaError(formula, "overflow", t) from None
+        except (ArithmeticError, ValueError, TypeError, RecursionError, MemoryError) as e:
+            raise FormulaError(formula, str(e) or type(e).__name__, t) from None
+        if isinstance(result, complex):  # a negative number to a fractional power
+            raise FormulaError(formula, f"complex result {result}", t)
+        result = float(result)
+        if not math.isfinite(result):
+            raise FormulaError(formula, f"the result is {result}", t)
+        return result
+
+    return value
+
+
+def _nesting(error: Exception) -> str:
+    """Words for a parser/compiler failure: nesting too deep (recursion, memory) or its message."""
+    if isinstance(error, (RecursionError, MemoryError)):
+        return "nested too deeply"
+    return str(error)
+
+
+
+class WaveformError(ValueError):
+    """A waveform CSV file cannot be used: the message names the file and, for bad content, the
+    line (``waveforms/x.csv: line 7: 'abc' is not a number``)."""
+
+
+def read_waveform(path: str | Path) -> tuple[tuple[float, float], ...]:
+    """The rows (t (s), P (Pa)) of the CSV file ``path``.
+
+    Guaranteed on return: at least 2 rows, every value a finite float, t strictly increasing.
+    The file: UTF-8 text (a byte-order mark allowed) of at most :data:`MAX_FILE_BYTES`; one row
+    ``t, P`` per line, comma-separated; blank lines and lines starting with ``#`` are skipped;
+    the first other line may be a header (no cell of it a number: ``t,P``). Raises
+    :class:`WaveformError` naming the file (and the line) otherwise, ``OSError`` if the file
+    cannot be read.
+    """
+    with Path(path).open("rb") as f:
+        raw = f.read(MAX_FILE_BYTES + 1)  # bounded, as a case file
+    if len(raw) > MAX_FILE_BYTES:
+        raise WaveformError(f"{path}: larger than {MAX_FILE_BYTES} bytes")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise WaveformError(f"{path}: not UTF-8 text (byte 0x{raw[e.start]:02x} at offset "
+                            f"{e.start})") from None
+    rows: list[tuple[float, float]] = []
+    header_allowed = True
+    for number, line in enumerate(text.splitlines(), start=1):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        cells = [cell.strip() for cell in line.split(",")]
+        first, header_allowed = header_allowed, False
+        values = [_number(cell) for cell in cells]
+        if first and all(value is None for value in values):
+            continue  # the header
+        where = f"{path}: line {number}"
+        if len(cells) != 2:
+            raise WaveformError(f"{where}: expected 2 columns t, P, got {len(cells)}")
+        for cell, value in zip(cells, values):
+            if value is None:
+                raise WaveformError(f"{where}: {shorten(repr(cell), 40)} is not a number")
+        t, pressure = values
+        for name, value in (("t", t), ("P", pressure)):
+            if not math.isfinite(value):
+                raise WaveformError(f"{where}: {name} = {value} is not a finite number")
+        if rows and t <= rows[-1][0]:
+            raise WaveformError(f"{where}: t = {t:g} is not after the previous row's t = "
+                                f"{rows[-1][0]:g}")
+        rows.append((t, pressure))
+    if len(rows) < 2:
+        raise WaveformError(f"{path}: {len(rows)} row{'s' if len(rows) != 1 else ''} of t, P; "
+                            "at least 2 are needed")
+    return tuple(rows)
+
+
+def _number(cell: str) -> float | None:
+    """The float ``cell`` spells, or None (``float`` also takes inf and nan: checked after)."""
+    try:
+        return float(cell)
+    except ValueError:
+        return None

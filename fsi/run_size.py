@@ -1,0 +1,87 @@
+"""How big a run is before it starts: its number of steps and, without gmsh, of triangles.
+
+Validation (:func:`fsi.config.validate`) refuses a schedule of more than ``time.max_steps``
+steps and a mesh of more than ``mesh.max_cells`` triangles with these counts. The functions
+take the case's sections (:class:`fsi.config.Time`, :class:`fsi.config.Case`) by attribute.
+"""
+
+from __future__ import annotations
+
+import math
+
+from geometry import stenosis as stenosis_geometry
+from geometry import turek_hron as turek_hron_geometry
+
+def format_count(n: float) -> str:
+    """A step or cell count for a message: ``1,234,567``, ``8e+12`` if huge, ``over 1e308`` if
+    it overflowed."""
+    if not math.isfinite(n):
+        return "over 1e308"
+    return f"{n:.3g}" if n >= 1e12 else f"{int(n):,}"
+
+
+def count_steps(time) -> float:
+    """The number of steps :func:`fsi.timestepping.steps` takes from t = 0 to ``time.end``,
+    counted per segment arithmetically (a schedule of 10¹² steps costs no more than one of 10;
+    inf for a dt so small that the count overflows). Each segment's steps end on its ``until``
+    (or ``end``), a remainder below 1e-9 dt merged into the last step, as ``steps`` does."""
+    t, n = 0.0, 0
+    for segment in time.schedule:
+        stop = min(segment.until, time.end)
+        if stop - t > 1e-9 * segment.dt:
+            segment_steps = (stop - t) / segment.dt
+            n += math.ceil(segment_steps - 1e-9) if segment_steps < 2.0**52 else segment_steps
+            t = stop
+        if time.end <= segment.until:
+            break
+    return n
+
+
+TRIANGLE_AREA = math.sqrt(3) / 4
+"""Area of an equilateral triangle of side 1: a gmsh triangle of size h covers about
+``TRIANGLE_AREA · h²``."""
+
+
+def estimated_cells(case) -> float:
+    """About how many triangles :func:`fsi.mesh.build` makes for ``case``, from the geometry
+    alone (no gmsh): area / (TRIANGLE_AREA h²), × 4 per uniform refinement of ``mesh.level``.
+
+    The size field h is modelled per geometry: ``size`` everywhere in a channel; in the
+    stenosis ``local_size`` over the box under each plaque (stenosis_length × plaque height)
+    and ``size`` elsewhere; in Turek–Hron ``local_size + grading · d`` up to ``size`` at the
+    distance d from the cylinder and the flag (the builder's Threshold field, integrated over
+    bands around the obstacle). Within a factor 1.5 of gmsh's count on the shipped cases (its
+    tests check a factor 3); meant for refusing absurd sizes, not for planning.
+    """
+    g, m = case.geometry, case.mesh
+    size, local = m.size, min(m.local_size, m.size)
+    if g.kind == "stenosis":
+        total = stenosis_geometry.analytic_areas(g)["total"]
+        fine_area = len(g.plaque_sides) * stenosis_geometry.plaque_height(g) * g.stenosis_length
+        per_size2 = (total - fine_area) / size / size + fine_area / local / local
+    elif g.kind == "turek_hron":
+        per_size2 = _turek_hron_cells_area(g, size, local)
+    else:
+        per_size2 = g.length * g.height / size / size
+    return per_size2 / TRIANGLE_AREA * 4.0**m.refinements
+
+
+def _turek_hron_cells_area(g, size: float, local: float) -> float:
+    """∫ dA / h² over the Turek–Hron channel with h(d) = min(size, local + k d), k the
+    builder's grading and d the distance to the obstacle (perimeter P, convex): the band
+    d < D = (size − local)/k, whose level line at d has length P + 2π d, gives
+    ``∫₀^D (P + 2π d) / (local + k d)² dd``; the rest of the channel is at ``size``."""
+    k = turek_hron_geometry.GRADING
+    r, t = g.cylinder_radius, g.flag_thickness
+    x_joint = g.cylinder_centre[0] + math.sqrt(r * r - t * t / 4)
+    perimeter = 2 * math.pi * r + 2 * (turek_hron_geometry.tip_x(g) - x_joint) + t
+    band = (size - local) / k
+    near = (perimeter / k * (1 / local - 1 / size)
+            + 2 * math.pi / k**2 * (math.log(size / local) + local / size - 1))
+    total = turek_hron_geometry.analytic_areas(g)["total"]
+    rest = max(total - perimeter * band - math.pi * band**2, 0.0)
+    return near + rest / size / size
+
+
+BYTES_PER_CELL = 18e3
+"""Memory per triangle of a coupled run, measured: the fine stenosis (51k triangles) ~0.9 GB."""
