@@ -27,7 +27,7 @@ from __future__ import annotations
 import logging
 from collections import deque
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Protocol, Sequence
+from typing import TYPE_CHECKING, Callable, Protocol, Sequence
 
 from mpi4py import MPI
 
@@ -123,6 +123,10 @@ class Acceleration(Protocol):
     def load_state(self, state: dict[str, np.ndarray]) -> None:
         """Take back :meth:`state` (keys of another acceleration are ignored)."""
 
+    @property
+    def relaxation(self) -> float | None:
+        """The relaxation factor ω of the last iteration, or None (quasi-Newton)."""
+
 
 class ConstantRelaxation:
     """``x_{k+1} = x_k + ω (x̃_k − x_k)``, the same ω in every iteration."""
@@ -143,6 +147,10 @@ class ConstantRelaxation:
 
     def state(self) -> dict[str, np.ndarray]:
         return {}  # ω is the configuration's
+
+    @property
+    def relaxation(self) -> float:
+        return float(self.omega)
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
         pass
@@ -165,6 +173,10 @@ class Aitken:
         self.comm, self.omega_max = comm, omega_max
         self.omega = omega_initial
         self._previous_residual: np.ndarray | None = None
+
+    @property
+    def relaxation(self) -> float:
+        return float(self.omega)
 
     def _capped(self, omega: float) -> float:
         return float(np.sign(omega) * min(abs(omega), self.omega_max))
@@ -228,6 +240,10 @@ class IQNILS:
         self.columns_used = 0  # after next_input: columns kept by the filter
         self.columns_dropped = 0  # after next_input: columns removed by the filter
 
+    @property
+    def relaxation(self) -> None:
+        return None  # a least-squares update, no single ω
+
     def start_step(self) -> None:
         self._V, self._W, self._previous = [], [], None
 
@@ -273,15 +289,17 @@ class IQNILS:
         self._V, self._W, self._previous = [], [], None
 
 
+ACCELERATIONS: dict[str, Callable[[Coupling, MPI.Comm], Acceleration]] = {
+    "constant": lambda c, comm: ConstantRelaxation(comm, c.initial_relaxation),
+    "aitken": lambda c, comm: Aitken(comm, c.initial_relaxation, c.max_relaxation),
+    "iqn-ils": lambda c, comm: IQNILS(comm, c.initial_relaxation, c.iqn_reuse, c.iqn_filter),
+}
+"""The accelerations by the ``coupling.acceleration`` tag, built from the coupling section."""
+
+
 def from_config(coupling: Coupling, comm: MPI.Comm) -> Acceleration:
     """The acceleration named by ``coupling.acceleration`` with the configuration's parameters."""
-    if coupling.acceleration == "constant":
-        return ConstantRelaxation(comm, coupling.initial_relaxation)
-    if coupling.acceleration == "aitken":
-        return Aitken(comm, coupling.initial_relaxation, coupling.max_relaxation)
-    if coupling.acceleration == "iqn-ils":
-        return IQNILS(comm, coupling.initial_relaxation, coupling.iqn_reuse, coupling.iqn_filter)
-    raise ValueError(f"unknown acceleration {coupling.acceleration!r}")
+    return ACCELERATIONS[coupling.acceleration](coupling, comm)
 
 
 # --------------------------------------------------------------------------------------------

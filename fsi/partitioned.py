@@ -174,9 +174,7 @@ class CoupledProblem:
     @property
     def relaxation(self) -> Optional[float]:
         """The relaxation factor ω of the last iteration (Aitken, constant), else None."""
-        if isinstance(self.acceleration, (coupling.Aitken, coupling.ConstantRelaxation)):
-            return float(self.acceleration.omega)
-        return None
+        return self.acceleration.relaxation
 
 
 def build_coupled(case: config.Case, comm: MPI.Comm = MPI.COMM_WORLD) -> CoupledProblem:

@@ -9,6 +9,7 @@ post-processing). The fluid's Cauchy stress is ``σ = −p I + 2 μ(s(u)) D(u)``
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -185,23 +186,21 @@ class Casson:
         return float(self.mu(0.0))
 
 
+LAWS: dict[str, type] = {
+    "newtonian": Newtonian,
+    "carreau": Carreau,
+    "carreau_yasuda": CarreauYasuda,
+    "cross": Cross,
+    "power_law": PowerLaw,
+    "casson": Casson,
+}
+"""The laws by the ``fluid.rheology.model`` tag; each takes its section's other keys."""
+
+
 def from_config(rheology: config.Rheology) -> ViscosityLaw:
-    """The law named by a ``fluid.rheology`` section."""
-    if isinstance(rheology, config.Newtonian):
-        return Newtonian(rheology.viscosity)
-    if isinstance(rheology, config.Carreau):
-        return Carreau(rheology.mu_0, rheology.mu_inf, rheology.relaxation_time,
-                       rheology.power_index)
-    if isinstance(rheology, config.CarreauYasuda):
-        return CarreauYasuda(rheology.mu_0, rheology.mu_inf, rheology.relaxation_time,
-                             rheology.power_index, rheology.yasuda_exponent)
-    if isinstance(rheology, config.Cross):
-        return Cross(rheology.mu_0, rheology.mu_inf, rheology.relaxation_time, rheology.exponent)
-    if isinstance(rheology, config.PowerLaw):
-        return PowerLaw(rheology.consistency, rheology.power_index, rheology.shear_rate_floor)
-    if isinstance(rheology, config.Casson):
-        return Casson(rheology.viscosity, rheology.yield_stress, rheology.regularization)
-    raise TypeError(f"unknown rheology {rheology!r}")  # pragma: no cover - config admits no other
+    """The law named by a ``fluid.rheology`` section, with the section's parameters."""
+    parameters = dataclasses.asdict(rheology)
+    return LAWS[parameters.pop("model")](**parameters)
 
 
 def cauchy_stress(u, p, law: ViscosityLaw) -> ufl.core.expr.Expr:

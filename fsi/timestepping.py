@@ -163,12 +163,15 @@ class NewmarkFamily:
         return float(np.abs(np.linalg.eigvals(self.amplification_matrix(omega_dt))).max())
 
 
+STRUCTURAL_SCHEMES = {
+    "newmark": lambda settings: NewmarkFamily.newmark(),
+    "generalized_alpha": lambda settings: NewmarkFamily.generalized_alpha(
+        settings.spectral_radius),
+    "quasi_static": lambda settings: NewmarkFamily.quasi_static(),
+}
+"""The structural schemes by the ``structure.time_integration.scheme`` tag."""
+
+
 def structural_scheme(settings) -> NewmarkFamily:
     """The scheme of ``structure.time_integration`` (a config object with a ``scheme`` tag)."""
-    if settings.scheme == "newmark":
-        return NewmarkFamily.newmark()
-    if settings.scheme == "generalized_alpha":
-        return NewmarkFamily.generalized_alpha(settings.spectral_radius)
-    if settings.scheme == "quasi_static":
-        return NewmarkFamily.quasi_static()
-    raise ValueError(f"unknown structural time scheme {settings.scheme!r}")
+    return STRUCTURAL_SCHEMES[settings.scheme](settings)

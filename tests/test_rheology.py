@@ -1,5 +1,7 @@
 """Viscosity laws: limits, special cases, regularisations, UFL = numpy, and their config errors."""
 
+import typing
+
 from mpi4py import MPI
 
 import dolfinx.fem
@@ -140,3 +142,10 @@ def test_rheology_round_trips_through_yaml(tmp_path):
         path = tmp_path / f"{model}.yaml"
         config.dump(case, path)
         assert config.load(path) == case
+
+
+def test_every_configured_model_has_a_law():
+    """The registry knows each ``fluid.rheology.model`` tag the schema admits, and no other."""
+    tags = {typing.get_args(typing.get_type_hints(option)["model"])[0]
+            for option in typing.get_args(config.Rheology)}
+    assert set(rheology.LAWS) == tags
