@@ -28,11 +28,19 @@ reuse never turns a solvable step into a failure.
 
 from __future__ import annotations
 
-from typing import Hashable, Literal
+import contextlib
+import logging
+from dataclasses import dataclass
+from typing import Callable, Hashable, Iterator, Literal
 
+from mpi4py import MPI
 from petsc4py import PETSc
 
 import dolfinx.fem
+import dolfinx.nls.petsc
+import numpy as np
+
+log = logging.getLogger(__name__)
 
 Reuse = Literal["none", "step", "run"]
 
@@ -117,3 +125,100 @@ class NewtonCallbacks:
             self._fresh = False
             self._norms = []
         return iterations + more, converged
+
+
+# --------------------------------------------------------------------------------------------
+# One Newton solver for every nonlinear problem (fluid, structure), and its PETSc options
+
+
+@dataclass(frozen=True)
+class SolveResult:
+    """Outcome of one nonlinear solve: whether it converged, Newton iterations (linear solves),
+    the ℓ² norm of the residual vector at the final iterate, and why it failed (``reason``)."""
+
+    converged: bool
+    iterations: int
+    residual: float
+    reason: str = ""
+
+    def raise_if_failed(self) -> None:
+        if not self.converged:
+            raise SolveFailed(self.reason or "the Newton solve did not converge")
+
+
+class SolveFailed(RuntimeError):
+    """A nonlinear solve failed (no convergence, a PETSc error, non-finite values, an inverted
+    element); the message says which solve and why."""
+
+
+@contextlib.contextmanager
+def petsc_options(prefix: str, options: dict) -> Iterator[None]:
+    """``options`` in PETSc's options database under ``prefix`` while the block runs, removed
+    after it: a solver's options are read (at ``setFromOptions`` and, for a factorisation
+    package such as MUMPS, at the set-up inside a solve) only while they are there, so they
+    never leak to another solver with the same prefix."""
+    database = PETSc.Options(prefix)
+    for key, value in options.items():
+        database[key] = value
+    try:
+        yield
+    finally:
+        for key in options:
+            database.delValue(key)
+
+
+class Newton:
+    """dolfinx's Newton solver for ``problem`` with the settings of a config
+    :class:`fsi.config.SolverSettings` and its PETSc options under ``prefix`` (``fluid_``,
+    ``solid_``): tolerances, iteration limit, Jacobian reuse (:class:`NewtonCallbacks`), and a
+    :meth:`solve` that never leaves a failed or non-finite iterate behind.
+
+    ``criterion``: dolfinx's convergence test, ``residual`` (|F(x_k)|) or ``incremental``
+    (|δx_k|), against ``atol`` or ``rtol`` times the first one.
+    """
+
+    def __init__(self, comm: MPI.Comm, problem, settings, prefix: str,
+                 criterion: Literal["residual", "incremental"] = "residual"):
+        self.comm, self.prefix = comm, prefix
+        self.options = dict(settings.petsc_options)
+        solver = dolfinx.nls.petsc.NewtonSolver(comm, problem)
+        solver.convergence_criterion = criterion
+        solver.rtol, solver.atol = settings.rtol, settings.atol
+        solver.max_it = settings.max_iterations
+        solver.error_on_nonconvergence = False
+        solver.report = False
+        ksp = solver.krylov_solver
+        ksp.setOptionsPrefix(prefix)
+        solver.A.setOptionsPrefix(prefix)
+        with petsc_options(prefix, self.options):
+            ksp.setFromOptions()
+        self.solver = solver
+        # Residual and Jacobian through one object: Jacobian (and LU) reuse, counters.
+        self.callbacks = NewtonCallbacks(problem, solver, settings.jacobian_reuse,
+                                         settings.jacobian_reuse_rate)
+
+    def solve(self, u: dolfinx.fem.Function, residual: Callable[[], float],
+              step: Hashable = None) -> SolveResult:
+        """Solve for ``u`` from its current value (collective). ``residual()`` gives the
+        residual norm after the solve; ``step`` identifies the time step for Jacobian reuse.
+        On failure (no convergence, a PETSc error, a non-finite residual or ``u``) ``u`` is
+        reset to its value before the solve and the result says why."""
+        guess = u.x.array.copy()
+        reason = ""
+        try:
+            with petsc_options(self.prefix, self.options):
+                iterations, converged = self.callbacks.solve(self.solver, u, step=step)
+        except RuntimeError as e:  # a PETSc error, raised on every rank
+            iterations, converged, reason = self.solver.max_it, False, f"PETSc: {e}"
+        norm = float(residual())
+        finite = bool(self.comm.allreduce(bool(np.isfinite(u.x.array).all())
+                                          and np.isfinite(norm), op=MPI.LAND))
+        if not finite:
+            converged, reason = False, reason or "non-finite residual or solution"
+        elif not converged and not reason:
+            reason = (f"Newton did not converge in {iterations} iterations (residual"
+                      f" {norm:.3e}, atol {self.solver.atol:g}, rtol {self.solver.rtol:g})")
+        if not converged:
+            u.x.array[:] = guess
+            u.x.scatter_forward()
+        return SolveResult(bool(converged), int(iterations), norm, reason)
