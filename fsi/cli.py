@@ -1,5 +1,5 @@
-"""The command line: ``fsi run``, ``fsi mesh``, ``fsi check``, ``fsi report``, ``fsi plot``
-(``python -m fsi`` is the same).
+"""The command line: ``fsi run``, ``fsi sweep``, ``fsi mesh``, ``fsi check``, ``fsi report``,
+``fsi plot`` (``python -m fsi`` is the same).
 
 Exit status (docs/reliability.md): 0 done; 1 an internal error (a bug: a traceback); 2 the
 configuration, the command line, ``--out`` or the checkpoint to restart from is wrong (nothing is
@@ -17,8 +17,9 @@ import shlex
 import signal
 import sys
 import traceback
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
 
 from mpi4py import MPI
 
@@ -51,6 +52,19 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true",
                    help="replace an earlier run's files in DIR (otherwise a DIR holding a run is "
                         "refused unless --restart continues it)")
+    p = sub.add_parser("sweep", help="run a case for every combination of the --vary values "
+                                     "(a folder each, resuming), then DIR/sweep.csv, sweep.md "
+                                     "and sweep_<quantity>.png")
+    with_config(p)
+    p.add_argument("--vary", action="append", required=True, metavar="KEY.PATH=V1,V2,...",
+                   help="a key (as --set takes it) and its values, comma-separated (commas "
+                        "inside [...] or {...} belong to the value); repeatable: the runs are "
+                        "the product of the lists")
+    p.add_argument("--out", type=Path, required=True, metavar="DIR",
+                   help="DIR/<key=value,...>/ for each run, DIR/sweep.csv and sweep.md")
+    p.add_argument("-n", "--dry-run", action="store_true",
+                   help="validate every run and list what the sweep would do with each (skip, "
+                        "resume, start); run and write nothing")
     p = sub.add_parser("mesh", help="build the case's mesh: DIR/mesh.xdmf and DIR/mesh.json")
     with_config(p)
     p.add_argument("--out", type=Path, required=True, metavar="DIR")
@@ -143,16 +157,24 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _report(args)
     if args.command == "plot":
         return _plot(args)
+    if args.command == "sweep":
+        return _guarded(comm, lambda: _sweep(args))
     try:
         case = config.load(args.config, args.overrides)
     except config.ConfigError as e:
         _error(comm, str(e))
         return EXIT_USAGE
     command = {"run": _run, "mesh": _mesh, "check": _check}[args.command]
+    return _guarded(comm, lambda: command(args, case))
+
+
+def _guarded(comm: MPI.Comm, command: Callable[[], int]) -> int:
+    """``command()``; on several ranks, an exception (a bug) ends every rank with its
+    traceback, since the other ranks may wait in a collective."""
     if comm.size == 1:
-        return command(args, case)
+        return command()
     try:
-        return command(args, case)
+        return command()
     except Exception:  # a bug: the other ranks may wait in a collective, so end them all
         print(f"fsi: internal error on rank {comm.rank} of {comm.size}:\n"
               f"{traceback.format_exc()}", file=sys.stderr, flush=True)
@@ -172,79 +194,111 @@ def _check(args: argparse.Namespace, case: config.Case) -> int:
     return EXIT_OK
 
 
+@dataclass(frozen=True)
+class RunRequest:
+    """What ``fsi run`` is asked to do: the case file and its ``--set`` overrides (for the
+    messages), ``--out``, ``--restart`` and ``--overwrite``."""
+
+    config: Path
+    out: Path
+    overrides: Sequence[str] = ()
+    restart: Path | None = None
+    overwrite: bool = False
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """How a run ended: its exit status and, unless it is done (0), why, in one line."""
+
+    status: int
+    reason: str = ""
+
+
 def _run(args: argparse.Namespace, case: config.Case) -> int:
+    request = RunRequest(args.config, args.out, args.overrides, args.restart, args.overwrite)
+    return run_case(request, case).status
+
+
+def run_case(request: RunRequest, case: config.Case) -> RunOutcome:
+    """Run ``case`` as ``fsi run`` does (the same checks, messages, files and stops; SIGINT,
+    SIGTERM and SIGUSR1 stop it after the current step). Collective."""
     from fsi import checkpoint, io, simulation
 
     comm = MPI.COMM_WORLD
     reason = simulation.unsupported(case)
     if reason is not None:
-        _error(comm, f"{args.config}: {reason}")
-        return EXIT_USAGE
+        return _refused(comm, f"{request.config}: {reason}")
     restart = None
     try:
-        if args.restart is not None:
-            restart = checkpoint.read(args.restart, case, comm)
+        if request.restart is not None:
+            restart = checkpoint.read(request.restart, case, comm)
     except checkpoint.CheckpointError as e:
-        _error(comm, f"--restart: {e}")
-        return EXIT_USAGE
-    continuing = restart is not None and restart.continues(args.out)
+        return _refused(comm, f"--restart: {e}")
+    continuing = restart is not None and restart.continues(request.out)
     try:
-        io.check_folder(comm, args.out, earlier_run=continuing or args.overwrite)
+        io.check_folder(comm, request.out, earlier_run=continuing or request.overwrite)
     except io.RunFolderError as e:
-        _error(comm, f"--out: {e}")
-        return EXIT_USAGE
+        return _refused(comm, f"--out: {e}")
     if restart is not None:
         log.info("restarting from %s: step %d, t = %.6g s", restart.path, restart.step,
                  restart.t)
     try:
         with _StopOnSignal() as stop:
-            result = simulation.run(case, args.out, comm, restart, stop)
+            result = simulation.run(case, request.out, comm, restart, stop)
     except checkpoint.CheckpointError as e:
-        _error(comm, f"--restart: {e}")
-        return EXIT_USAGE
+        return _refused(comm, f"--restart: {e}")
     except simulation.RunStopped as e:
-        return _stopped(args, e)
+        return _stopped(request, e)
     except KeyboardInterrupt:  # a second interrupt: at once, without a checkpoint
         log.error("fsi: stopped at once; the last periodic checkpoint is in %s",
-                  args.out / checkpoint.DIRECTORY)
-        return 128 + signal.SIGINT
-    done = f"done: {result.steps} steps in {result.wall_time_s:.1f} s; wrote {args.out}"
+                  request.out / checkpoint.DIRECTORY)
+        return RunOutcome(128 + signal.SIGINT, "stopped at once (a second interrupt)")
+    done = f"done: {result.steps} steps in {result.wall_time_s:.1f} s; wrote {request.out}"
     log.info(done)
     if comm.rank == 0:
-        io.append_to_log(args.out, [done])
-    return EXIT_OK
+        io.append_to_log(request.out, [done])
+    return RunOutcome(EXIT_OK)
 
 
-def _stopped(args: argparse.Namespace, e: Exception) -> int:
+def _refused(comm: MPI.Comm, message: str) -> RunOutcome:
+    """A run refused before any computation: exit status 2 and its ``fsi: error:`` line."""
+    _error(comm, message)
+    return RunOutcome(EXIT_USAGE, message)
+
+
+def _stopped(request: RunRequest, e: Exception) -> RunOutcome:
     """Say why a run stopped early and where its checkpoint is (rank 0: every rank has the
-    same exception; also into DIR/run.log); return the exit status."""
+    same exception; also into DIR/run.log); return the exit status and why, in one line."""
     from fsi import io, simulation
 
     if isinstance(e, simulation.Interrupted):
         status = 128 + e.signal
-        lines = [f"fsi: stopped by signal {e.signal} ({signal.Signals(e.signal).name})."]
+        reason = f"stopped by signal {e.signal} ({signal.Signals(e.signal).name})"
+        lines = [f"fsi: {reason}."]
     elif isinstance(e, simulation.OutputFailed):
         status = EXIT_OUTPUT_FAILED
-        lines = [f"fsi: cannot write the run's files: {e}"]
+        reason = f"cannot write the run's files: {e}"
+        lines = [f"fsi: {reason}"]
     else:
         status = EXIT_SOLVE_FAILED
-        lines = [f"fsi: solve failed: {e} (the finished steps are in {args.out / 'metrics.csv'})"]
+        reason = f"solve failed: {e}"
+        lines = [f"fsi: {reason} (the finished steps are in {request.out / 'metrics.csv'})"]
     if e.checkpoint is None:
         lines.append("fsi: no checkpoint could be written.")
     else:
         change = (" with what failed changed (e.g. a smaller time step with --set "
                   "'time.schedule=[...]', or the coupling or solver settings)"
                   if status == EXIT_SOLVE_FAILED else "")
-        command = ["fsi", "run", str(args.config), "--out", str(args.out), "--restart",
-                   str(args.out), *[a for s in args.overrides for a in ("--set", s)]]
+        command = ["fsi", "run", str(request.config), "--out", str(request.out), "--restart",
+                   str(request.out), *[a for s in request.overrides for a in ("--set", s)]]
         lines.append(f"fsi: the state after step {e.step} (t = {e.t:.6g} s) is checkpointed in "
                      f"{e.checkpoint}. To continue from it{change}, run\n  "
                      f"{shlex.join(command)}")
     if MPI.COMM_WORLD.rank == 0:
         for line in lines:
             log.error(line)
-        io.append_to_log(args.out, lines)
-    return status
+        io.append_to_log(request.out, lines)
+    return RunOutcome(status, reason)
 
 
 class _StopOnSignal:
@@ -283,6 +337,43 @@ class _StopOnSignal:
                 os.write(sys.stderr.fileno(), message.encode())
             except (OSError, ValueError):  # no usable stderr (closed, or captured in memory)
                 pass
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    """``fsi sweep``: every run validated (and ``--out`` checked) before the first starts; then
+    the runs one after the other in this process, each as ``fsi run`` (:func:`run_case`), and
+    the table (fsi/sweep.py). A stop signal stops the current run as ``fsi run`` and the sweep
+    after it."""
+    from fsi import io, sweep
+
+    comm = MPI.COMM_WORLD
+    try:
+        variations = sweep.parse_vary(args.vary)
+        runs = sweep.plan(args.config, variations, args.overrides, args.out)
+        io.check_folder(comm, args.out, earlier_run=True)
+    except (sweep.SweepError, config.ConfigError) as e:
+        _error(comm, str(e))
+        return EXIT_USAGE
+    except io.RunFolderError as e:
+        _error(comm, f"--out: {e}")
+        return EXIT_USAGE
+    if args.dry_run:
+        lines = sweep.describe_plan(runs) if comm.rank == 0 else []
+        if comm.rank == 0:
+            print("\n".join(lines), flush=True)
+        return EXIT_OK
+
+    def run_one(run: sweep.SweepRun, resume: bool, overwrite: bool) -> tuple[int, str]:
+        request = RunRequest(args.config, run.folder, run.overrides,
+                             run.folder if resume else None, overwrite)
+        outcome = run_case(request, run.case)
+        return outcome.status, outcome.reason
+
+    resume = ["fsi", "sweep", str(args.config), "--out", str(args.out),
+              *[a for v in variations for a in ("--vary", v.option)],
+              *[a for s in args.overrides for a in ("--set", s)]]
+    with _StopOnSignal() as stop:
+        return sweep.execute(runs, variations, args.out, run_one, stop, resume, comm)
 
 
 def _mesh(args: argparse.Namespace, case: config.Case) -> int:
