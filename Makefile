@@ -3,7 +3,7 @@ VENV ?= $(if $(FSI_VENV),$(FSI_VENV),.venv)
 export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 
-.PHONY: setup demo test test-trixie
+.PHONY: setup demo test test-trixie lint
 setup:
 	scripts/setup
 
@@ -14,6 +14,9 @@ demo: setup
 
 test: setup
 	scripts/test
+
+lint: setup
+	scripts/lint
 
 test-trixie:
 	scripts/trixie make test

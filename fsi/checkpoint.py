@@ -51,7 +51,7 @@ log = logging.getLogger("fsi")
 FORMAT = 1
 DIRECTORY, PARTIAL, PREVIOUS = "checkpoint", "checkpoint.partial", "checkpoint.previous"
 METADATA = "checkpoint.json"
-VARIABLE = ("coupling.", "predictor.", "counters.")
+VARIABLE = ("coupling.", "predictor.", "counters.", "fluid.outlet_state")
 ADDED = ("wall_indices.",)
 """Groups of state arrays added after checkpoints were first written: a checkpoint without
 them still restarts (the stepper starts those from the restart; fsi.simulation.FluidOutputs)."""

@@ -267,10 +267,45 @@ Inlet = Union[InletPulse, InletPressure, InletPressureTable, InletPressureFile,
 
 
 @dataclass(frozen=True)
-class Outlet:
-    """Traction-free outlet; ``backflow_stabilization`` β ≥ 0 scales the inflow-penalising term."""
+class TractionFreeOutlet:
+    """σ n = 0 (in the ``open_boundary`` form; the study's outlet, the default). Every outlet's
+    ``backflow_stabilization`` β ≥ 0 scales the term that removes the kinetic energy of blood
+    re-entering through it (Bazilevs et al. 2009; docs/boundary-conditions.md)."""
 
+    kind: Literal["traction_free"] = "traction_free"
     backflow_stabilization: float = non_negative(1.0)
+
+
+@dataclass(frozen=True)
+class ResistanceOutlet:
+    """σ n = −P n with P = P_ref + R Q (in the ``open_boundary`` form): Q (m²/s) the flow rate
+    per unit depth out through the outlet, ``resistance`` R (Pa s/m², per unit depth),
+    ``reference_pressure`` P_ref (Pa). Q is the step's own (implicit: fsi.fluid.LumpedOutlet)."""
+
+    kind: Literal["resistance"] = "resistance"
+    resistance: float = non_negative(0.0, " (Pa s/m^2)")
+    reference_pressure: float = 0.0
+    backflow_stabilization: float = non_negative(1.0)
+
+
+@dataclass(frozen=True)
+class WindkesselOutlet:
+    """The three-element Windkessel (RCR): σ n = −P n with P = P_c + R_p Q and
+    C dP_c/dt = Q − (P_c − P_ref)/R_d, P_c(0) = P_0: ``proximal_resistance`` R_p and
+    ``distal_resistance`` R_d (Pa s/m²), ``compliance`` C (m²/Pa), ``initial_pressure`` P_0 and
+    ``reference_pressure`` P_ref (Pa); Q (m²/s) per unit depth as for :class:`ResistanceOutlet`.
+    The ODE is integrated with the fluid's scheme (fsi/outlets.py)."""
+
+    kind: Literal["windkessel"] = "windkessel"
+    proximal_resistance: float = non_negative(0.0, " (Pa s/m^2)")
+    distal_resistance: float = positive(1.0e6, " (Pa s/m^2)")
+    compliance: float = positive(1.0e-7, " (m^2/Pa)")
+    initial_pressure: float = 0.0
+    reference_pressure: float = 0.0
+    backflow_stabilization: float = non_negative(1.0)
+
+
+Outlet = Union[TractionFreeOutlet, ResistanceOutlet, WindkesselOutlet]
 
 
 @dataclass(frozen=True)
@@ -322,7 +357,7 @@ class Fluid:
     density: float = positive(1060.0, " (kg/m^3)")
     rheology: Rheology = field(default_factory=Newtonian)
     inlet: Inlet = field(default_factory=InletPulse)
-    outlet: Outlet = field(default_factory=Outlet)
+    outlet: Outlet = field(default_factory=TractionFreeOutlet)
     open_boundary: Literal["stress", "do_nothing"] = "do_nothing"
     normal_flow: bool = True
     supg: bool = False
@@ -446,6 +481,10 @@ class TimeSegment:
     dt: float = positive(5.0e-3, " (s)")
 
 
+MAX_CYCLES = 1000
+"""The most heartbeats ``time.cycles`` may ask for (each repeats the schedule's segments)."""
+
+
 @dataclass(frozen=True)
 class Time:
     """The step schedule; the default is the study's: 5 ms to 0.4 s, then 10 ms to 0.8 s.
@@ -460,6 +499,12 @@ class Time:
 
     ``max_steps``: validation refuses a schedule of more steps to ``end`` (:func:`count_steps`),
     so a mistyped ``dt`` fails at once instead of running for ever.
+
+    ``cycles``: N >= 1 runs N heartbeats of the inlet's ``period`` T (``fluid.inlet.period``),
+    to t = N T. ``schedule`` is then one heartbeat's: its steps from 0 to T are repeated in
+    every heartbeat (:meth:`run_schedule`), and ``end`` must be T (one heartbeat, as a case
+    file for one beat has it) or N T (the whole run); :func:`validate` refuses anything else,
+    and N > 1 without a period. 0 (the default): ``end`` and ``schedule`` as written.
     """
 
     end: float = positive(0.8, " (s)")
@@ -467,6 +512,29 @@ class Time:
     schedule: tuple[TimeSegment, ...] = (TimeSegment(0.4, 5.0e-3), TimeSegment(0.8, 1.0e-2))
     retries: int = checked(0, lambda v: 0 <= v <= 8, "an integer in [0, 8]")
     max_steps: int = at_least(1_000_000, 1)
+    cycles: int = checked(0, lambda v: 0 <= v <= MAX_CYCLES,
+                          f"an integer in [0, {MAX_CYCLES}] (0: time.end sets the end)")
+
+    def run_schedule(self, period: float) -> Time:
+        """The schedule the run steps through (:func:`fsi.timestepping.steps` of it): this one
+        when ``cycles`` is 0 or there is no ``period``; else ``cycles`` copies of this
+        schedule's steps from 0 to ``period`` T, the k-th shifted by (k − 1) T so that every
+        heartbeat ends exactly on k T, and ``end`` = ``cycles`` × T."""
+        if self.cycles < 1 or not period > 0:
+            return self
+        beat = []  # one heartbeat's segments: (until within (0, T], dt)
+        for segment in self.schedule:
+            beat.append((min(segment.until, period), segment.dt))
+            if segment.until >= period:
+                break
+        segments = []
+        for k in range(self.cycles):
+            for until, dt in beat:
+                end_of_beat = until >= period
+                segments.append(TimeSegment((k + 1) * period if end_of_beat
+                                            else k * period + until, dt))
+        return dataclasses.replace(self, end=self.cycles * period, schedule=tuple(segments),
+                                   cycles=0)
 
 
 @dataclass(frozen=True)
@@ -492,15 +560,17 @@ class Coupling:
 @dataclass(frozen=True)
 class MeshMotion:
     """ALE extension of the interface displacement into the fluid (MODEL.md §5;
-    fsi/mesh_motion.py): ``harmonic`` −∇·(k ∇d) = 0 or ``elastic`` −∇·(k σ(d)) = 0 with
-    σ = 2 ε + λ' tr(ε) I, λ' = 2ν/(1 − 2ν) from ``poisson_ratio``. Stiffening k (per cell):
+    fsi/mesh_motion.py): ``harmonic`` −∇·(k ∇d) = 0, ``elastic`` −∇·(k σ(d)) = 0 with
+    σ = 2 ε + λ' tr(ε) I, λ' = 2ν/(1 − 2ν) from ``poisson_ratio``, or ``biharmonic`` Δ²d = 0
+    (the minimiser of ∫ k |∇∇d|², mixed with the Hessian as auxiliary field; natural condition
+    ∂²d/∂n² = 0 where d is given, so affine motions are extended exactly). Stiffening k (per cell):
     ``none`` k = 1; ``jacobian`` k = (J_max/J)^e with J the reference cell area (small cells
     stiffer); ``distance`` k = (δ_max/δ)^e with δ the centroid's distance to the moving boundary;
     e = ``stiffening_exponent``. ``min_jacobian_ratio``: the quality guard stops when a cell's
     area falls below this fraction of its reference area (or the cell inverts).
     ``petsc_options``: the linear solver's options (prefix ``mesh_``)."""
 
-    method: Literal["harmonic", "elastic"] = "harmonic"
+    method: Literal["harmonic", "elastic", "biharmonic"] = "harmonic"
     stiffening: Literal["none", "jacobian", "distance"] = "jacobian"
     stiffening_exponent: float = non_negative(1.0)
     poisson_ratio: float = open_interval(0.3, -1.0, 0.5)
@@ -575,6 +645,19 @@ def from_dict(data: dict, source: str = "<dict>", overridden: set[str] | None = 
     return case
 
 
+def heartbeat_period(case: Case) -> float:
+    """The inlet's period T (s) when it repeats (a ``pressure_table`` or ``pressure_file``
+    inlet with ``period`` > 0), else 0."""
+    return float(getattr(case.fluid.inlet, "period", 0.0))
+
+
+def run_time(case: Case) -> Time:
+    """The schedule the run steps through: ``time`` itself, or with ``time.cycles`` and a
+    periodic inlet the heartbeats one after another (:meth:`Time.run_schedule`), whose ``end``
+    is cycles × period."""
+    return case.time.run_schedule(heartbeat_period(case))
+
+
 def validate(case: Case) -> None:
     """Checks that involve several keys (single values are checked while building)."""
     g = case.geometry
@@ -629,15 +712,25 @@ def validate(case: Case) -> None:
             raise ConfigError("", f"time.schedule[{i}].until",
                               f"greater than time.schedule[{i - 1}].until = "
                               f"{schedule[i - 1].until} s", schedule[i].until)
-    if schedule[-1].until < case.time.end * (1 - 1e-12):
+    period = heartbeat_period(case)
+    _validate_cycles(case.time, period)
+    if case.time.cycles >= 1 and period > 0:  # the schedule is one heartbeat's
+        if schedule[-1].until < period * (1 - 1e-12):
+            raise ConfigError("", f"time.schedule[{len(schedule) - 1}].until",
+                              f"at least fluid.inlet.period = {period} s (with time.cycles the "
+                              "schedule is one heartbeat's)", schedule[-1].until)
+    elif schedule[-1].until < case.time.end * (1 - 1e-12):
         raise ConfigError("", f"time.schedule[{len(schedule) - 1}].until",
                           f"at least time.end = {case.time.end} s", schedule[-1].until)
-    count = count_steps(case.time)
+    run = run_time(case)
+    count = count_steps(run)
     if count > case.time.max_steps:
         raise_limit = (f"raise the limit (--set time.max_steps={int(count)}) if you mean it"
                        if math.isfinite(count) else "no limit can be that high")
+        to = (f"time.end = {case.time.end:g} s" if run is case.time else
+              f"the end of time.cycles = {case.time.cycles} heartbeats, {run.end:g} s")
         raise ConfigError("", "time.schedule", reason=(
-            f"{format_count(count)} steps to time.end = {case.time.end:g} s, more than "
+            f"{format_count(count)} steps to {to}, more than "
             f"time.max_steps = {case.time.max_steps:,}: use larger dt, or {raise_limit}"))
 
     if (case.time.scheme == "steady" and case.structure.mode != "rigid"
@@ -678,6 +771,22 @@ def _validate_cell_count(case: Case) -> None:
             f"{m.max_cells:,} (a coupled run needs ~{BYTES_PER_CELL / 1e3:.0f} kB per triangle:"
             f" {memory}): use larger sizes or a coarser level, or raise mesh.max_cells if you "
             "mean it"))
+
+
+def _validate_cycles(time: Time, period: float) -> None:
+    """``time.cycles`` N > 1 needs an inlet ``period`` T > 0; with N >= 1 and T, ``time.end``
+    is one heartbeat (T) or the whole run (N T), within 1e-9 relative (:class:`Time`)."""
+    n = time.cycles
+    if n > 1 and not period > 0:
+        raise ConfigError("", "time.cycles", reason=(
+            f"{n} heartbeats need a periodic inlet (a pressure_table or pressure_file "
+            "fluid.inlet with period > 0); this inlet does not repeat: use time.end instead"))
+    if n >= 1 and period > 0:
+        whole = n * period
+        if not any(abs(time.end - t) <= 1e-9 * t for t in (period, whole)):
+            raise ConfigError("", "time.end", f"fluid.inlet.period = {period:g} s (one "
+                              f"heartbeat) or time.cycles × period = {whole:g} s (the whole "
+                              f"run) when time.cycles is {n}", time.end)
 
 
 def _validate_inlet(case: Case) -> None:

@@ -1,5 +1,6 @@
 """Fluid metrics (MODEL.md §6): peaks, wall shear stress, recirculation, the hemodynamic indices
-TAWSS, OSI and RRT, forces, flow rates, and the shear rate and effective viscosity as fields.
+TAWSS, OSI and RRT, forces, flow rates, mean boundary pressures, and the shear rate and
+effective viscosity as fields.
 
 Every function here is collective over the mesh's communicator and returns the same value on
 every rank (peaks, forces and flow rates are reduced, wall samples are gathered); the per-rank
@@ -8,6 +9,7 @@ exceptions say so (:meth:`WallSampler.local`, :class:`WallIndices` of a rank's s
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -379,6 +381,35 @@ def flow_rate(u: dolfinx.fem.Function, facet_tags: dolfinx.mesh.MeshTags,
     the form at every call: a loop keeps :func:`flow_rate_form` instead."""
     form = flow_rate_form(u, facet_tags, tags, quadrature_degree)
     return sign * total(form, u.function_space.mesh.comm)
+
+
+# --------------------------------------------------------------------------------------------
+# Mean boundary pressures
+
+
+class BoundaryMean:
+    """The mean of a scalar ``f`` over the facets ``tags`` of its mesh,
+    f̄ = ∫_Γ f ds / ∫_Γ 1 ds (in 2D the length average; the area average of a 3D boundary), on
+    the mesh as it is when :meth:`value` is called (the forms are compiled once and read the
+    current coordinates, so the mean follows a moving mesh). The default degree 2 integrates a
+    P1 or P2 ``f`` exactly on straight facets."""
+
+    def __init__(self, f: dolfinx.fem.Function, facet_tags: dolfinx.mesh.MeshTags,
+                 tags: Sequence[int], quadrature_degree: int = 2):
+        mesh = f.function_space.mesh
+        self.comm = mesh.comm
+        ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags,
+                         metadata={"quadrature_degree": quadrature_degree})
+        tags = [int(t) for t in tags]
+        measure = sum((ds(t) for t in tags[1:]), ds(tags[0]))
+        self._integral = dolfinx.fem.form(f * measure)
+        one = dolfinx.fem.Constant(mesh, PETSc.ScalarType(1.0))
+        self._size = dolfinx.fem.form(one * measure)
+
+    def value(self) -> float:
+        """f̄ over Γ, the same on every rank; NaN if Γ has no facets. Collective."""
+        size = total(self._size, self.comm)
+        return total(self._integral, self.comm) / size if size > 0 else math.nan
 
 
 # --------------------------------------------------------------------------------------------

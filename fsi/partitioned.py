@@ -40,6 +40,7 @@ import dolfinx.fem
 import numpy as np
 
 from fsi import config, coupling, fluid, mesh, solid
+from fsi.newton import SolveResult
 from fsi.interface import InterfaceMap
 from fsi.mesh_motion import MeshMotion
 from geometry.tags import Boundary, Region
@@ -57,7 +58,7 @@ class FluidInterface:
     save/restore/advance cover.
 
     Raises (collectively) :class:`fsi.mesh_motion.MeshQualityError` when the extension would
-    collapse a cell, and :class:`fsi.fluid.FluidSolveError` when the fluid step fails.
+    collapse a cell, and :class:`fsi.newton.SolveFailed` when the fluid step fails.
     """
 
     def __init__(self, fluid_solver: fluid.FluidSolver, motion: MeshMotion,
@@ -69,7 +70,7 @@ class FluidInterface:
         self.interface, self.warm_start = tuple(int(b) for b in interface), warm_start
         self.eta = dolfinx.fem.Function(fluid_solver.V, name="interface_displacement")
         self.t, self.dt = math.nan, math.nan
-        self.last: Optional[fluid.StepResult] = None
+        self.last: Optional[SolveResult] = None
         self.newton_iterations = 0  # over the coupling iterations of the current step
         self.solves = 0  # coupling iterations of the current step so far
         self.mesh_quality = 1.0  # min J/J_ref of the last mesh motion
@@ -188,11 +189,10 @@ def build_coupled(case: config.Case, comm: MPI.Comm = MPI.COMM_WORLD) -> Coupled
         raise ValueError("structure.mode 'rigid' has no structure to couple")
     whole = mesh.build(case, comm)
     fluid_mesh = mesh.restrict(whole, Region.FLUID)
-    walls = [b for b in mesh.geometry_module(case).BOUNDARIES
-             if b in (Boundary.RIGID_WALL, Boundary.OBSTACLE)]
+    boundaries = fluid.boundary_conditions(case.fluid, mesh.geometry_module(case).BOUNDARIES,
+                                           moving_interface=True)
     fluid_solver = fluid.FluidSolver(fluid_mesh.mesh, fluid_mesh.facet_tags, case.fluid,
-                                     fluid.study_boundaries(case.fluid, walls),
-                                     scheme=case.time.scheme)
+                                     boundaries, scheme=case.time.scheme)
     # Built before the mesh ever moves: both keep the reference coordinates X.
     motion = MeshMotion(fluid_mesh, case.mesh_motion, moving=(Boundary.INTERFACE,))
     solid_solver = solid.build(case, whole, comm)

@@ -9,7 +9,9 @@ of the wall shear stress (``min_wss`` to ``max_wss``, shaded), the recirculation
 coupling iterations, the inlet and outlet flow rates and the inlet pressure P(t) of each run's
 configuration (one line per distinct waveform; velocity inlets have none). A run without a
 column (an older run folder, a structure-only run) is left out of that plot and shows '–' in
-the tables; a plot that no run has a line for is not written. ``report.md`` lists every PNG
+the tables; a plot that no run has a line for is not written. Runs with heartbeats (a
+periodic inlet: summary.json's ``cycles``) get a table of their heartbeats
+(:func:`cycles_table`). ``report.md`` lists every PNG
 with a caption line. Reads only the files ``fsi run`` writes: ``config.yaml``, ``metrics.csv``,
 ``summary.json``.
 
@@ -177,13 +179,63 @@ def effort_table(runs: Sequence[Run]) -> str:
     return "\n".join(lines)
 
 
+CYCLE_COLUMNS = [("peak_velocity", "peak velocity", "velocity"),
+                 ("peak_pressure", "peak pressure", "pressure"),
+                 ("peak_displacement", "peak displacement", "displacement"),
+                 ("max_sss", "max SSS", "stress"),
+                 ("max_principal_cap", "cap max principal", "stress"),
+                 ("inlet_flow_rate", "inlet flow rate", "flow_rate"),
+                 ("min_tawss", "min TAWSS", "stress"),
+                 ("max_osi", "max OSI", "count")]
+"""The per-heartbeat values of summary.json's ``cycles`` that :func:`cycles_table` shows."""
+
+
+def cycles_table(run: Run) -> str | None:
+    """A markdown table of the run's heartbeats (summary.json ``cycles``, written when the
+    inlet has a period), or None without them: per heartbeat its time span, steps (marked
+    ``(partial)`` if it did not reach its end), each :data:`CYCLE_COLUMNS` value the run has
+    (a column that is 0 throughout, e.g. a rigid run's displacement, is left out) with its
+    relative change from the previous heartbeat, and the largest |change| of all its values:
+    where that becomes small, the solution is periodic."""
+    cycles = run.summary.get("cycles") or []
+    if not cycles:
+        return None
+    shown = []
+    for column, title, quantity in CYCLE_COLUMNS:
+        values = [beat["values"].get(column) for beat in cycles]
+        if any(v for v in values):
+            unit = choose_unit(quantity, [v for v in values if v is not None])
+            shown.append((column, f"{title} ({unit.name})" if unit.name else title, unit))
+    lines = ["| heartbeat | t (s) | steps | " + " | ".join(head for _, head, _ in shown)
+             + " | largest change |", "|---" * (len(shown) + 4) + "|"]
+    for beat in cycles:
+        cells = []
+        for column, _, unit in shown:
+            cell = _number(beat["values"].get(column), unit.scale)
+            change = beat["change"].get(column)
+            cells.append(cell if change is None else f"{cell} ({100 * change:+.2g} %)")
+        largest = beat.get("max_change")
+        steps = f"{beat['steps']}{'' if beat['complete'] else ' (partial)'}"
+        lines.append(f"| {beat['cycle']} | {beat['start_s']:g}–{beat['end_s']:g} | {steps} | "
+                     + " | ".join(cells)
+                     + f" | {'–' if largest is None else f'{100 * largest:.2g} %'} |")
+    return "\n".join(lines)
+
+
 def markdown(runs: Sequence[Run], times: Sequence[float] | None = None,
              figures: Sequence[tuple[str, str]] = ()) -> str:
-    """Tables 1–3 and the solver effort; with ``figures`` ((PNG file name, caption) pairs), a
-    section that shows each PNG followed by its caption line."""
+    """Tables 1–3 and the solver effort; for runs with heartbeats (a periodic inlet), a table
+    of each run's heartbeats (:func:`cycles_table`); with ``figures`` ((PNG file name,
+    caption) pairs), a section that shows each PNG followed by its caption line."""
     parts = [f"## Table {i + 1}: {title}\n\n{peaks_table(runs, column, title, quantity, times)}"
              for i, (column, title, quantity) in enumerate(TABLES)]
     parts.append(f"## Solver effort\n\n{effort_table(runs)}")
+    beats = [(run, cycles_table(run)) for run in runs]
+    if any(table for _, table in beats):
+        parts.append("## Heartbeats\n\nPer heartbeat: the largest value over its steps "
+                     "(TAWSS: the smallest of that heartbeat's own wall indices), in brackets "
+                     "its change from the previous heartbeat.\n\n" + "\n\n".join(
+                         f"{run.label}:\n\n{table}" for run, table in beats if table))
     if figures:
         parts.append("## Figures\n\n" + "\n\n".join(f"![{name}]({name})\n*{name}*: {caption}"
                                                     for name, caption in figures))
@@ -275,8 +327,8 @@ times and a table's rows)."""
 def inlet_pressure_groups(runs: Sequence[Run]) -> list[Group]:
     """P(t) of the traction inlets of the runs' configurations (``fluid.inlet``; velocity
     inlets are left out), one group per distinct inlet, over [0, the last step of the runs that
-    share it] (their ``time.end`` for runs without steps). Points where a formula cannot be
-    evaluated are left out."""
+    share it] (for runs without steps their end: ``time.end``, or ``time.cycles`` heartbeats).
+    Points where a formula cannot be evaluated are left out."""
     from fsi.fluid import inlet_pressure
 
     shared: dict[object, list[Run]] = {}
@@ -288,7 +340,8 @@ def inlet_pressure_groups(runs: Sequence[Run]) -> list[Group]:
             pressure = inlet_pressure(inlet)
         except TypeError:  # a velocity inlet
             continue
-        end = max(run.rows[-1]["t"] if run.rows else run.case.time.end for run in sharing)
+        end = max(run.rows[-1]["t"] if run.rows else config.run_time(run.case).end
+                  for run in sharing)  # time.cycles: N T
         times = {end * i / (INLET_SAMPLES - 1) for i in range(INLET_SAMPLES)}
         times.update(r["t"] for run in sharing for r in run.rows)
         if isinstance(inlet, config.InletPressureTable):

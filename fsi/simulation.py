@@ -23,7 +23,7 @@ from mpi4py import MPI
 import numpy as np
 
 from fsi import (boundary_data, checkpoint, config, coupling, fluid, io, mesh, metrics,
-                 partitioned, provenance, solid)
+                 newton, partitioned, provenance, solid)
 from fsi.mesh_motion import MeshQualityError
 from fsi.timestepping import Step, steps
 from geometry import turek_hron
@@ -47,10 +47,17 @@ def stress_columns(solver: solid.SolidSolver) -> list[str]:
     """The structure's stress maxima (Pa) beside ``max_sss``: ``max_von_mises``,
     ``max_principal`` over the whole structure, and ``max_sss_<region>``,
     ``max_von_mises_<region>``, ``max_principal_<region>`` per region (cap, lipid, wall; the
-    Turek–Hron flag), where ``max_sss`` is the largest |σ₁₂| (fsi.solid.StressFields)."""
+    Turek–Hron flag), where ``max_sss`` is the largest |σ₁₂| (fsi.solid.StressFields); with a
+    fibrous cap, :data:`CAP_LOCATION_COLUMNS`."""
     return ["max_von_mises", "max_principal"] + [
         f"{name}_{region.label}" for region in solver.regions
-        for name in ("max_sss", "max_von_mises", "max_principal")]
+        for name in ("max_sss", "max_von_mises", "max_principal")] + (
+        CAP_LOCATION_COLUMNS if Region.CAP in solver.regions else [])
+
+
+CAP_LOCATION_COLUMNS = ["max_principal_cap_x", "max_principal_cap_y"]
+"""Where ``max_principal_cap`` is attained: the reference coordinates (m) of the stress
+field's node that holds it (fsi.solid.StressFields.location_of_max)."""
 
 
 def stress_row(solver: solid.SolidSolver) -> dict[str, float]:
@@ -62,12 +69,75 @@ def stress_row(solver: solid.SolidSolver) -> dict[str, float]:
         row.update({f"max_sss{suffix}": m.max_abs_shear,
                     f"max_von_mises{suffix}": m.max_von_mises,
                     f"max_principal{suffix}": m.max_principal})
+    if Region.CAP in solver.regions:
+        _, x, y = solver.stress.location_of_max("max_principal", Region.CAP)
+        row.update(zip(CAP_LOCATION_COLUMNS, (x, y), strict=True))
     return row
 
 
 FLOW_COLUMNS = ["inlet_flow_rate", "outlet_flow_rate"]
 """Every fluid mesh with an inlet and an outlet: the volume flow rate per unit depth (m²/s)
 through each, positive downstream, on the current mesh (fsi.metrics.flow_rate)."""
+PRESSURE_COLUMNS = ["mean_inlet_pressure", "mean_outlet_pressure"]
+"""Every fluid mesh with an inlet and an outlet: the pressure p averaged over the inlet and
+over the outlet (Pa; in 2D the length average ∫ p ds / ∫ ds, on the current mesh;
+fsi.metrics.BoundaryMean)."""
+
+
+# --------------------------------------------------------------------------------------------
+# Heartbeats
+
+
+def heartbeat(t: float, period: float) -> int:
+    """The 1-based number k of the heartbeat (k − 1) T < t <= k T that holds time ``t`` (a step
+    ending on k T belongs to heartbeat k; times within 1e-9 T of k T count as on it); 1 for
+    t <= T."""
+    return max(1, math.ceil(t / period - 1e-9))
+
+
+HEADLINE = {"peak_velocity": max, "peak_pressure": max, "peak_displacement": max,
+            "max_sss": max, "max_principal_cap": max, "min_wss": min, "max_wss": max,
+            "recirculation_length": max, "inlet_flow_rate": max, "outlet_flow_rate": max,
+            "mean_inlet_pressure": max}
+"""The metrics columns summarised per heartbeat (:func:`cycle_table`) and how: their largest
+value over the heartbeat's steps (``min_wss``: the smallest)."""
+
+
+def cycle_table(rows: list[dict], period: float, indices: list[dict]) -> list[dict]:
+    """summary.json's ``cycles``: per heartbeat k with steps in ``rows`` (the metrics rows, by
+    their ``t``): ``cycle`` k, ``start_s`` (k − 1) T, ``end_s`` its last step's t, ``steps``,
+    ``complete`` (whether it reached k T), ``values`` (the :data:`HEADLINE` columns the rows
+    have, plus ``indices[k − 1]``: ``min_tawss``, ``max_osi``, ``max_rrt`` of that heartbeat's
+    own wall indices, where given), ``change`` (per value, (v_k − v_{k−1}) / |v_{k−1}|; None for
+    the first heartbeat or where either is missing or v_{k−1} is 0) and ``max_change`` (the
+    largest |change|, None if none): the solution is periodic when ``max_change`` is small."""
+    beats: dict[int, list[dict]] = {}
+    for row in rows:
+        beats.setdefault(heartbeat(row["t"], period), []).append(row)
+    table, previous = [], {}
+    for k in sorted(beats):
+        values = {}
+        for column, pick in HEADLINE.items():
+            found = [r[column] for r in beats[k] if _number(r.get(column))]
+            if found:
+                values[column] = float(pick(found))
+        if k <= len(indices):
+            values.update({key: v for key, v in indices[k - 1].items() if v is not None})
+        change = {key: (v - previous[key]) / abs(previous[key])
+                  if previous.get(key) else None for key, v in values.items()}
+        known = [abs(c) for c in change.values() if c is not None]
+        end = beats[k][-1]["t"]
+        table.append({"cycle": k, "start_s": (k - 1) * period, "end_s": end,
+                      "steps": len(beats[k]), "complete": end >= k * period * (1 - 1e-9),
+                      "values": values, "change": change,
+                      "max_change": max(known) if known else None})
+        previous = values
+    return table
+
+
+def _number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(
+        value)
 
 
 class RunStopped(Exception):
@@ -80,7 +150,7 @@ class RunStopped(Exception):
     t: float | None = None
 
 
-class SolveFailed(RunStopped):
+class StepFailed(RunStopped):
     """A sub-solver did not converge, or a step's data (the inlet formula) could not be
     evaluated; the CLI's exit status 3."""
 
@@ -158,7 +228,7 @@ class Stepper(Protocol):
         whose values change in place)."""
 
     def step(self, step: Step) -> dict:
-        """Advance one step; return its metrics row (raise :class:`SolveFailed` on failure)."""
+        """Advance one step; return its metrics row (raise :class:`StepFailed` on failure)."""
 
     def describe(self, row: dict) -> str:
         """The step's solver statistics for the progress log."""
@@ -187,6 +257,9 @@ def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start:
     (flushed at once), fields every ``output.fields_every`` steps and at the end, a checkpoint
     (fsi/checkpoint.py) every ``output.checkpoint_every`` steps, at the end and when the run
     stops early, and ``out/summary.json`` (over all rows of metrics.csv) once every step is done.
+    The steps are those of ``case.time.run_schedule`` (``time.cycles`` heartbeats one after
+    another); with a periodic inlet every row has its heartbeat in ``cycle`` and the summary a
+    ``cycles`` table (:func:`cycle_table`).
 
     With ``restart`` the checkpoint's arrays are placed on this run's dofs and checked
     (:func:`fsi.checkpoint.localize`) before anything is written, then loaded into the stepper,
@@ -194,7 +267,7 @@ def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start:
     rows up to k are kept (copied from the checkpoint's run folder if ``out`` is another one),
     and the fields go to new files (``fields.restart<k>.xdmf``, :func:`fsi.io.field_segment`).
 
-    The run stops early with a :class:`RunStopped` raised on every rank: :class:`SolveFailed`
+    The run stops early with a :class:`RunStopped` raised on every rank: :class:`StepFailed`
     when a step fails, :class:`OutputFailed` when a file cannot be written (rank 0's failures
     are shared, :func:`fsi.io.collectively`), :class:`Interrupted` after the step during which
     ``stop_requested`` (polled on every rank) returned a signal. A failed step leaves the
@@ -204,6 +277,11 @@ def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start:
     written; the exception says where it is. Collective."""
     first = None if restart is None else restart.step
     t0 = 0.0 if restart is None else restart.t
+    period = config.heartbeat_period(case)
+    schedule = config.run_time(case)  # time.cycles: the heartbeats one after another
+    columns = list(stepper.columns)
+    if period > 0:
+        columns.insert(columns.index("dt") + 1, "cycle")
     layouts = stepper.layouts()
     if restart is not None:  # before any file is touched
         loaded = checkpoint.localize(restart, layouts, stepper.state(), comm)
@@ -213,7 +291,7 @@ def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start:
     try:
         # The field writers store the mesh now, in its reference configuration (the state,
         # which may move the fluid mesh, is loaded after).
-        files = io.RunFiles(comm, out, config.to_yaml(case), stepper.columns,
+        files = io.RunFiles(comm, out, config.to_yaml(case), columns,
                             stepper.field_files(), first, continuing=continuing,
                             metrics_source=None if restart is None or continuing
                             else restart.run_dir / "metrics.csv")
@@ -222,7 +300,7 @@ def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start:
     if restart is not None:
         stepper.load_state(loaded)
     last = first or 0
-    for last_step in steps(case.time, t0, first or 0):  # counted, never stored (time.max_steps)
+    for last_step in steps(schedule, t0, first or 0):  # counted, never stored (time.max_steps)
         last = last_step.index
     good = _Snapshot(first or 0, t0, None if restart is None else restart.dt, stepper.state())
     saved: tuple[Path, int, float] | None = None  # this run's latest checkpoint: folder, step, t
@@ -231,15 +309,17 @@ def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start:
 
     try:
         files.write_fields(t0)
-        for step in steps(case.time, t0, first or 0):
+        for step in steps(schedule, t0, first or 0):
             tic = wallclock.perf_counter()
             row = {"step": step.index, "t": step.t, "dt": step.dt,
                    **advance(stepper, step, good.state, case.time.retries, retried)}
             row["wall_time_s"] = wallclock.perf_counter() - tic
+            if period > 0:
+                row["cycle"] = heartbeat(step.t, period)
             bad = [key for key, v in row.items()
                    if isinstance(v, float) and not math.isfinite(v)]
             if bad:  # never write a NaN: a step that produced one failed
-                raise SolveFailed(f"step {step.index} to t = {step.t:g} s gave non-finite "
+                raise StepFailed(f"step {step.index} to t = {step.t:g} s gave non-finite "
                                   f"{', '.join(bad)}")
             files.write_row(row)
             rows.append(row)
@@ -274,18 +354,20 @@ def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start:
     finally:
         files.close()
     every = files.kept + rows  # a restart's summary covers the kept rows too
-    newton = sum(r.get("newton_iterations", 0) for r in every)
+    newton_total = sum(r.get("newton_iterations", 0) for r in every)
     summary = {
         "case": case.name, "structure_mode": case.structure.mode, "steps": len(every),
         "end_time_s": rows[-1]["t"] if rows else t0,
         "wall_time_s": wallclock.perf_counter() - start,
         "mean_step_time_s": sum(r.get("wall_time_s", 0.0) for r in every) / max(len(every), 1),
-        "newton_iterations": newton, "mean_newton_iterations": newton / max(len(every), 1),
+        "newton_iterations": newton_total, "mean_newton_iterations": newton_total / max(len(every), 1),
         "ranks": comm.size, **comm.bcast(provenance.describe() if comm.rank == 0 else None),
         "retried_steps": sorted({s.index for s in retried}),
         **stepper.summary(),
         "checkpoint": None if saved is None else str(saved[0]),
     }
+    if period > 0:  # per heartbeat: the stepper's wall indices beside the rows' peaks
+        summary["cycles"] = cycle_table(every, period, summary.get("cycles", []))
     if restart is not None:
         summary["restarted_from"] = {"checkpoint": str(restart.path), "step": restart.step,
                                      "t": restart.t}
@@ -304,13 +386,13 @@ def advance(stepper: Stepper, step: Step, before: dict, retries: int,
     stepper's state at the start of the step) and take the step as two of half its size, each
     retried the same way with one retry fewer. Returns the row of the step's last (sub)step;
     appends every split step to ``retried``. An inlet formula that cannot be evaluated at a time
-    of the step fails it (:class:`SolveFailed`, no retry: its time is the configuration's fault).
+    of the step fails it (:class:`StepFailed`, no retry: its time is the configuration's fault).
     Collective (the failure is raised on every rank)."""
     try:
         return stepper.step(step)
     except boundary_data.FormulaError as e:
-        raise SolveFailed(f"step {step.index} to t = {step.t:g} s: fluid.inlet: {e}") from e
-    except SolveFailed as e:
+        raise StepFailed(f"step {step.index} to t = {step.t:g} s: fluid.inlet: {e}") from e
+    except StepFailed as e:
         if retries <= 0:
             raise
         log.warning("step %d to t = %.6g s failed (%s); taking it as two steps of %.3g s",
@@ -345,7 +427,7 @@ class _Snapshot:
                 log.error("fsi: no checkpoint of step %d: %s", self.step, e)
             return None
         try:  # the files derived from the checkpointed state: wall_indices.csv
-            FluidOutputs.write_indices(out, comm, self.state)
+            FluidOutputs.write_indices(out, comm, self.state, config.heartbeat_period(case))
         except io.OutputError as e:  # raised on every rank; the checkpoint holds the values
             if comm.rank == 0:
                 log.error("fsi: %s", e)
@@ -359,9 +441,12 @@ class _Snapshot:
 class FluidOutputs:
     """The fluid's derived output: viscosity, shear rate and wall shear stress fields (on every
     no-slip or moving wall), for channel-like lumens the WALL_COLUMNS of the metrics row and,
-    where the fluid mesh has an inlet and an outlet, the FLOW_COLUMNS; and the hemodynamic
-    indices TAWSS, OSI and RRT at two Gauss points of every wall facet, accumulated over the
-    run by :meth:`update` (fsi.metrics.WallIndices, docs/hemodynamic-indices.md).
+    where the fluid mesh has an inlet and an outlet, the FLOW_COLUMNS and PRESSURE_COLUMNS; and
+    the hemodynamic indices TAWSS, OSI and RRT at two Gauss points of every wall facet,
+    accumulated by :meth:`update` (fsi.metrics.WallIndices, docs/hemodynamic-indices.md) over
+    the run or, when the inlet repeats with a period T
+    (:func:`fsi.config.heartbeat_period`), over each heartbeat ((k − 1) T, k T] on its own: the accumulators start afresh at every k T and the
+    finished heartbeats' are kept (:attr:`past`).
 
     The indices are state: :meth:`state`, :meth:`layouts` and :meth:`load_state` put them into
     the stepper's checkpoint, keyed by the samples' reference coordinates, and
@@ -374,29 +459,36 @@ class FluidOutputs:
     INDEX_COLUMNS = ["wall", "side", "x", "y", "TAWSS", "OSI", "RRT"]
     """wall_indices.csv: the wall's boundary label, its side, the sample's reference
     coordinates (m), TAWSS (Pa), OSI (1) and RRT (1/Pa)."""
-    INDEX_ARRAYS = ("integrals", "points", "walls", "sides")
-    """The state's per-sample arrays ``wall_indices.<name>`` (:meth:`layouts`)."""
+    INDEX_ARRAYS = ("integrals", "points", "walls", "sides", "past")
+    """The state's per-sample arrays ``wall_indices.<name>`` (:meth:`layouts`; ``past``:
+    ``wall_indices.past.<k>``, one per finished heartbeat k)."""
 
     def __init__(self, case: config.Case, solver: fluid.FluidSolver):
         self.solver = solver
         boundaries = mesh.geometry_module(case).BOUNDARIES
-        self.walls = [b for b in boundaries
-                      if b in (Boundary.RIGID_WALL, Boundary.INTERFACE, Boundary.OBSTACLE)]
+        self.walls = list(fluid.walls(boundaries))
         self.lumen = not isinstance(case.geometry, config.TurekHronGeometry)
         # column → (∫ u·n ds over the boundary, compiled once; the sign that makes it positive
         # downstream): Q_in = −∫_inlet u·n ds, Q_out = ∫_outlet u·n ds.
         self.flow_rates = {}
+        self.pressures = {}  # column → mean of p over the boundary (metrics.BoundaryMean)
         if Boundary.INLET in boundaries and Boundary.OUTLET in boundaries:
             for column, tag, sign in zip(FLOW_COLUMNS, (Boundary.INLET, Boundary.OUTLET),
                                          (-1.0, 1.0)):
                 form = metrics.flow_rate_form(solver.u, solver.facet_tags, [tag])
                 self.flow_rates[column] = (form, sign)
-        self.columns = (WALL_COLUMNS if self.lumen else []) + list(self.flow_rates)
+            for column, tag in zip(PRESSURE_COLUMNS, (Boundary.INLET, Boundary.OUTLET),
+                                   strict=True):
+                self.pressures[column] = metrics.BoundaryMean(solver.p, solver.facet_tags, [tag])
+        self.columns = ((WALL_COLUMNS if self.lumen else []) + list(self.flow_rates)
+                        + list(self.pressures) + list(solver.outlet_values()))
         self.derived = metrics.FluidFields(solver.u, solver.p, solver.law, solver.facet_tags,
                                            self.walls)
         self.sampler = metrics.WallSampler(solver.u, solver.p, solver.law, solver.facet_tags,
                                            self.walls)
         self.indices = metrics.WallIndices(self.sampler.size, time=solver.time)
+        self.period = config.heartbeat_period(case)
+        self.past: list[metrics.WallIndices] = []  # heartbeats 1, 2, ... before self.indices'
         self.sides = np.zeros(self.sampler.size, dtype=np.int64)
         if self.lumen:
             normal_y = self.sampler.local().normal[:, 1]
@@ -417,26 +509,55 @@ class FluidOutputs:
         self.derived.update()
         samples = self.sampler.local()
         if s.time > self.indices.time:
-            self.indices.add(s.time, samples.tau)
+            self._add_step(s.time, samples.tau)
         row = {}
         if self.lumen:
             row.update(metrics.wall_shear_summary(self.sampler.gather(samples)))
         for column, (form, sign) in self.flow_rates.items():
             row[column] = sign * metrics.total(form, s.comm)
+        for column, mean in self.pressures.items():
+            row[column] = mean.value()
+        row.update(s.outlet_values())  # a resistance or Windkessel outlet's P (and P_c)
         return row
+
+    def _add_step(self, t: float, tau: np.ndarray) -> None:
+        """Add the step (last t, t] with the end values ``tau`` to the indices; with a period
+        T, a step that ends in a later heartbeat first closes the current one: its part up to
+        the boundary k T counts for heartbeat k (the step's end value, as WallIndices' window
+        start does for the part after it), and the accumulators start afresh at k T."""
+        T = self.period
+        while T > 0 and heartbeat(t, T) > len(self.past) + 1:
+            boundary = (len(self.past) + 1) * T
+            if boundary > self.indices.time:
+                self.indices.add(boundary, tau)
+            self.past.append(self.indices)
+            # From the boundary, or from where the accumulators stopped if that is later (a
+            # checkpoint of an earlier version, whose indices ran over the whole run).
+            self.indices = metrics.WallIndices(self.sampler.size, start=boundary,
+                                               time=max(boundary, self.past[-1].time))
+        self.indices.add(t, tau)
 
     def state(self) -> dict[str, np.ndarray]:
         """The indices' accumulators, ``wall_indices.integrals`` (∫ τ dt, ∫ |τ| dt per sample)
         and ``wall_indices.window`` (the last step's time, the window's length T), and what the
         samples are: ``wall_indices.points`` (reference coordinates), ``.walls`` (facet tags),
         ``.sides`` (:data:`SIDES` indices), so that wall_indices.csv can be written from a
-        checkpoint's state alone (:meth:`write_indices`)."""
+        checkpoint's state alone (:meth:`write_indices`). With finished heartbeats (a periodic
+        inlet) also ``wall_indices.past.<k>`` (heartbeat k's integrals) and
+        ``wall_indices.past_windows`` (per finished heartbeat: its last step's time and T);
+        the integrals and window above are then the current heartbeat's."""
         accumulators = self.indices.state()
-        return {"wall_indices.integrals": accumulators["integrals"],
-                "wall_indices.window": accumulators["window"],
-                "wall_indices.points": self.sampler.reference.copy(),
-                "wall_indices.walls": self.sampler.walls.copy(),
-                "wall_indices.sides": self.sides.copy()}
+        state = {"wall_indices.integrals": accumulators["integrals"],
+                 "wall_indices.window": accumulators["window"],
+                 "wall_indices.points": self.sampler.reference.copy(),
+                 "wall_indices.walls": self.sampler.walls.copy(),
+                 "wall_indices.sides": self.sides.copy()}
+        if self.past:  # absent until a heartbeat is finished (a fresh stepper has none)
+            finished = [indices.state() for indices in self.past]
+            state.update({f"wall_indices.past.{k}": a["integrals"]
+                          for k, a in enumerate(finished, start=1)})
+            state["wall_indices.past_windows"] = np.array([a["window"] for a in finished])
+        return state
 
     def layouts(self) -> dict[str, checkpoint.Layout]:
         """The per-sample arrays of :meth:`state`: one row per owned sample, keyed by its
@@ -457,16 +578,30 @@ class FluidOutputs:
             return
         self.indices.load_state({"integrals": state["wall_indices.integrals"],
                                  "window": state["wall_indices.window"]})
+        self.past = []
+        for k, window in enumerate(state.get("wall_indices.past_windows", []), start=1):
+            finished = metrics.WallIndices(self.sampler.size)
+            finished.load_state({"integrals": state[f"wall_indices.past.{k}"],
+                                 "window": window})
+            self.past.append(finished)
 
     def summary(self) -> dict:
         """For channel-like lumens, over every sample of their walls: ``min_tawss`` (Pa),
-        ``max_osi`` and ``max_rrt`` (1/Pa); None where undefined (no step yet) or, for RRT,
-        infinite (a zero mean shear). Collective."""
+        ``max_osi`` and ``max_rrt`` (1/Pa) of the indices (with a period: the last heartbeat's);
+        None where undefined (no step yet) or, for RRT, infinite (a zero mean shear). With a
+        period also ``cycles``: those three per heartbeat, in order. Collective."""
         if not self.lumen:
             return {}
-        extremes = {"min_tawss": (self.indices.tawss, MPI.MIN),
-                    "max_osi": (self.indices.osi, MPI.MAX),
-                    "max_rrt": (self.indices.rrt, MPI.MAX)}
+        result = self._extremes(self.indices)
+        if self.period > 0:
+            result["cycles"] = [self._extremes(i) for i in (*self.past, self.indices)]
+        return result
+
+    def _extremes(self, indices: metrics.WallIndices) -> dict:
+        """``min_tawss``, ``max_osi``, ``max_rrt`` of ``indices`` over every rank's samples."""
+        extremes = {"min_tawss": (indices.tawss, MPI.MIN),
+                    "max_osi": (indices.osi, MPI.MAX),
+                    "max_rrt": (indices.rrt, MPI.MAX)}
         result = {}
         for key, (values, op) in extremes.items():
             values = values[~np.isnan(values)]
@@ -479,30 +614,42 @@ class FluidOutputs:
         return result
 
     @classmethod
-    def write_indices(cls, out: Path, comm: MPI.Comm, state: dict[str, np.ndarray]) -> None:
+    def write_indices(cls, out: Path, comm: MPI.Comm, state: dict[str, np.ndarray],
+                      period: float = 0.0) -> None:
         """``out/wall_indices.csv`` from a stepper state that holds ``wall_indices.*`` arrays
         (:meth:`state`; nothing for one without): a row per wall sample, :data:`INDEX_COLUMNS`,
         sorted by wall, side and x; x, y in the reference configuration; an empty cell where a
         value is undefined (no step yet; OSI where there was no shear), ``inf`` for the RRT
-        of a zero mean shear. Collective (gathered to rank 0, written there; raises
+        of a zero mean shear. With an inlet ``period`` T > 0 a first column ``cycle`` and one
+        such block of rows per heartbeat the state has reached (1, 2, ...; the last one averaged
+        over the part reached so far). Collective (gathered to rank 0, written there; raises
         :class:`fsi.io.OutputError` on every rank if it cannot be written)."""
         if "wall_indices.integrals" not in state:
             return
-        arrays = [np.asarray(state[f"wall_indices.{name}"]) for name in cls.INDEX_ARRAYS]
-        gathered = comm.gather(arrays, root=0)
+        windows = [*state.get("wall_indices.past_windows", []), state["wall_indices.window"]]
+        beats = [state[f"wall_indices.past.{k}"] for k in range(1, len(windows))]
+        beats.append(state["wall_indices.integrals"])
+        where = [np.asarray(state[f"wall_indices.{name}"]) for name in ("points", "walls",
+                                                                         "sides")]
+        gathered = comm.gather((beats, where), root=0)
         rows = []
         if comm.rank == 0:
-            integrals, points, walls, sides = (
-                np.concatenate([a[i] for a in gathered]) for i in range(len(arrays)))
-            indices = metrics.WallIndices(len(walls))
-            indices.load_state({"integrals": integrals, "window": state["wall_indices.window"]})
-            values = zip(walls, sides, points.reshape(-1, 2), indices.tawss, indices.osi,
-                         indices.rrt)
-            rows = [[Boundary(int(wall)).label, cls.SIDES[int(side)], float(x), float(y),
-                     float(tawss), float(osi), float(rrt)]
-                    for wall, side, (x, y), tawss, osi, rrt in values]
-            rows.sort(key=lambda r: (r[0], r[1], r[2]))
-        io.write_table(comm, out / "wall_indices.csv", cls.INDEX_COLUMNS, rows)
+            points, walls, sides = (np.concatenate([w[i] for _, w in gathered])
+                                    for i in range(3))
+            for k, window in enumerate(windows):
+                indices = metrics.WallIndices(len(walls))
+                integrals = np.concatenate([np.reshape(b[k], (-1, 2)) for b, _ in gathered])
+                indices.load_state({"integrals": integrals, "window": window})
+                values = zip(walls, sides, points.reshape(-1, 2), indices.tawss, indices.osi,
+                             indices.rrt)
+                cycle = [k + 1] if period > 0 else []
+                rows.extend(cycle + [Boundary(int(wall)).label, cls.SIDES[int(side)], float(x),
+                                     float(y), float(tawss), float(osi), float(rrt)]
+                            for wall, side, (x, y), tawss, osi, rrt in values)
+            key_length = 4 if period > 0 else 3
+            rows.sort(key=lambda r: tuple(r[:key_length]))
+        columns = (["cycle"] if period > 0 else []) + cls.INDEX_COLUMNS
+        io.write_table(comm, out / "wall_indices.csv", columns, rows)
 
 
 # --------------------------------------------------------------------------------------------
@@ -510,12 +657,10 @@ class FluidOutputs:
 
 
 def fluid_boundaries(case: config.Case) -> tuple:
-    """Rigid structure: the configured inlet, a traction-free outlet, no-slip elsewhere."""
-    walls = [b for b in mesh.geometry_module(case).BOUNDARIES
-             if b in (Boundary.RIGID_WALL, Boundary.INTERFACE, Boundary.OBSTACLE)]
-    return (fluid.Inflow(Boundary.INLET, case.fluid.inlet, case.fluid.inflow_stabilization),
-            fluid.Outflow(Boundary.OUTLET, case.fluid.outlet.backflow_stabilization),
-            fluid.NoSlip(tuple(walls)))
+    """Rigid structure: the configured inlet and outlet, no-slip on every wall
+    (fluid.boundary_conditions)."""
+    return fluid.boundary_conditions(case.fluid, mesh.geometry_module(case).BOUNDARIES,
+                                     moving_interface=False)
 
 
 class RigidStepper:
@@ -542,7 +687,7 @@ class RigidStepper:
         solver = self.solver
         result = solver.step(step.t, step.dt)
         if not result.converged:
-            raise SolveFailed(result.message)
+            raise StepFailed(result.reason)
         solver.advance()
         row = {"peak_velocity": metrics.peak_velocity(solver.u),
                "peak_pressure": metrics.peak_pressure(solver.p),
@@ -571,7 +716,7 @@ class RigidStepper:
         return {**self._layouts, **self.outputs.layouts()}
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
-        self.solver.restore_state(checkpoint.from_arrays(fluid.FluidState, "fluid.", state))
+        self.solver.restore_state(fluid_state(self.solver, state))
         self.outputs.load_state(state)
         self.outputs.update()
 
@@ -614,9 +759,9 @@ class CoupledStepper:
         try:
             result = p.step(step.index, step.t, step.dt)
         except coupling.CouplingNotConverged as e:
-            raise SolveFailed(f"{e} (t = {step.t:g} s, dt = {step.dt:g} s)") from e
-        except (fluid.FluidSolveError, solid.SolveFailed, MeshQualityError) as e:
-            raise SolveFailed(f"step {step.index} to t = {step.t:g} s (dt = {step.dt:g} s), "
+            raise StepFailed(f"{e} (t = {step.t:g} s, dt = {step.dt:g} s)") from e
+        except (newton.SolveFailed, MeshQualityError) as e:
+            raise StepFailed(f"step {step.index} to t = {step.t:g} s (dt = {step.dt:g} s), "
                               f"coupling iteration {p.fluid_side.solves}: {e}") from e
         p.solid.stress.update()
         fluid_last = p.fluid_side.last
@@ -684,7 +829,7 @@ class CoupledStepper:
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
         p = self.problem
-        p.fluid.restore_state(checkpoint.from_arrays(fluid.FluidState, "fluid.", state))
+        p.fluid.restore_state(fluid_state(p.fluid, state))
         _load_solid(p.solid, state)
         p.acceleration.load_state(checkpoint.subset("coupling.", state))
         p.predictor.load_state(checkpoint.subset("predictor.", state))
@@ -725,7 +870,7 @@ class StructureStepper:
         s = self.solver
         result = s.step(step.t, step.dt)
         if not result.converged:
-            raise SolveFailed(f"structure step {step.index} to t = {step.t:g} s failed: "
+            raise StepFailed(f"structure step {step.index} to t = {step.t:g} s failed: "
                               f"{result.reason} (residual {result.residual:.3g})")
         s.advance()
         s.stress.update()
@@ -777,6 +922,22 @@ def fluid_layouts(solver: fluid.FluidSolver) -> dict[str, checkpoint.Layout]:
     vertices = checkpoint.space_layout("fluid_vertices", solver.ale.space)
     return {"fluid.U": mixed, "fluid.u_n": velocity, "fluid.u_nm1": velocity,
             **{f"fluid.{name}": vertices for name in ("d", "d_n", "d_nm1", "w")}}
+
+
+def fluid_state(solver: fluid.FluidSolver, state: dict[str, np.ndarray]) -> fluid.FluidState:
+    """The fluid's state from ``fluid.*`` arrays. The lumped outlets' state (a Windkessel's
+    P_c^n, P_c^{n−1}; fsi.checkpoint.VARIABLE) is restored if it fits this run's outlets; one
+    that does not (a checkpoint written before outlets had a state, or by a run with another
+    kind of outlet) starts them from their initial state (P_0), with a warning."""
+    initial = np.concatenate([np.zeros(0), *(o.model.initial_state() for o in solver.lumped)])
+    stored = state.get("fluid.outlet_state")
+    if stored is None or stored.shape != initial.shape:
+        if initial.size and solver.comm.rank == 0:
+            log.warning("fsi: the checkpoint holds no state of this run's fluid.outlet (written "
+                        "with another kind of outlet): it starts from its initial_pressure at "
+                        "t = %g s", float(state["fluid.time"]))
+        state = {**state, "fluid.outlet_state": initial}
+    return checkpoint.from_arrays(fluid.FluidState, "fluid.", state)
 
 
 def structure_layouts(solver: solid.SolidSolver) -> dict[str, checkpoint.Layout]:

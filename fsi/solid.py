@@ -50,7 +50,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Mapping, Optional, Sequence, Union
 
 from mpi4py import MPI
@@ -69,7 +69,7 @@ from fsi import mesh as fsi_mesh
 from fsi.config import Case, Material, SolverSettings, StenosisGeometry
 from fsi.materials import HyperelasticLaw, KelvinVoigt, cauchy, cauchy_zz, lame, make_law
 from fsi.mesh import TaggedMesh
-from fsi.newton import NewtonCallbacks
+from fsi.newton import Newton, SolveFailed, SolveResult, petsc_options
 from fsi.timestepping import NewmarkFamily, structural_scheme
 from geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 
@@ -216,17 +216,6 @@ class RegionwiseLaw:
 
 # --------------------------------------------------------------------------------------------
 # Results and state
-
-
-@dataclass(frozen=True)
-class StepResult:
-    """Outcome of one nonlinear solve: Newton iterations, the ℓ2 norm of the residual vector
-    (N/m) at the final iterate, and whether it converged (``reason`` says why not)."""
-
-    converged: bool
-    iterations: int
-    residual: float
-    reason: str = ""
 
 
 @dataclass
@@ -478,25 +467,9 @@ class SolidSolver:
     def _build_newton(self, settings: SolverSettings) -> None:
         self.problem = _Problem(self.residual_form, self.eta, self._bcs, self.jacobian_form,
                                 self._nodal)
-        newton = dolfinx.nls.petsc.NewtonSolver(self.comm, self.problem)
         # dolfinx's "residual" test divides by the first increment's norm (mixed units), so test
         # the increments: converged when |δη_k| < atol (m) or |δη_k| < rtol |δη_1|.
-        newton.convergence_criterion = "incremental"
-        newton.rtol, newton.atol = settings.rtol, settings.atol
-        newton.max_it = settings.max_iterations
-        newton.error_on_nonconvergence = False
-        newton.report = False
-        options = PETSc.Options(self.prefix)
-        for key, value in settings.petsc_options.items():
-            options[key] = value
-        ksp = newton.krylov_solver
-        ksp.setOptionsPrefix(self.prefix)
-        ksp.setFromOptions()
-        self.newton = newton
-        # Residual and Jacobian through one object: Jacobian (and LU) reuse, counters.
-        self.newton_callbacks = NewtonCallbacks(self.problem, newton, settings.jacobian_reuse,
-                                                settings.jacobian_reuse_rate)
-        self._petsc_options = dict(settings.petsc_options)
+        self.newton = Newton(self.comm, self.problem, settings, self.prefix, "incremental")
 
     # -- loads ----------------------------------------------------------------------------
 
@@ -522,7 +495,7 @@ class SolidSolver:
 
     # -- stepping -------------------------------------------------------------------------
 
-    def step(self, t: float, dt: float) -> StepResult:
+    def step(self, t: float, dt: float) -> SolveResult:
         """Solve for η_{n+1} at ``t = t_n + dt`` from the committed state n and the loads set.
 
         On failure (Newton not converged, a non-finite value, an inverted element or a linear
@@ -536,26 +509,18 @@ class SolidSolver:
             g.interpolate(lambda x, value=value: value(x, t))
             g.x.scatter_forward()  # a ghost dof may lie in no local cell of a submesh
         guess = self.eta.x.array.copy()
-        try:
-            iterations, converged = self.newton_callbacks.solve(self.newton, self.eta,
-                                                                  step=self.t)
-            reason = "" if converged else "Newton did not converge"
-        except RuntimeError as e:  # a linear solver failure is raised on every rank
-            iterations, converged, reason = self.newton.max_it, False, f"solver error: {e}"
-        residual = float(self.problem.residual_norm)
-        finite = self.comm.allreduce(bool(np.isfinite(self.eta.x.array).all()), op=MPI.LAND)
-        if converged and not (finite and math.isfinite(residual)):
-            converged, reason = False, "non-finite displacement or residual"
-        if converged:
+        result = self.newton.solve(self.eta, lambda: self.problem.residual_norm, step=self.t)
+        if result.converged:
             j_min = self.min_jacobian()
             if j_min <= 0:
-                converged, reason = False, f"inverted element (min det F = {j_min:.3g})"
-        if not converged:
-            self.eta.x.array[:] = guess
-            log.warning("solid step to t = %g failed: %s", t, reason)
+                self.eta.x.array[:] = guess
+                result = replace(result, converged=False,
+                                 reason=f"inverted element (min det F = {j_min:.3g})")
+        if not result.converged:
+            log.warning("solid step to t = %g failed: %s", t, result.reason)
         self._update_rates(dt)
         self._t_new = t
-        return StepResult(bool(converged), int(iterations), residual, reason)
+        return result
 
     def _update_rates(self, dt: float) -> None:
         s = self.scheme
@@ -635,11 +600,9 @@ class SolidSolver:
         ksp = PETSc.KSP().create(self.comm)
         ksp.setOperators(M)
         ksp.setOptionsPrefix(self.prefix + "mass_")
-        options = PETSc.Options(self.prefix + "mass_")
-        for key, value in self._petsc_options.items():
-            options[key] = value
-        ksp.setFromOptions()
-        ksp.solve(b, compat.petsc_vector(self.a_n))
+        with petsc_options(self.prefix + "mass_", self.newton.options):
+            ksp.setFromOptions()
+            ksp.solve(b, compat.petsc_vector(self.a_n))
         self.a_n.x.scatter_forward()
         for obj in (ksp, M, b):
             obj.destroy()
@@ -706,7 +669,7 @@ class CoupledSolid:
             raise ValueError(f"load must be 'forces' or 'traction', got {load!r}")
         self.solver, self.load, self.warm_start = solver, load, warm_start
         self.t, self.dt = math.nan, math.nan
-        self.last: Optional[StepResult] = None
+        self.last: Optional[SolveResult] = None
         self._checkpoint: Optional[SolidState] = None
 
     def begin_step(self, t: float, dt: float) -> None:
@@ -799,6 +762,7 @@ class StressFields:
             self._expressions.append((f, dolfinx.fem.Expression(
                 expr, compat.interpolation_points(self.S))))
         dofs = compat.cell_dofs(self.S)
+        self._dof_points = self.S.tabulate_dof_coordinates()[:, :2].copy()  # reference config.
         n_owned = mesh.topology.index_map(mesh.topology.dim).size_local
         self._all_cell_dofs = dofs
         self._cell_dofs = dofs[:n_owned]
@@ -844,6 +808,28 @@ class StressFields:
             out[label] = RegionStress(*(float(comm.allreduce(v, op=MPI.MAX)) for v in local))
         return out
 
+    def location_of_max(self, name: str, region: int) -> tuple[float, float, float]:
+        """(value, x, y): the largest value of the stress field ``name`` (``max_principal``,
+        ``von_mises``) over the cells of ``region`` on all ranks (the value
+        :meth:`region_maxima` reports) and where it is attained: the point (m, reference
+        configuration) of the field's DG node that holds it (for P2 displacements a vertex of
+        the cell, for P1 its midpoint). Ties go to the smallest x, then y, so the point does not
+        depend on the partition; (NaN, NaN, NaN) for an empty region. Call :meth:`update`
+        first. Collective."""
+        values = self.fields[name].x.array
+        dofs = self._cell_dofs[np.isin(self._cell_region, [int(region)])].ravel()
+        best = (-np.inf, np.nan, np.nan)
+        if len(dofs):
+            top = values[dofs].max()
+            points = self._dof_points[dofs[values[dofs] == top]]
+            x, y = min(map(tuple, points))
+            best = (float(top), float(x), float(y))
+        found = [b for b in self.solver.comm.allgather(best) if b[0] > -np.inf]
+        if not found:
+            return (np.nan, np.nan, np.nan)
+        top = max(b[0] for b in found)
+        return min((b for b in found if b[0] == top), key=lambda b: (b[1], b[2]))
+
 
 # --------------------------------------------------------------------------------------------
 # Building from a case
@@ -861,6 +847,3 @@ def build(case: Case, tagged: Optional[TaggedMesh] = None, comm: MPI.Comm = MPI.
                        scheme or structural_scheme(s.time_integration), degree=s.degree,
                        quadrature_degree=s.quadrature_degree, solver=s.solver)
 
-
-class SolveFailed(RuntimeError):
-    """A structure step did not converge (the message names the step and the reason)."""

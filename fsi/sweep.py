@@ -256,7 +256,7 @@ def folder_state(run: SweepRun) -> FolderState:
         return FolderState("start", "started afresh (its folder holds no readable config.yaml)")
     now = yaml.safe_load(config.to_yaml(run.case))
     different = differences(stored, now)
-    end = run.case.time.end
+    end = config.run_time(run.case).end  # time.cycles: cycles × period
     if not different and _reached(folder / "summary.json", end):
         return FolderState("skip", "done earlier, skipped")
     other = [key for key in different if not _overlaps(key, "time")]

@@ -139,8 +139,6 @@ def attach_coupled(stepper: simulation.CoupledStepper, profiler: Profiler) -> No
     wrap(p.solid_side, "solve", "solid side (rest)")
     wrap(p.acceleration, "next_input", "acceleration")
     wrap(p, "step", "coupling loop (rest)")
-    _reregister_newton(p.fluid)
-    _reregister_newton(p.solid)
 
 
 def attach_rigid(stepper: simulation.RigidStepper, profiler: Profiler) -> None:
@@ -148,22 +146,12 @@ def attach_rigid(stepper: simulation.RigidStepper, profiler: Profiler) -> None:
     profiler.wrap(s.problem, "J", "fluid Jacobian assembly")
     profiler.wrap(s.problem, "F", "fluid residual assembly")
     profiler.wrap(s, "step", "fluid Newton (rest)", lu="fluid")
-    _reregister_newton(s)
-
-
-def _reregister_newton(solver) -> None:
-    """dolfinx's NewtonSolver holds the callbacks it was built with: hand it the timed ones,
-    unless the solver routes its callbacks through its own object (which looks them up on the
-    problem at every call, so the timed attributes are used already)."""
-    if getattr(solver, "newton_callbacks", None) is None:
-        solver.newton.setJ(solver.problem.J, solver.newton.A)
-        solver.newton.setF(solver.problem.F, solver.newton.b)
 
 
 def newton_counters(solver) -> tuple[int, int]:
-    """(Jacobian assemblies, residual evaluations) so far, if the solver counts them."""
-    c = getattr(solver, "newton_callbacks", None)
-    return (c.jacobian_assemblies, c.residual_evaluations) if c is not None else (0, 0)
+    """(Jacobian assemblies, residual evaluations) so far."""
+    c = solver.newton.callbacks
+    return c.jacobian_assemblies, c.residual_evaluations
 
 
 def run(case: config.Case, comm: MPI.Comm) -> dict:
@@ -197,7 +185,7 @@ def _run(case: config.Case, comm: MPI.Comm) -> dict:
         tic, cpu_tic = time.perf_counter(), time.process_time()
         try:
             rows.append(stepper.step(step))
-        except simulation.SolveFailed as e:
+        except simulation.StepFailed as e:
             failure = f"step {step.index}: {str(e).splitlines()[0][:200]}"
             break
         times.append(comm.allreduce(time.perf_counter() - tic, op=MPI.MAX))

@@ -86,7 +86,7 @@ def event_totals(comm: MPI.Comm) -> dict[str, tuple[int, float]]:
 def assembly_times(solver: fluid.FluidSolver, repeats: int) -> tuple[np.ndarray, np.ndarray]:
     """Wall times of the Jacobian (into Newton's matrix) and residual evaluations at U."""
     problem, x = solver.problem, compat.petsc_vector(solver.U)
-    A, b = solver.newton.A, solver.newton.b
+    A, b = solver.newton.solver.A, solver.newton.solver.b
     problem.J(x, A)  # warm-up: first touch of the matrix and of the kernels' caches
     problem.F(x, b)
     return (wall(solver.comm, lambda: problem.J(x, A), repeats),
@@ -108,7 +108,7 @@ class Timed:
 
 def run_steps(solver: fluid.FluidSolver, case: config.Case) -> dict:
     """Step through the schedule; Newton iterations, linear-solve and assembly times."""
-    comm, newton, problem = solver.comm, solver.newton, solver.problem
+    comm, newton, problem = solver.comm, solver.newton.solver, solver.problem
     J, F = Timed(problem.J), Timed(problem.F)
     newton.setJ(J, newton.A)  # the same callbacks NewtonSolver set, timed
     newton.setF(F, newton.b)
@@ -123,7 +123,7 @@ def run_steps(solver: fluid.FluidSolver, case: config.Case) -> dict:
         if not result.converged:
             failed += 1
             if comm.rank == 0:
-                print(f"  step to t = {step.t:g} failed: {result.message}", flush=True)
+                print(f"  step to t = {step.t:g} failed: {result.reason}", flush=True)
             break
         solver.advance()
     after = event_totals(comm)
@@ -183,14 +183,12 @@ def degree_study(part: mesh.TaggedMesh, case: config.Case, degrees: list[int],
                  repeats: int) -> list[dict]:
     """Carreau Jacobian assembly time for each quadrature degree and for UFL's estimate."""
     comm = part.comm
-    # A throwaway solver whose residual we rebuild (fluid has no public UFL-form accessor; the
-    # rebuild's side effects — extra Dirichlet conditions, updates — stay in this instance).
+    # A throwaway solver for its residual form. The state (rest, zero BDF weights) does not
+    # change the cost: the kernel is the same code.
     solver = fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid,
                                simulation.fluid_boundaries(case), scheme=case.time.scheme)
-    # Before the rebuild, which appends its own copies of the conditions to the same list. The
-    # state (rest, zero BDF weights) does not change the cost: the kernel is the same code.
     bcs = list(solver.problem.bcs)
-    F = solver._residual(None)  # noqa: SLF001
+    F = solver.residual_form
     J = ufl.derivative(F, solver.U, ufl.TrialFunction(solver.W))
     auto = estimated_degrees(with_degree(J, None))
     rows = []

@@ -6,7 +6,7 @@ Runs ``configs/turek_hron_<case>.yaml`` through the command line's own code path
 ``drag``, ``lift`` (N/m) and ``ux_A``, ``uy_A`` (point A's displacement; written in m, printed in
 mm) that ``metrics.csv`` holds:
 
-- periodic cases (CFD3, CSM3, FSI3): "mean ± amplitude [frequency]" over the last period
+- periodic cases (CFD3, CSM3, FSI2, FSI3): "mean ± amplitude [frequency]" over the last period
   (fsi/oscillation.py: mean and amplitude from max and min, the period between upward crossings
   of the mean level), the reference, the relative differences and whether each passes the
   acceptance tolerances of solids4foam (2 % on the mean drag, 3 % on frequencies, 5 % on the
@@ -20,7 +20,8 @@ Also the run's wall time, steps, mean time per step, mesh level, dt, ranks and t
 (the machine may be shared: timings are noisy). The report is also written to ``DIR/benchmark.txt``.
 
 Reference values: ../shared/reference/turek_hron.md (Turek & Hron 2006 and the Featflow pages),
-hard-coded below. FSI3 has two sets (Featflow Δt 2.5e-4, the default, and the 2006 paper, Δt 5e-4;
+hard-coded below; FSI2's are not in that file and come from the literature (see REFERENCES). FSI2
+and FSI3 have two sets (the refined Featflow values, the default, and the 2006 paper;
 ``--reference paper``). CFD3's drag has one period per shedding cycle, like the lift (its two
 maxima per cycle differ, the higher one above the mean and the lower one below it: the
 asymmetric channel), so both are compared with the published 4.3956 Hz; FSI3's drag oscillates
@@ -72,6 +73,15 @@ REFERENCES: dict[str, dict[str, dict[str, str]]] = {
     "cfd2": {"": {"drag": "136.7", "lift": "10.53"}},
     "cfd3": {"": {"drag": "439.45 ± 5.6183 [4.3956]", "lift": "-11.893 ± 437.81 [4.3956]"}},
     "fsi1": {"": {"ux_A": "0.0227", "uy_A": "0.8209", "drag": "14.295", "lift": "0.7638"}},
+    # FSI2 is not in ../shared/reference/turek_hron.md: the refined Featflow values (Turek et
+    # al., "Numerical benchmarking of fluid-structure interaction: a comparison of different
+    # discretization and solution approaches", 2010, finest level) and the 2006 paper's table.
+    "fsi2": {
+        "featflow": {"ux_A": "-14.85 ± 12.70 [3.86]", "uy_A": "1.30 ± 81.7 [1.93]",
+                     "drag": "215.06 ± 77.65 [3.86]", "lift": "0.61 ± 237.8 [1.93]"},
+        "paper": {"ux_A": "-14.58 ± 12.44 [3.8]", "uy_A": "1.23 ± 80.6 [2.0]",
+                  "drag": "208.83 ± 73.75 [3.8]", "lift": "0.88 ± 234.2 [2.0]"},
+    },
     "fsi3": {
         "featflow": {"ux_A": "-2.88 ± 2.72 [10.93]", "uy_A": "1.47 ± 34.99 [5.46]",
                      "drag": "460.5 ± 27.74 [10.93]", "lift": "2.50 ± 153.91 [5.46]"},
@@ -81,10 +91,10 @@ REFERENCES: dict[str, dict[str, dict[str, str]]] = {
 }
 REFERENCE_NAMES = {
     "": "Turek & Hron 2006 / Featflow",
-    "featflow": "Featflow, Δt 2.5e-4 (the refined values)",
-    "paper": "Turek & Hron 2006 paper, Δt 5e-4",
+    "featflow": "Featflow, the refined values (FSI3: Δt 2.5e-4)",
+    "paper": "Turek & Hron 2006 paper (FSI3: Δt 5e-4)",
 }
-PERIODIC = {"csm3", "cfd3", "fsi3"}
+PERIODIC = {"csm3", "cfd3", "fsi2", "fsi3"}
 
 # solids4foam's acceptance tolerances (../shared/reference/turek_hron.md, last paragraph of
 # "Reference values"); None: no tolerance quoted. A steady value uses the ``mean`` entry.
@@ -206,8 +216,10 @@ def _averages(values) -> str:
 
 def format_report(case_name: str, ref_set: str, run: Path, lines: list[str], table: list[Row],
                   facts: dict) -> str:
+    source = ("the literature: Turek & Hron 2006, Turek et al. 2010" if case_name == "fsi2"
+              else "../shared/reference/turek_hron.md")
     out = [f"Turek–Hron {case_name.upper()} — {run}",
-           f"reference: {REFERENCE_NAMES[ref_set]} (../shared/reference/turek_hron.md); "
+           f"reference: {REFERENCE_NAMES[ref_set]} ({source}); "
            "tolerances: solids4foam's acceptance"]
     out += lines
     header = (f"{'column':<7}{'statistic':<11}{'unit':<5}{'measured':>12}{'reference':>12}"
@@ -268,7 +280,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="periodic cases: ignore t < T s (default: the end of the inflow "
                              "ramp, 2 s)")
     parser.add_argument("--reference", choices=["featflow", "paper"],
-                        help="FSI3's reference set (default featflow)")
+                        help="FSI2's and FSI3's reference set (default featflow)")
     args = parser.parse_args(argv)
     comm = MPI.COMM_WORLD
     if args.out is not None and args.case is None:

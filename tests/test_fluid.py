@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import ufl
 
-from fsi import compat, config, config_reader, fluid, mesh, metrics, rheology
+from fsi import compat, config, config_reader, fluid, mesh, metrics, newton, rheology
 from geometry.tags import Boundary, Region
 
 WALL, INLET, OUTLET = Boundary.RIGID_WALL, Boundary.INLET, Boundary.OUTLET
@@ -86,6 +86,37 @@ def test_restricted_fluid_mesh_keeps_every_fluid_boundary():
         assert n == counts[boundary.label] > 0, boundary
     # The structure's own boundaries do not touch the fluid.
     assert not np.isin(tags.values, [Boundary.CLAMPED, Boundary.EXTERIOR]).any()
+
+
+def test_one_function_builds_every_modes_boundary_conditions():
+    """fluid.boundary_conditions: the inlet, the outlet, u = ∂η/∂t on a moving interface, and
+    no-slip on fluid.walls (the interface too when it does not move); the order is the one the
+    Dirichlet conditions are built in."""
+    turek_hron = (INLET, OUTLET, WALL, Boundary.OBSTACLE, Boundary.INTERFACE, Boundary.CLAMPED)
+    assert fluid.walls(turek_hron) == (WALL, Boundary.OBSTACLE, Boundary.INTERFACE)
+    assert fluid.walls(turek_hron, moving_interface=True) == (WALL, Boundary.OBSTACLE)
+    settings = config.from_dict({}).fluid
+    rigid = fluid.boundary_conditions(settings, turek_hron, moving_interface=False)
+    assert [type(bc) for bc in rigid] == [fluid.Inflow, fluid.Outflow, fluid.NoSlip]
+    assert rigid[2].tags == (WALL, Boundary.OBSTACLE, Boundary.INTERFACE)
+    coupled = fluid.boundary_conditions(settings, turek_hron, moving_interface=True)
+    assert [type(bc) for bc in coupled] == [fluid.Inflow, fluid.Outflow, fluid.Velocity,
+                                            fluid.NoSlip]
+    assert coupled[2].tags == (Boundary.INTERFACE,) and coupled[3].tags == (WALL, Boundary.OBSTACLE)
+    assert rigid[0].spec == settings.inlet and rigid[1].model is None  # traction-free outlet
+
+
+def test_every_boundary_kind_has_its_function_and_others_are_refused():
+    assert set(fluid.FluidResidual.BOUNDARY_KINDS) == {
+        fluid.NoSlip, fluid.Velocity, fluid.Inflow, fluid.Outflow, fluid.Slip, fluid.Traction}
+
+    class Porous(fluid.NoSlip):  # a kind without a function of its own
+        pass
+
+    domain, tags = unit_square(2)
+    settings = config.from_dict({}).fluid
+    with pytest.raises(TypeError, match="unknown boundary condition"):
+        fluid.FluidSolver(domain, tags, settings, (Porous(1),))
 
 
 def test_inlet_pressure_laws():
@@ -571,9 +602,9 @@ def test_failed_newton_is_reported_and_leaves_the_previous_solution():
         scheme="steady")
     result = solver.step(0.0, 1.0)
     assert not result.converged and result.iterations == 3
-    assert "did not converge in 3 iterations" in result.message
+    assert "did not converge in 3 iterations" in result.reason
     assert np.isfinite(solver.U.x.array).all() and not solver.U.x.array.any()
-    with pytest.raises(fluid.FluidSolveError, match="t = 0 s"):
+    with pytest.raises(newton.SolveFailed, match="t = 0 s"):
         result.raise_if_failed()
 
 
@@ -584,7 +615,7 @@ def test_non_finite_data_is_reported_and_leaves_no_nan():
                                                    fluid.Outflow(2, 1.0)))
     solver.boundary_velocity.x.array[:] = np.nan  # e.g. a diverged coupling iterate
     result = solver.step(0.01, 0.01)
-    assert not result.converged and "non-finite" in result.message, result
+    assert not result.converged and "non-finite" in result.reason, result
     assert np.isfinite(solver.U.x.array).all() and np.isfinite(solver.u.x.array).all()
 
 
@@ -606,7 +637,9 @@ def test_study_conditions_on_the_stenosis_give_the_rigid_column_velocity():
     part = mesh.restrict(tagged, Region.FLUID)
     submesh = part.mesh
     tags = part.facet_tags
-    solver = fluid.FluidSolver(submesh, tags, case.fluid, fluid.study_boundaries(case.fluid))
+    boundaries = fluid.boundary_conditions(case.fluid, mesh.geometry_module(case).BOUNDARIES,
+                                           moving_interface=True)
+    solver = fluid.FluidSolver(submesh, tags, case.fluid, boundaries)
     T = case.fluid.inlet.duration
     for k in range(1, 6):
         result = solver.step(k * T / 5, T / 5)

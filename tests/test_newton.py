@@ -127,24 +127,24 @@ def test_fluid_with_reused_jacobians_finds_newtons_solution(whole):
         for reuse in ("step", "run"):
             s = solvers[reuse]
             s.restore_state(state)
-            jacobians, factorisations = s.newton_callbacks.jacobian_assemblies, lu_factorisations()
+            jacobians, factorisations = s.newton.callbacks.jacobian_assemblies, lu_factorisations()
             result = s.step(st.t, st.dt)
             assert result.converged
             iterations[reuse] += result.iterations
             # An unchanged matrix keeps its factorisation: one LU per assembled Jacobian.
             assert (lu_factorisations() - factorisations
-                    == s.newton_callbacks.jacobian_assemblies - jacobians)
+                    == s.newton.callbacks.jacobian_assemblies - jacobians)
             assert_same_solution(s.U, newton.U, [(s.problem, s.U), (newton.problem, newton.U)],
                                  comm, f"{reuse}, step {st.index}")
         for s in solvers.values():
             s.advance()
     for reuse in ("step", "run"):
-        callbacks = solvers[reuse].newton_callbacks
+        callbacks = solvers[reuse].newton.callbacks
         assert callbacks.retries == 0
         # Measured over the 4 steps: step 7 assemblies for 14 iterations, run 5 for 15.
         assert callbacks.jacobian_assemblies < iterations[reuse]
-    assert solvers["run"].newton_callbacks.jacobian_assemblies <= \
-        solvers["step"].newton_callbacks.jacobian_assemblies
+    assert solvers["run"].newton.callbacks.jacobian_assemblies <= \
+        solvers["step"].newton.callbacks.jacobian_assemblies
 
 
 def test_structure_with_reused_jacobians_finds_newtons_solution(whole):
@@ -173,7 +173,7 @@ def test_structure_with_reused_jacobians_finds_newtons_solution(whole):
             s.advance()
     # Measured: step 4 assemblies for 14 iterations, run 2 for 14 (Newton: 12 for 12).
     for reuse in ("step", "run"):
-        assert solvers[reuse].newton_callbacks.jacobian_assemblies < iterations[reuse]
+        assert solvers[reuse].newton.callbacks.jacobian_assemblies < iterations[reuse]
 
 
 def test_coupled_run_with_reuse_matches_plain_newton():
@@ -199,7 +199,7 @@ def test_coupled_run_with_reuse_matches_plain_newton():
     # The point of it: far fewer fluid Jacobians (and factorisations) than Newton iterations.
     fluid_side = steppers["step"].problem.fluid
     newton_iterations = sum(r["newton_iterations"] for r in rows["step"])
-    assert fluid_side.newton_callbacks.jacobian_assemblies < newton_iterations / 2
+    assert fluid_side.newton.callbacks.jacobian_assemblies < newton_iterations / 2
 
 
 def test_step_reuse_makes_a_step_depend_only_on_its_start(whole):
@@ -235,7 +235,7 @@ def test_a_failed_solve_with_a_reused_jacobian_is_repeated_with_fresh_ones(whole
     st = next(iter(steps(case.time)))
     results = {reuse: s.step(st.t, st.dt) for reuse, s in solvers.items()}
     assert results["none"].converged and results["run"].converged
-    assert solvers["run"].newton_callbacks.retries == 1
+    assert solvers["run"].newton.callbacks.retries == 1
     assert results["run"].iterations == 4 + results["none"].iterations
     assert_equal_arrays(solvers["run"].U.x.array, solvers["none"].U.x.array, whole.comm)
 

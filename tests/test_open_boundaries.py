@@ -54,7 +54,7 @@ def march_channel(fluid_section: dict, gradient: float, dt: float, settled: floa
     while t < end - 1e-9:
         t += dt
         result = solver.step(t, dt)
-        assert result.converged, result.message
+        assert result.converged, result.reason
         solver.advance()
         if t >= settled - 1e-9:
             late.append([metrics.flow_rate(solver.u, tags, [Boundary.INLET], -1.0) / exact - 1,
@@ -120,7 +120,7 @@ def test_steady_carreau_channel_converges_from_rest():
     solver = fluid.FluidSolver(submesh, tags, case.fluid, simulation.fluid_boundaries(case),
                                scheme="steady")
     result = solver.step(1.0, 1.0)
-    assert result.converged, result.message
+    assert result.converged, result.reason
     q = metrics.flow_rate(solver.u, tags, [Boundary.OUTLET])
     assert q / carreau_flow_rate_1d(solver.law, G, H) - 1 == pytest.approx(0.0, abs=5e-3)
 

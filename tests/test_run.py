@@ -138,7 +138,7 @@ class HalfStepOnly:
     def step(self, step):
         if step.dt > self.limit * (1 + 1e-12):
             self.t = float("nan")  # a failed solve leaves garbage behind
-            raise simulation.SolveFailed(f"dt = {step.dt} is too long")
+            raise simulation.StepFailed(f"dt = {step.dt} is too long")
         assert step.t - step.dt == pytest.approx(self.t)  # continues from where it is
         self.t = step.t
         self.taken.append(step.dt)
@@ -162,10 +162,10 @@ def test_a_failed_step_is_retried_as_halves_from_the_state_before_it():
     assert [(s.index, s.dt) for s in retried] == [(3, 0.4), (3, 0.2), (3, 0.2)]
     # One retry is not enough: the failure is raised (march then checkpoints the state before).
     stepper = HalfStepOnly(limit=0.1)
-    with pytest.raises(simulation.SolveFailed, match="too long"):
+    with pytest.raises(simulation.StepFailed, match="too long"):
         simulation.advance(stepper, Step(1, 0.4, 0.4), stepper.state(), 1, [])
     # No retries: the first failure ends it, as before time.retries existed.
-    with pytest.raises(simulation.SolveFailed):
+    with pytest.raises(simulation.StepFailed):
         simulation.advance(HalfStepOnly(0.1), Step(1, 0.2, 0.2), {"t": np.array(0.0)}, 0, [])
 
 
