@@ -275,109 +275,120 @@ def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start:
     exception skips the restore), so the checkpoint written then is the snapshot of the
     stepper's state taken after the last converged step, whose metrics row is the last one
     written; the exception says where it is. Collective."""
-    first = None if restart is None else restart.step
     t0 = 0.0 if restart is None else restart.t
-    period = config.heartbeat_period(case)
-    schedule = config.run_time(case)  # time.cycles: the heartbeats one after another
-    columns = list(stepper.columns)
-    if period > 0:
-        columns.insert(columns.index("dt") + 1, "cycle")
+    first = 0 if restart is None else restart.step
+    period, schedule = config.heartbeat_period(case), config.run_time(case)
+    last = first
+    for last_step in steps(schedule, t0, first):  # counted, never stored (time.max_steps)
+        last = last_step.index
     layouts = stepper.layouts()
     if restart is not None:  # before any file is touched
         loaded = checkpoint.localize(restart, layouts, stepper.state(), comm)
-    files = stepper.field_files()
-
-    continuing = restart is not None and restart.continues(out)
-    try:
-        # The field writers store the mesh now, in its reference configuration (the state,
-        # which may move the fluid mesh, is loaded after).
-        files = io.RunFiles(comm, out, config.to_yaml(case), columns,
-                            stepper.field_files(), first, continuing=continuing,
-                            metrics_source=None if restart is None or continuing
-                            else restart.run_dir / "metrics.csv")
-    except io.OutputError as e:
-        raise OutputFailed(str(e)) from e
+    files = _open_outputs(case, out, comm, stepper, restart, period)
     if restart is not None:
         stepper.load_state(loaded)
-    last = first or 0
-    for last_step in steps(schedule, t0, first or 0):  # counted, never stored (time.max_steps)
-        last = last_step.index
-    good = _Snapshot(first or 0, t0, None if restart is None else restart.dt, stepper.state())
-    saved: tuple[Path, int, float] | None = None  # this run's latest checkpoint: folder, step, t
+    saved = _Checkpoints(out, comm, case, layouts, _Snapshot(
+        first, t0, None if restart is None else restart.dt, stepper.state()))
     rows: list[dict] = []
     retried: list[Step] = []  # the steps that had to be split
-
     try:
         files.write_fields(t0)
-        for step in steps(schedule, t0, first or 0):
-            tic = wallclock.perf_counter()
-            row = {"step": step.index, "t": step.t, "dt": step.dt,
-                   **advance(stepper, step, good.state, case.time.retries, retried)}
-            row["wall_time_s"] = wallclock.perf_counter() - tic
-            if period > 0:
-                row["cycle"] = heartbeat(step.t, period)
-            bad = [key for key, v in row.items()
-                   if isinstance(v, float) and not math.isfinite(v)]
-            if bad:  # never write a NaN: a step that produced one failed
-                raise StepFailed(f"step {step.index} to t = {step.t:g} s gave non-finite "
-                                  f"{', '.join(bad)}")
+        for step in steps(schedule, t0, first):
+            row = _take_step(stepper, step, saved.good.state, case.time.retries, retried,
+                             period)
             files.write_row(row)
             rows.append(row)
-            good = _Snapshot(step.index, step.t, step.dt, stepper.state())
             final = step.index == last
-            if step.index % case.output.checkpoint_every == 0 or final:
-                written = good.write(out, comm, case, layouts)  # None: logged, go on
-                if final and written is None:
-                    raise io.OutputError(f"no checkpoint of the last step {step.index}")
-                saved = written or saved
             if step.index % case.output.fields_every == 0 or final:
                 files.write_fields(step.t)
-            elapsed = wallclock.perf_counter() - start
-            left = elapsed / len(rows) * (last - step.index)
-            log.info("step %d/%d  t = %.5g s  dt = %.3g s  %s  %.2f s/step  ~%.0f s left",
-                     step.index, last, step.t, step.dt, stepper.describe(row),
-                     row["wall_time_s"], left)
+            saved.after(_Snapshot(step.index, step.t, step.dt, stepper.state()), final)
+            _report_progress(stepper, row, last, (wallclock.perf_counter() - start) / len(rows))
             signal = comm.allreduce(stop_requested() or 0, op=MPI.MAX)
             if signal and not final:
                 raise Interrupted(signal)
         if not rows:  # restarted at (or past) the end: the checkpoint goes to out as well
-            saved = good.write(out, comm, case, layouts) or saved
+            saved.write_good()
     except (RunStopped, io.OutputError) as e:
-        stopped = e if isinstance(e, RunStopped) else OutputFailed(str(e))
-        if saved is None or saved[1] != good.step:  # else it is checkpointed already
-            saved = good.write(out, comm, case, layouts) or saved
-        # If that failed (a full disk), the run's previous checkpoint is still there.
-        stopped.checkpoint, stopped.step, stopped.t = saved or (None, None, None)
+        stopped = saved.stopped(e)
         if stopped is e:
             raise
         raise stopped from e
     finally:
         files.close()
-    every = files.kept + rows  # a restart's summary covers the kept rows too
-    newton_total = sum(r.get("newton_iterations", 0) for r in every)
+    summary = run_summary(case, comm, files.kept + rows, t0, start, retried, stepper, restart,
+                          saved.latest)
+    try:
+        io.write_json(comm, out / "summary.json", summary)
+    except io.OutputError as e:
+        raise saved.stopped(e) from e
+    return RunResult(len(rows), summary["wall_time_s"], summary)
+
+
+def _open_outputs(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper,
+                  restart: checkpoint.Checkpoint | None, period: float) -> io.RunFiles:
+    """The run's files (config.yaml, metrics.csv with its kept rows, the field files of this
+    segment). The field writers store the mesh now, in its reference configuration (a
+    restart's state, which may move the fluid mesh, is loaded after)."""
+    columns = list(stepper.columns)
+    if period > 0:
+        columns.insert(columns.index("dt") + 1, "cycle")
+    continuing = restart is not None and restart.continues(out)
+    try:
+        return io.RunFiles(comm, out, config.to_yaml(case), columns, stepper.field_files(),
+                           None if restart is None else restart.step, continuing=continuing,
+                           metrics_source=None if restart is None or continuing
+                           else restart.run_dir / "metrics.csv")
+    except io.OutputError as e:
+        raise OutputFailed(str(e)) from e
+
+
+def _take_step(stepper: Stepper, step: Step, before: dict, retries: int, retried: list[Step],
+               period: float) -> dict:
+    """The metrics row of ``step`` (:func:`advance`, with its wall time and heartbeat); a row
+    holding a non-finite number fails the step (a NaN is never written)."""
+    tic = wallclock.perf_counter()
+    row = {"step": step.index, "t": step.t, "dt": step.dt,
+           **advance(stepper, step, before, retries, retried)}
+    row["wall_time_s"] = wallclock.perf_counter() - tic
+    if period > 0:
+        row["cycle"] = heartbeat(step.t, period)
+    bad = [key for key, v in row.items() if isinstance(v, float) and not math.isfinite(v)]
+    if bad:
+        raise StepFailed(f"step {step.index} to t = {step.t:g} s gave non-finite "
+                         f"{', '.join(bad)}")
+    return row
+
+
+def _report_progress(stepper: Stepper, row: dict, last: int, seconds_per_step: float) -> None:
+    log.info("step %d/%d  t = %.5g s  dt = %.3g s  %s  %.2f s/step  ~%.0f s left",
+             row["step"], last, row["t"], row["dt"], stepper.describe(row), row["wall_time_s"],
+             seconds_per_step * (last - row["step"]))
+
+
+def run_summary(case: config.Case, comm: MPI.Comm, rows: list[dict], t0: float, start: float,
+                retried: list[Step], stepper: Stepper, restart: checkpoint.Checkpoint | None,
+                saved: tuple[Path, int, float] | None) -> dict:
+    """``summary.json``'s content over every row of metrics.csv (a restart's kept rows too)."""
+    newton_total = sum(r.get("newton_iterations", 0) for r in rows)
+    steps_done = max(len(rows), 1)
     summary = {
-        "case": case.name, "structure_mode": case.structure.mode, "steps": len(every),
+        "case": case.name, "structure_mode": case.structure.mode, "steps": len(rows),
         "end_time_s": rows[-1]["t"] if rows else t0,
         "wall_time_s": wallclock.perf_counter() - start,
-        "mean_step_time_s": sum(r.get("wall_time_s", 0.0) for r in every) / max(len(every), 1),
-        "newton_iterations": newton_total, "mean_newton_iterations": newton_total / max(len(every), 1),
+        "mean_step_time_s": sum(r.get("wall_time_s", 0.0) for r in rows) / steps_done,
+        "newton_iterations": newton_total, "mean_newton_iterations": newton_total / steps_done,
         "ranks": comm.size, **comm.bcast(provenance.describe() if comm.rank == 0 else None),
         "retried_steps": sorted({s.index for s in retried}),
         **stepper.summary(),
         "checkpoint": None if saved is None else str(saved[0]),
     }
+    period = config.heartbeat_period(case)
     if period > 0:  # per heartbeat: the stepper's wall indices beside the rows' peaks
-        summary["cycles"] = cycle_table(every, period, summary.get("cycles", []))
+        summary["cycles"] = cycle_table(rows, period, summary.get("cycles", []))
     if restart is not None:
         summary["restarted_from"] = {"checkpoint": str(restart.path), "step": restart.step,
                                      "t": restart.t}
-    try:
-        io.write_json(comm, out / "summary.json", summary)
-    except io.OutputError as e:
-        stopped = OutputFailed(str(e))
-        stopped.checkpoint, stopped.step, stopped.t = saved or (None, None, None)
-        raise stopped from e
-    return RunResult(len(rows), summary["wall_time_s"], summary)
+    return summary
 
 
 def advance(stepper: Stepper, step: Step, before: dict, retries: int,
@@ -434,6 +445,41 @@ class _Snapshot:
         return folder, self.step, self.t
 
 
+class _Checkpoints:
+    """The run's checkpoints: ``good``, the snapshot after the last converged step, written
+    every ``output.checkpoint_every`` steps, after the last step and when the run stops early;
+    ``latest``, this run's latest checkpoint written (folder, step, t) or None."""
+
+    def __init__(self, out: Path, comm: MPI.Comm, case: config.Case,
+                 layouts: dict[str, checkpoint.Layout], good: _Snapshot):
+        self.out, self.comm, self.case, self.layouts = out, comm, case, layouts
+        self.good = good
+        self.latest: tuple[Path, int, float] | None = None
+
+    def write_good(self) -> tuple[Path, int, float] | None:
+        written = self.good.write(self.out, self.comm, self.case, self.layouts)
+        self.latest = written or self.latest
+        return written
+
+    def after(self, snapshot: _Snapshot, final: bool) -> None:
+        """``snapshot`` is the new good state; checkpoint it when due. A failed checkpoint is
+        logged and the run goes on, except after the last step."""
+        self.good = snapshot
+        if snapshot.step % self.case.output.checkpoint_every == 0 or final:
+            if self.write_good() is None and final:
+                raise io.OutputError(f"no checkpoint of the last step {snapshot.step}")
+
+    def stopped(self, error: Exception) -> RunStopped:
+        """The :class:`RunStopped` for ``error`` (an output failure becomes
+        :class:`OutputFailed`), with the good state checkpointed unless it is already; if that
+        fails (a full disk) the run's previous checkpoint is named."""
+        stopped = error if isinstance(error, RunStopped) else OutputFailed(str(error))
+        if self.latest is None or self.latest[1] != self.good.step:
+            self.write_good()
+        stopped.checkpoint, stopped.step, stopped.t = self.latest or (None, None, None)
+        return stopped
+
+
 # --------------------------------------------------------------------------------------------
 # Fluid outputs shared by the rigid and the coupled runs
 
@@ -445,8 +491,9 @@ class FluidOutputs:
     the hemodynamic indices TAWSS, OSI and RRT at two Gauss points of every wall facet,
     accumulated by :meth:`update` (fsi.metrics.WallIndices, docs/hemodynamic-indices.md) over
     the run or, when the inlet repeats with a period T
-    (:func:`fsi.config.heartbeat_period`), over each heartbeat ((k − 1) T, k T] on its own: the accumulators start afresh at every k T and the
-    finished heartbeats' are kept (:attr:`past`).
+    (:func:`fsi.config.heartbeat_period`), over each heartbeat ((k − 1) T, k T] on its own:
+    the accumulators start afresh at every k T and the finished heartbeats' are kept
+    (:attr:`past`).
 
     The indices are state: :meth:`state`, :meth:`layouts` and :meth:`load_state` put them into
     the stepper's checkpoint, keyed by the samples' reference coordinates, and
