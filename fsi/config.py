@@ -659,36 +659,61 @@ def run_time(case: Case) -> Time:
 
 
 def validate(case: Case) -> None:
-    """Checks that involve several keys (single values are checked while building)."""
+    """Checks that involve several keys (single values are checked while building), in the
+    order of the sections: geometry, structure load, mesh size, schedule, solvers, inlet."""
+    _validate_geometry(case)
+    _validate_structure_load(case)
+    _validate_cell_count(case)  # before the size order: mesh.size 1e-6 gets the estimate
+    if case.mesh.local_size > case.mesh.size:
+        raise ConfigError("", "mesh.local_size", f"at most mesh.size = {case.mesh.size} m",
+                          case.mesh.local_size)
+    _validate_schedule(case)
+    _validate_solvers(case)
+    check_petsc_options(case.fluid.solver.petsc_options, "fluid.solver.petsc_options")
+    check_petsc_options(case.structure.solver.petsc_options, "structure.solver.petsc_options")
+    check_petsc_options(case.mesh_motion.petsc_options, "mesh_motion.petsc_options")
+    _validate_inlet(case)  # last: it walks the schedule, now known to be of bounded length
+
+
+def _validate_geometry(case: Case) -> None:
     g = case.geometry
     if isinstance(g, StenosisGeometry):
-        if len(set(g.plaque_sides)) != len(g.plaque_sides) or not g.plaque_sides:
-            raise ConfigError("", "geometry.plaque_sides", "'bottom', 'top' or both, once each",
-                              list(g.plaque_sides))
-        if g.stenosis_length >= g.length:
-            raise ConfigError("", "geometry.stenosis_length",
-                              f"less than geometry.length = {g.length} m", g.stenosis_length)
-        plaque = stenosis_geometry.plaque_height(g)
-        if g.cap_thickness >= plaque:
-            raise ConfigError("", "geometry.cap_thickness",
-                              f"less than the plaque height {plaque:g} m (stenosis_degree × height"
-                              " / plaque sides)", g.cap_thickness)
-        if g.lipid_length >= g.stenosis_length:
-            raise ConfigError("", "geometry.lipid_length",
-                              f"less than geometry.stenosis_length = {g.stenosis_length} m",
-                              g.lipid_length)
-        thinnest = stenosis_geometry.min_cap_thickness(g)
-        if thinnest < g.cap_thickness * (1 - 1e-4):
-            raise ConfigError("", "geometry.lipid_length",
-                              "a lipid pool short enough that the fibrous cap is nowhere thinner"
-                              f" than cap_thickness = {g.cap_thickness} m (it would be"
-                              f" {thinnest:.3g} m)", g.lipid_length)
+        _validate_stenosis(g)
     elif isinstance(g, TurekHronGeometry):
         # Any structure mode: 'rigid' is the CFD benchmark, the others make the flag elastic.
         _validate_turek_hron(g)
     elif case.structure.mode != "rigid":
         raise ConfigError("", "structure.mode", f"'rigid' for geometry.kind '{g.kind}'"
                           " (it has no structure)", case.structure.mode)
+
+
+def _validate_stenosis(g: StenosisGeometry) -> None:
+    """Plaque sides once each; the stenosis inside the segment; the cap thinner than the
+    plaque and nowhere thinner than ``cap_thickness`` over the lipid pool."""
+    if len(set(g.plaque_sides)) != len(g.plaque_sides) or not g.plaque_sides:
+        raise ConfigError("", "geometry.plaque_sides", "'bottom', 'top' or both, once each",
+                          list(g.plaque_sides))
+    if g.stenosis_length >= g.length:
+        raise ConfigError("", "geometry.stenosis_length",
+                          f"less than geometry.length = {g.length} m", g.stenosis_length)
+    plaque = stenosis_geometry.plaque_height(g)
+    if g.cap_thickness >= plaque:
+        raise ConfigError("", "geometry.cap_thickness",
+                          f"less than the plaque height {plaque:g} m (stenosis_degree × height"
+                          " / plaque sides)", g.cap_thickness)
+    if g.lipid_length >= g.stenosis_length:
+        raise ConfigError("", "geometry.lipid_length",
+                          f"less than geometry.stenosis_length = {g.stenosis_length} m",
+                          g.lipid_length)
+    thinnest = stenosis_geometry.min_cap_thickness(g)
+    if thinnest < g.cap_thickness * (1 - 1e-4):
+        raise ConfigError("", "geometry.lipid_length",
+                          "a lipid pool short enough that the fibrous cap is nowhere thinner"
+                          f" than cap_thickness = {g.cap_thickness} m (it would be"
+                          f" {thinnest:.3g} m)", g.lipid_length)
+
+
+def _validate_structure_load(case: Case) -> None:
     if case.structure.interface_load != "fluid":
         if case.structure.mode == "rigid":
             raise ConfigError("", "structure.interface_load", "'fluid' when structure.mode is "
@@ -699,11 +724,11 @@ def validate(case: Case) -> None:
             raise ConfigError("", "structure.interface_load", "'fluid' or 'none' with a "
                               "velocity inlet ('inlet_pressure' needs a traction inlet)",
                               case.structure.interface_load)
-    _validate_cell_count(case)  # before the size order: mesh.size 1e-6 gets the estimate
-    if case.mesh.local_size > case.mesh.size:
-        raise ConfigError("", "mesh.local_size", f"at most mesh.size = {case.mesh.size} m",
-                          case.mesh.local_size)
 
+
+def _validate_schedule(case: Case) -> None:
+    """Segments in increasing order covering the run (one heartbeat's with ``time.cycles``),
+    and at most ``time.max_steps`` steps."""
     schedule = case.time.schedule
     if not schedule:
         raise ConfigError("", "time.schedule", "at least one {until, dt} segment", [])
@@ -733,6 +758,8 @@ def validate(case: Case) -> None:
             f"{format_count(count)} steps to {to}, more than "
             f"time.max_steps = {case.time.max_steps:,}: use larger dt, or {raise_limit}"))
 
+
+def _validate_solvers(case: Case) -> None:
     if (case.time.scheme == "steady" and case.structure.mode != "rigid"
             and case.structure.time_integration.scheme != "quasi_static"):
         raise ConfigError("", "structure.time_integration.scheme", "'quasi_static' when "
@@ -750,11 +777,6 @@ def validate(case: Case) -> None:
             raise ConfigError("", f"{name}.solver.rtol",
                               f"at most coupling.tolerance / 10 = {case.coupling.tolerance / 10:g}",
                               rtol)
-
-    check_petsc_options(case.fluid.solver.petsc_options, "fluid.solver.petsc_options")
-    check_petsc_options(case.structure.solver.petsc_options, "structure.solver.petsc_options")
-    check_petsc_options(case.mesh_motion.petsc_options, "mesh_motion.petsc_options")
-    _validate_inlet(case)  # last: it walks the schedule, now known to be of bounded length
 
 
 def _validate_cell_count(case: Case) -> None:
