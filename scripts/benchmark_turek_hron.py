@@ -75,7 +75,9 @@ REFERENCES: dict[str, dict[str, dict[str, str]]] = {
     "fsi1": {"": {"ux_A": "0.0227", "uy_A": "0.8209", "drag": "14.295", "lift": "0.7638"}},
     # FSI2 is not in ../shared/reference/turek_hron.md: the refined Featflow values (Turek et
     # al., "Numerical benchmarking of fluid-structure interaction: a comparison of different
-    # discretization and solution approaches", 2010, finest level) and the 2006 paper's table.
+    # discretization and solution approaches", 2010, finest level; NOT yet checked against the
+    # source) and the 2006 paper's table (checked against the copy in pyfsi/coconut's Turek
+    # example, which cites the paper).
     "fsi2": {
         "featflow": {"ux_A": "-14.85 ± 12.70 [3.86]", "uy_A": "1.30 ± 81.7 [1.93]",
                      "drag": "215.06 ± 77.65 [3.86]", "lift": "0.61 ± 237.8 [1.93]"},
