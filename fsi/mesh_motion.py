@@ -47,6 +47,7 @@ import ufl
 
 from fsi import compat, config
 from fsi.interface import owned_interface_dofs
+from fsi.newton import petsc_options
 from fsi.mesh import TaggedMesh
 from fsi.timestepping import bdf_weights
 from geometry.stenosis import distance_to_segments
@@ -282,18 +283,12 @@ class MeshMotion:
         """The KSP (prefix ``mesh_``), set up (factorised, for LU) once, here. The config's
         options are in the options database only while they are read (the factorisation reads
         the solver package's own, e.g. ``mat_mumps_icntl_*``), so nothing leaks to others."""
-        options = PETSc.Options(PREFIX)
-        for key, value in self.settings.petsc_options.items():
-            options[key] = value
-        try:
-            ksp = PETSc.KSP().create(self.comm)
-            ksp.setOptionsPrefix(PREFIX)
-            ksp.setOperators(self._A)
+        ksp = PETSc.KSP().create(self.comm)
+        ksp.setOptionsPrefix(PREFIX)
+        ksp.setOperators(self._A)
+        with petsc_options(PREFIX, self.settings.petsc_options):
             ksp.setFromOptions()
             ksp.setUp()
-        finally:
-            for key in self.settings.petsc_options:
-                options.delValue(key)
         return ksp
 
     # ---- boundary data
