@@ -71,14 +71,38 @@ def time_function(formula: str) -> typing.Callable[[float], float]:
         raise FormulaError(formula, f"not an expression: {_nesting(e)}") from None
     if _depth(tree) > MAX_FORMULA_DEPTH:
         raise FormulaError(formula, f"nested more than {MAX_FORMULA_DEPTH} levels deep")
-    allowed = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Compare, ast.Call, ast.Name, ast.Load,
-               ast.Constant, ast.operator, ast.unaryop, ast.cmpop)
+    allowed = (
+        ast.Expression,
+        ast.BinOp,
+        ast.UnaryOp,
+        ast.Compare,
+        ast.Call,
+        ast.Name,
+        ast.Load,
+        ast.Constant,
+        ast.operator,
+        ast.unaryop,
+        ast.cmpop,
+    )
     for node in ast.walk(tree):
-        if not isinstance(node, allowed) or isinstance(node, (ast.MatMult, ast.BitAnd, ast.BitOr,
-                                                              ast.BitXor, ast.LShift, ast.RShift,
-                                                              ast.FloorDiv, ast.Invert, ast.Not,
-                                                              ast.Is, ast.IsNot, ast.In,
-                                                              ast.NotIn)):
+        if not isinstance(node, allowed) or isinstance(
+            node,
+            (
+                ast.MatMult,
+                ast.BitAnd,
+                ast.BitOr,
+                ast.BitXor,
+                ast.LShift,
+                ast.RShift,
+                ast.FloorDiv,
+                ast.Invert,
+                ast.Not,
+                ast.Is,
+                ast.IsNot,
+                ast.In,
+                ast.NotIn,
+            ),
+        ):
             raise FormulaError(formula, f"{type(node).__name__} is not allowed")
         if isinstance(node, ast.Constant):
             if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
@@ -89,8 +113,11 @@ def time_function(formula: str) -> typing.Callable[[float], float]:
                 raise FormulaError(formula, "a number too large for a float") from None
         if isinstance(node, ast.Name) and node.id not in ("t", "pi", "e", *FORMULA_NAMES):
             raise FormulaError(formula, f"unknown name {node.id!r}")
-        if isinstance(node, ast.Call) and (node.keywords or not isinstance(node.func, ast.Name)
-                                           or node.func.id not in FORMULA_NAMES):
+        if isinstance(node, ast.Call) and (
+            node.keywords
+            or not isinstance(node.func, ast.Name)
+            or node.func.id not in FORMULA_NAMES
+        ):
             raise FormulaError(formula, "only calls of " + ", ".join(FORMULA_NAMES))
     try:
         code = compile(tree, "<formula>", "eval")
@@ -125,7 +152,6 @@ def _nesting(error: Exception) -> str:
     return str(error)
 
 
-
 class WaveformError(ValueError):
     """A waveform CSV file cannot be used: the message names the file and, for bad content, the
     line (``waveforms/x.csv: line 7: 'abc' is not a number``)."""
@@ -148,8 +174,9 @@ def read_waveform(path: str | Path) -> tuple[tuple[float, float], ...]:
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as e:
-        raise WaveformError(f"{path}: not UTF-8 text (byte 0x{raw[e.start]:02x} at offset "
-                            f"{e.start})") from None
+        raise WaveformError(
+            f"{path}: not UTF-8 text (byte 0x{raw[e.start]:02x} at offset {e.start})"
+        ) from None
     rows: list[tuple[float, float]] = []
     header_allowed = True
     for number, line in enumerate(text.splitlines(), start=1):
@@ -172,12 +199,14 @@ def read_waveform(path: str | Path) -> tuple[tuple[float, float], ...]:
             if not math.isfinite(value):
                 raise WaveformError(f"{where}: {name} = {value} is not a finite number")
         if rows and t <= rows[-1][0]:
-            raise WaveformError(f"{where}: t = {t:g} is not after the previous row's t = "
-                                f"{rows[-1][0]:g}")
+            raise WaveformError(
+                f"{where}: t = {t:g} is not after the previous row's t = {rows[-1][0]:g}"
+            )
         rows.append((t, pressure))
     if len(rows) < 2:
-        raise WaveformError(f"{path}: {len(rows)} row{'s' if len(rows) != 1 else ''} of t, P; "
-                            "at least 2 are needed")
+        raise WaveformError(
+            f"{path}: {len(rows)} row{'s' if len(rows) != 1 else ''} of t, P; at least 2 are needed"
+        )
     return tuple(rows)
 
 

@@ -109,7 +109,7 @@ def mixed_layout(name: str, W, parts: typing.Sequence[tuple[np.ndarray, Layout]]
     component = 0
     for to_mixed, layout in parts:
         for c in range(layout.block):
-            dofs = to_mixed[c::layout.block]
+            dofs = to_mixed[c :: layout.block]
             ok = dofs >= 0
             points[dofs[ok], :gdim] = layout.points[ok]
             points[dofs[ok], gdim] = component
@@ -139,9 +139,12 @@ def layout_of(key: str, layouts: dict[str, Layout]) -> Layout | None:
 def to_arrays(prefix: str, state) -> dict[str, np.ndarray]:
     """The fields of a state dataclass (e.g. :class:`fsi.fluid.FluidState`) as arrays named
     ``prefix + field``; ``None`` becomes an empty array."""
-    return {prefix + f.name: (np.zeros(0) if (v := getattr(state, f.name)) is None
-                              else np.array(v, copy=True))
-            for f in dataclasses.fields(state)}
+    return {
+        prefix + f.name: (
+            np.zeros(0) if (v := getattr(state, f.name)) is None else np.array(v, copy=True)
+        )
+        for f in dataclasses.fields(state)
+    }
 
 
 def from_arrays(cls, prefix: str, arrays: dict[str, np.ndarray]):
@@ -163,7 +166,7 @@ def from_arrays(cls, prefix: str, arrays: dict[str, np.ndarray]):
 
 def subset(prefix: str, arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """The arrays named ``prefix...``, with the prefix removed."""
-    return {k[len(prefix):]: v for k, v in arrays.items() if k.startswith(prefix)}
+    return {k[len(prefix) :]: v for k, v in arrays.items() if k.startswith(prefix)}
 
 
 # --------------------------------------------------------------------------------------------
@@ -176,20 +179,28 @@ def dependencies(case: config.Case) -> dict:
     data = config.to_dict(case)
     s = data["structure"]
     mesh = {k: v for k, v in data["mesh"].items() if k != "max_cells"}  # a limit, not the mesh
-    sections = {"geometry": data["geometry"], "mesh": mesh,
-                "structure": {k: s[k] for k in ("mode", "interface_load", "degree")}}
+    sections = {
+        "geometry": data["geometry"],
+        "mesh": mesh,
+        "structure": {k: s[k] for k in ("mode", "interface_load", "degree")},
+    }
     return json.loads(json.dumps(sections))  # as it reads back from JSON (tuples as lists)
 
 
-def metadata(case: config.Case, comm: MPI.Comm, step: int, t: float,
-             dt: float | None) -> dict:
+def metadata(case: config.Case, comm: MPI.Comm, step: int, t: float, dt: float | None) -> dict:
     """checkpoint.json's content for the state after step ``step`` (at time ``t``)."""
-    return {"format": FORMAT, "step": int(step), "t": float(t),
-            "dt": None if dt is None else float(dt), "ranks": comm.size, "case": case.name,
-            "config": dependencies(case),
-            "versions": {"fsi": fsi.__version__, "dolfinx": dolfinx.__version__},
-            "files": [rank_file(r) for r in range(comm.size)],
-            "written": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+    return {
+        "format": FORMAT,
+        "step": int(step),
+        "t": float(t),
+        "dt": None if dt is None else float(dt),
+        "ranks": comm.size,
+        "case": case.name,
+        "config": dependencies(case),
+        "versions": {"fsi": fsi.__version__, "dolfinx": dolfinx.__version__},
+        "files": [rank_file(r) for r in range(comm.size)],
+        "written": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    }
 
 
 def _first_difference(old, new, key: str = ""):
@@ -212,7 +223,8 @@ def check_metadata(meta: dict, case: config.Case, source: Path) -> None:
         key, old, new = found
         raise CheckpointError(
             f"{source}: {key}: the checkpoint has {old!r}, the configuration {new!r}; a restart "
-            "needs the same geometry, mesh and structure (mode, interface load, degree)")
+            "needs the same geometry, mesh and structure (mode, interface load, degree)"
+        )
 
 
 def check_position(meta: dict, source: Path) -> None:
@@ -223,16 +235,17 @@ def check_position(meta: dict, source: Path) -> None:
     if not _whole(step) or step < 0:
         raise CheckpointError(f"{source}: step: expected a whole number >= 0, got {step!r}")
     if not _real(t) or not math.isfinite(t) or t < 0 or (step == 0 and t != 0):
-        raise CheckpointError(f"{source}: t: expected a finite time >= 0 (0 at step 0), got "
-                              f"{t!r}")
+        raise CheckpointError(f"{source}: t: expected a finite time >= 0 (0 at step 0), got {t!r}")
     if dt is not None and (not _real(dt) or not math.isfinite(dt) or dt <= 0):
         raise CheckpointError(f"{source}: dt: expected null or a finite step > 0, got {dt!r}")
     if not _whole(ranks) or ranks < 1:
         raise CheckpointError(f"{source}: ranks: expected a whole number >= 1, got {ranks!r}")
     expected = [rank_file(r) for r in range(ranks)]
     if meta.get("files") != expected:
-        raise CheckpointError(f"{source}: files: expected {expected[0]} to {expected[-1]} (one "
-                              f"per rank, ranks: {ranks}), got {meta.get('files')!r}")
+        raise CheckpointError(
+            f"{source}: files: expected {expected[0]} to {expected[-1]} (one "
+            f"per rank, ranks: {ranks}), got {meta.get('files')!r}"
+        )
 
 
 def _whole(value) -> bool:
@@ -263,12 +276,16 @@ def check_metrics(meta: dict, source: Path, metrics: Path) -> None:
     missing = sorted(set(range(1, k + 1)) - {row.step for row in rows})
     if missing:
         noun = "steps" if len(missing) > 1 else "step"
-        raise CheckpointError(f"{metrics}: no row of {noun} {_spans(missing)}: the table was "
-                              f"cut short or damaged, and {keeps}")
+        raise CheckpointError(
+            f"{metrics}: no row of {noun} {_spans(missing)}: the table was "
+            f"cut short or damaged, and {keeps}"
+        )
     for expected, row in enumerate(rows, start=1):
         if row.step != expected:
-            raise CheckpointError(f"{metrics}: line {row.line}: step {row.step} where step "
-                                  f"{expected} belongs ({keeps}, each once and in order)")
+            raise CheckpointError(
+                f"{metrics}: line {row.line}: step {row.step} where step "
+                f"{expected} belongs ({keeps}, each once and in order)"
+            )
     last = rows[-1]
     for key in ("t", "dt"):
         value = meta.get(key)
@@ -276,7 +293,8 @@ def check_metrics(meta: dict, source: Path, metrics: Path) -> None:
             raise CheckpointError(
                 f"{source}: {key}: the checkpoint has {value!r}, but {metrics} line {last.line} "
                 f"(step {k}) has {key} = {last.text[key]}: they are not of the same step (was "
-                "one of them edited?)")
+                "one of them edited?)"
+            )
 
 
 TIME_TOLERANCE = 1e-9
@@ -315,8 +333,10 @@ def check_arrays(meta: dict, folder: Path, files: typing.Sequence[dict[str, np.n
         a = files[0].get(key)
         if a is not None and (a.shape != () or not _close(float(a), meta["t"])):
             value = float(a) if a.shape == () else f"an array of shape {a.shape}"
-            return (f"{folder / meta['files'][0]}: {key}: {value}, but checkpoint.json's t is "
-                    f"{meta['t']!r}")
+            return (
+                f"{folder / meta['files'][0]}: {key}: {value}, but checkpoint.json's t is "
+                f"{meta['t']!r}"
+            )
     return ""
 
 
@@ -333,25 +353,30 @@ def _raise_if_any(comm: MPI.Comm, message: str) -> None:
 def _owned_rows(a: np.ndarray, layout: Layout) -> np.ndarray:
     rows = len(layout.points)
     if a.shape[0] != rows * layout.block:
-        raise ValueError(f"an array of layout {layout.name!r} has {a.shape[0]} entries, not "
-                         f"{rows} rows × {layout.block}")
+        raise ValueError(
+            f"an array of layout {layout.name!r} has {a.shape[0]} entries, not "
+            f"{rows} rows × {layout.block}"
+        )
     return a.reshape(rows, layout.block, *a.shape[1:])[: layout.owned]
 
 
-def write(out: Path, comm: MPI.Comm, state: dict[str, np.ndarray], layouts: dict[str, Layout],
-          meta: dict) -> Path:
+def write(
+    out: Path, comm: MPI.Comm, state: dict[str, np.ndarray], layouts: dict[str, Layout], meta: dict
+) -> Path:
     """Write ``out/checkpoint/`` atomically (see the module docstring): the owned rows of this
     rank's distributed arrays (:func:`layout_of`) with their keys, the global arrays from rank
     0, and ``meta`` as checkpoint.json. Refuses non-finite values. Collective; raises
     :class:`CheckpointError` on every rank if any rank fails (the previous checkpoint stays,
     the partial one is removed)."""
-    final, partial, previous = out / DIRECTORY, out / PARTIAL, out / PREVIOUS
+    final, partial = out / DIRECTORY, out / PARTIAL
     bad = [k for k, v in state.items() if v.dtype.kind == "f" and not np.isfinite(v).all()]
     message = f"{out}: not writing a checkpoint: non-finite {', '.join(bad)}" if bad else ""
     _raise_if_any(comm, message)
     arrays = {}
-    meta = {**meta, "layouts": {key: getattr(layout_of(key, layouts), "name", None)
-                                for key in state}}
+    meta = {
+        **meta,
+        "layouts": {key: getattr(layout_of(key, layouts), "name", None) for key in state},
+    }
     for key, value in state.items():
         layout = layout_of(key, layouts)
         if layout is not None:
@@ -459,15 +484,19 @@ def locate(path: Path) -> tuple[Path, Path]:
     """(checkpoint folder, run folder) for ``path``, a run folder (its ``checkpoint/``, or
     ``checkpoint.previous/`` left by a run killed while swapping them) or a checkpoint folder."""
     path = Path(path)
-    for folder, run_dir in ((path / DIRECTORY, path), (path, path.parent),
-                            (path / PREVIOUS, path)):
+    for folder, run_dir in ((path / DIRECTORY, path), (path, path.parent), (path / PREVIOUS, path)):
         if (folder / METADATA).is_file():
             if folder.name == PREVIOUS:
-                log.warning("%s is missing: using %s (a run stopped while replacing it)",
-                            path / DIRECTORY, folder)
+                log.warning(
+                    "%s is missing: using %s (a run stopped while replacing it)",
+                    path / DIRECTORY,
+                    folder,
+                )
             return folder, run_dir
-    raise CheckpointError(f"{path / DIRECTORY / METADATA}: no checkpoint there (--restart takes "
-                          "the folder of an earlier run)")
+    raise CheckpointError(
+        f"{path / DIRECTORY / METADATA}: no checkpoint there (--restart takes "
+        "the folder of an earlier run)"
+    )
 
 
 def read(path: Path, case: config.Case, comm: MPI.Comm) -> Checkpoint:
@@ -490,8 +519,9 @@ def read(path: Path, case: config.Case, comm: MPI.Comm) -> Checkpoint:
             except (OSError, ValueError, KeyError, TypeError, AttributeError) as e:
                 raise CheckpointError(f"{source}: unreadable checkpoint ({e!r})") from e
             if missing:
-                raise CheckpointError(f"{folder / missing[0]}: missing (the checkpoint is "
-                                      "incomplete)")
+                raise CheckpointError(
+                    f"{folder / missing[0]}: missing (the checkpoint is incomplete)"
+                )
             check_metrics(meta, source, run_dir / "metrics.csv")
         except CheckpointError as e:
             message = str(e)
@@ -533,16 +563,26 @@ def _check_rows(checkpoint: Checkpoint, key: str, layout: Layout) -> str:
     first = checkpoint.files[0][key]
     for name, arrays in zip(checkpoint.meta["files"], checkpoint.files):
         a, rows = arrays[key], len(arrays[f"keys.{layout.name}"])
-        if (a.ndim < 2 or len(a) != rows or a.shape[1] != layout.block
-                or a.shape[2:] != first.shape[2:]):
-            return (f"{checkpoint.path / name}: array {key!r} has shape {a.shape}, expected "
-                    f"({rows}, {layout.block}, ...): a row per key of {layout.name!r} (the "
-                    "file is damaged)")
+        if (
+            a.ndim < 2
+            or len(a) != rows
+            or a.shape[1] != layout.block
+            or a.shape[2:] != first.shape[2:]
+        ):
+            return (
+                f"{checkpoint.path / name}: array {key!r} has shape {a.shape}, expected "
+                f"({rows}, {layout.block}, ...): a row per key of {layout.name!r} (the "
+                "file is damaged)"
+            )
     return ""
 
 
-def localize(checkpoint: Checkpoint, layouts: dict[str, Layout], current: dict[str, np.ndarray],
-             comm: MPI.Comm) -> dict[str, np.ndarray]:
+def localize(
+    checkpoint: Checkpoint,
+    layouts: dict[str, Layout],
+    current: dict[str, np.ndarray],
+    comm: MPI.Comm,
+) -> dict[str, np.ndarray]:
     """The checkpoint's arrays on this rank's local dofs: every row of a distributed array takes
     the value stored under its key, global arrays come from rank 0's file. Checked against
     ``current`` (the fresh stepper's state): each of its arrays outside :data:`VARIABLE` must be
@@ -563,20 +603,26 @@ def localize(checkpoint: Checkpoint, layouts: dict[str, Layout], current: dict[s
             break
         stored = np.concatenate([f[key] for f in files])
         if stored.ndim != 2 or stored.shape[1] != layout.points.shape[1]:
-            message = (f"{source}: {key}: keys of shape {stored.shape[1:]}, this run's have "
-                       f"{layout.points.shape[1:]} (the file is damaged)")
+            message = (
+                f"{source}: {key}: keys of shape {stored.shape[1:]}, this run's have "
+                f"{layout.points.shape[1:]} (the file is damaged)"
+            )
             break
         owned = comm.allreduce(layout.owned, op=MPI.SUM)
         if len(stored) != owned:
-            message = (f"{source}: {name}: the checkpoint has {len(stored)} rows, this run "
-                       f"{owned}: the mesh differs from the one the checkpoint was written on")
+            message = (
+                f"{source}: {name}: the checkpoint has {len(stored)} rows, this run "
+                f"{owned}: the mesh differs from the one the checkpoint was written on"
+            )
             break
         index = _match(stored, layout.points)
         lost = int(np.count_nonzero((index < 0) & ~np.isnan(layout.points).any(axis=1)))
         if comm.allreduce(lost, op=MPI.SUM):
-            message = (f"{source}: {name}: {comm.allreduce(lost, op=MPI.SUM)} dofs of this run "
-                       "are not in the checkpoint: the mesh differs from the one it was "
-                       "written on")
+            message = (
+                f"{source}: {name}: {comm.allreduce(lost, op=MPI.SUM)} dofs of this run "
+                "are not in the checkpoint: the mesh differs from the one it was "
+                "written on"
+            )
             break
         indices[name] = index
     if not message:
@@ -604,11 +650,13 @@ def localize(checkpoint: Checkpoint, layouts: dict[str, Layout], current: dict[s
     return state
 
 
-def _check_restored(state: dict[str, np.ndarray], current: dict[str, np.ndarray],
-                    source: Path) -> str:
+def _check_restored(
+    state: dict[str, np.ndarray], current: dict[str, np.ndarray], source: Path
+) -> str:
     """'' if ``state`` has each array of ``current`` outside :data:`VARIABLE` with its shape (a
     number or None where it has one), those of :data:`ADDED` only if it has any of them; else
     the first that is missing or of another shape."""
+
     def scalar(a: np.ndarray) -> bool:  # a number, or None (an empty array)
         return a.ndim == 0 or a.shape == (0,)
 
@@ -621,6 +669,5 @@ def _check_restored(state: dict[str, np.ndarray], current: dict[str, np.ndarray]
         if key not in state:
             return f"{source}: array {key!r} is missing (written by another kind of run)"
         if state[key].shape != value.shape and not (scalar(value) and scalar(state[key])):
-            return (f"{source}: array {key!r} has shape {state[key].shape}, this run "
-                    f"{value.shape}")
+            return f"{source}: array {key!r} has shape {state[key].shape}, this run {value.shape}"
     return ""

@@ -32,71 +32,142 @@ EXIT_OK, EXIT_INTERNAL, EXIT_USAGE, EXIT_SOLVE_FAILED, EXIT_OUTPUT_FAILED = 0, 1
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="fsi", description=__doc__.splitlines()[0])
-    parser.add_argument("--version", action=_Version, nargs=0,
-                        help="show the versions of fsi (and its git revision), dolfinx, Python")
+    parser.add_argument(
+        "--version",
+        action=_Version,
+        nargs=0,
+        help="show the versions of fsi (and its git revision), dolfinx, Python",
+    )
     sub = parser.add_subparsers(dest="command", required=True)
 
     def with_config(p: argparse.ArgumentParser) -> None:
         p.add_argument("config", type=Path, help="YAML case file")
-        p.add_argument("--set", dest="overrides", action="append", default=[],
-                       metavar="KEY.PATH=VALUE", help="override a configuration value (repeatable)")
+        p.add_argument(
+            "--set",
+            dest="overrides",
+            action="append",
+            default=[],
+            metavar="KEY.PATH=VALUE",
+            help="override a configuration value (repeatable)",
+        )
 
-    p = sub.add_parser("run", help="run a case: DIR/metrics.csv, summary.json, fields.xdmf, "
-                                   "checkpoint/")
+    p = sub.add_parser(
+        "run", help="run a case: DIR/metrics.csv, summary.json, fields.xdmf, checkpoint/"
+    )
     with_config(p)
     p.add_argument("--out", type=Path, required=True, metavar="DIR")
-    p.add_argument("--restart", type=Path, metavar="DIR",
-                   help="continue from the checkpoint of an earlier run in DIR (DIR/checkpoint; "
-                        "same mesh and structure, any number of ranks; the schedule, the "
-                        "coupling and the solver settings may change)")
-    p.add_argument("--overwrite", action="store_true",
-                   help="replace an earlier run's files in DIR (otherwise a DIR holding a run is "
-                        "refused unless --restart continues it)")
-    p = sub.add_parser("sweep", help="run a case for every combination of the --vary values "
-                                     "(a folder each, resuming), then DIR/sweep.csv, sweep.md "
-                                     "and sweep_<quantity>.png")
+    p.add_argument(
+        "--restart",
+        type=Path,
+        metavar="DIR",
+        help="continue from the checkpoint of an earlier run in DIR (DIR/checkpoint; "
+        "same mesh and structure, any number of ranks; the schedule, the "
+        "coupling and the solver settings may change)",
+    )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an earlier run's files in DIR (otherwise a DIR holding a run is "
+        "refused unless --restart continues it)",
+    )
+    p = sub.add_parser(
+        "sweep",
+        help="run a case for every combination of the --vary values "
+        "(a folder each, resuming), then DIR/sweep.csv, sweep.md "
+        "and sweep_<quantity>.png",
+    )
     with_config(p)
-    p.add_argument("--vary", action="append", required=True, metavar="KEY.PATH=V1,V2,...",
-                   help="a key (as --set takes it) and its values, comma-separated (commas "
-                        "inside [...] or {...} belong to the value); repeatable: the runs are "
-                        "the product of the lists")
-    p.add_argument("--out", type=Path, required=True, metavar="DIR",
-                   help="DIR/<key=value,...>/ for each run, DIR/sweep.csv and sweep.md")
-    p.add_argument("-n", "--dry-run", action="store_true",
-                   help="validate every run and list what the sweep would do with each (skip, "
-                        "resume, start); run and write nothing")
+    p.add_argument(
+        "--vary",
+        action="append",
+        required=True,
+        metavar="KEY.PATH=V1,V2,...",
+        help="a key (as --set takes it) and its values, comma-separated (commas "
+        "inside [...] or {...} belong to the value); repeatable: the runs are "
+        "the product of the lists",
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        metavar="DIR",
+        help="DIR/<key=value,...>/ for each run, DIR/sweep.csv and sweep.md",
+    )
+    p.add_argument(
+        "-n",
+        "--dry-run",
+        action="store_true",
+        help="validate every run and list what the sweep would do with each (skip, "
+        "resume, start); run and write nothing",
+    )
     p = sub.add_parser("mesh", help="build the case's mesh: DIR/mesh.xdmf and DIR/mesh.json")
     with_config(p)
     p.add_argument("--out", type=Path, required=True, metavar="DIR")
     p = sub.add_parser("check", help="validate a case without running it")
     with_config(p)
-    p = sub.add_parser("report", help="the study's tables (peaks at the report times, solver "
-                                      "effort) and plots from run folders")
+    p = sub.add_parser(
+        "report",
+        help="the study's tables (peaks at the report times, solver "
+        "effort) and plots from run folders",
+    )
     p.add_argument("runs", type=Path, nargs="+", metavar="RUN_DIR")
-    p.add_argument("--out", type=Path, metavar="DIR",
-                   help="write DIR/report.md and PNG plots (default: print the tables only)")
-    p.add_argument("--times", type=float, nargs="+", metavar="T",
-                   help="report times in s (default: the first run's output.report_times)")
-    p = sub.add_parser("plot", help="a picture (PNG) of one field of a run at one time: filled "
-                                    "contours, colour bar with units, axes in mm")
+    p.add_argument(
+        "--out",
+        type=Path,
+        metavar="DIR",
+        help="write DIR/report.md and PNG plots (default: print the tables only)",
+    )
+    p.add_argument(
+        "--times",
+        type=float,
+        nargs="+",
+        metavar="T",
+        help="report times in s (default: the first run's output.report_times)",
+    )
+    p = sub.add_parser(
+        "plot",
+        help="a picture (PNG) of one field of a run at one time: filled "
+        "contours, colour bar with units, axes in mm",
+    )
     p.add_argument("run", type=Path, metavar="RUN_DIR")
-    p.add_argument("--field", required=True, metavar="NAME",
-                   help="a field of RUN_DIR/fields.xdmf (fluid: velocity, pressure, "
-                        "wall_shear_stress, viscosity, shear_rate, mesh_displacement) or "
-                        "solid.xdmf (structure: eta, sss, von_mises, max_principal, region)")
-    p.add_argument("--time", type=float, required=True, metavar="T",
-                   help="time in s: the stored time nearest to T (restarted runs: in the "
-                        "segment holding it)")
-    p.add_argument("--warp", type=float, metavar="S",
-                   help="draw on the nodes moved by S x the displacement (default: 1 for the "
-                        "fluid of a coupled run, its current mesh; 0 for the structure, its "
-                        "reference shape)")
-    p.add_argument("--streamlines", action="store_true",
-                   help="draw the fluid velocity's streamlines over a fluid field")
-    p.add_argument("--region", choices=["fluid", "wall", "cap", "lipid", "flag"],
-                   help="only the cells of this region (default: the field's whole mesh)")
-    p.add_argument("--component", choices=["x", "y", "magnitude"],
-                   help="of a vector field (default: magnitude)")
+    p.add_argument(
+        "--field",
+        required=True,
+        metavar="NAME",
+        help="a field of RUN_DIR/fields.xdmf (fluid: velocity, pressure, "
+        "wall_shear_stress, viscosity, shear_rate, mesh_displacement) or "
+        "solid.xdmf (structure: eta, sss, von_mises, max_principal, region)",
+    )
+    p.add_argument(
+        "--time",
+        type=float,
+        required=True,
+        metavar="T",
+        help="time in s: the stored time nearest to T (restarted runs: in the segment holding it)",
+    )
+    p.add_argument(
+        "--warp",
+        type=float,
+        metavar="S",
+        help="draw on the nodes moved by S x the displacement (default: 1 for the "
+        "fluid of a coupled run, its current mesh; 0 for the structure, its "
+        "reference shape)",
+    )
+    p.add_argument(
+        "--streamlines",
+        action="store_true",
+        help="draw the fluid velocity's streamlines over a fluid field",
+    )
+    p.add_argument(
+        "--region",
+        choices=["fluid", "wall", "cap", "lipid", "flag"],
+        help="only the cells of this region (default: the field's whole mesh)",
+    )
+    p.add_argument(
+        "--component",
+        choices=["x", "y", "magnitude"],
+        help="of a vector field (default: magnitude)",
+    )
     p.add_argument("--out", type=Path, required=True, metavar="FILE.png")
     return parser
 
@@ -176,8 +247,11 @@ def _guarded(comm: MPI.Comm, command: Callable[[], int]) -> int:
     try:
         return command()
     except Exception:  # a bug: the other ranks may wait in a collective, so end them all
-        print(f"fsi: internal error on rank {comm.rank} of {comm.size}:\n"
-              f"{traceback.format_exc()}", file=sys.stderr, flush=True)
+        print(
+            f"fsi: internal error on rank {comm.rank} of {comm.size}:\n{traceback.format_exc()}",
+            file=sys.stderr,
+            flush=True,
+        )
         comm.Abort(EXIT_INTERNAL)
         raise  # not reached
 
@@ -189,8 +263,14 @@ def _error(comm: MPI.Comm, message: str) -> None:
 
 
 def _check(args: argparse.Namespace, case: config.Case) -> int:
-    log.info("%s: valid (case %r, geometry %s, mesh %s, structure %s)", args.config, case.name,
-             case.geometry.kind, case.mesh.level, case.structure.mode)
+    log.info(
+        "%s: valid (case %r, geometry %s, mesh %s, structure %s)",
+        args.config,
+        case.name,
+        case.geometry.kind,
+        case.mesh.level,
+        case.structure.mode,
+    )
     return EXIT_OK
 
 
@@ -240,8 +320,7 @@ def run_case(request: RunRequest, case: config.Case) -> RunOutcome:
     except io.RunFolderError as e:
         return _refused(comm, f"--out: {e}")
     if restart is not None:
-        log.info("restarting from %s: step %d, t = %.6g s", restart.path, restart.step,
-                 restart.t)
+        log.info("restarting from %s: step %d, t = %.6g s", restart.path, restart.step, restart.t)
     try:
         with _StopOnSignal() as stop:
             result = simulation.run(case, request.out, comm, restart, stop)
@@ -250,8 +329,10 @@ def run_case(request: RunRequest, case: config.Case) -> RunOutcome:
     except simulation.RunStopped as e:
         return _stopped(request, e)
     except KeyboardInterrupt:  # a second interrupt: at once, without a checkpoint
-        log.error("fsi: stopped at once; the last periodic checkpoint is in %s",
-                  request.out / checkpoint.DIRECTORY)
+        log.error(
+            "fsi: stopped at once; the last periodic checkpoint is in %s",
+            request.out / checkpoint.DIRECTORY,
+        )
         return RunOutcome(128 + signal.SIGINT, "stopped at once (a second interrupt)")
     done = f"done: {result.steps} steps in {result.wall_time_s:.1f} s; wrote {request.out}"
     log.info(done)
@@ -286,14 +367,27 @@ def _stopped(request: RunRequest, e: Exception) -> RunOutcome:
     if e.checkpoint is None:
         lines.append("fsi: no checkpoint could be written.")
     else:
-        change = (" with what failed changed (e.g. a smaller time step with --set "
-                  "'time.schedule=[...]', or the coupling or solver settings)"
-                  if status == EXIT_SOLVE_FAILED else "")
-        command = ["fsi", "run", str(request.config), "--out", str(request.out), "--restart",
-                   str(request.out), *[a for s in request.overrides for a in ("--set", s)]]
-        lines.append(f"fsi: the state after step {e.step} (t = {e.t:.6g} s) is checkpointed in "
-                     f"{e.checkpoint}. To continue from it{change}, run\n  "
-                     f"{shlex.join(command)}")
+        change = (
+            " with what failed changed (e.g. a smaller time step with --set "
+            "'time.schedule=[...]', or the coupling or solver settings)"
+            if status == EXIT_SOLVE_FAILED
+            else ""
+        )
+        command = [
+            "fsi",
+            "run",
+            str(request.config),
+            "--out",
+            str(request.out),
+            "--restart",
+            str(request.out),
+            *[a for s in request.overrides for a in ("--set", s)],
+        ]
+        lines.append(
+            f"fsi: the state after step {e.step} (t = {e.t:.6g} s) is checkpointed in "
+            f"{e.checkpoint}. To continue from it{change}, run\n  "
+            f"{shlex.join(command)}"
+        )
     if MPI.COMM_WORLD.rank == 0:
         for line in lines:
             log.error(line)
@@ -314,7 +408,7 @@ class _StopOnSignal:
         self.signal: int | None = None
         self._previous: dict = {}
 
-    def __enter__(self) -> "_StopOnSignal":
+    def __enter__(self) -> _StopOnSignal:
         for s in self.SIGNALS:
             self._previous[s] = signal.signal(s, self._handle)
         return self
@@ -331,8 +425,10 @@ class _StopOnSignal:
             raise KeyboardInterrupt
         self.signal = signum
         if MPI.COMM_WORLD.rank == 0:  # a plain write: the handler may interrupt one to stderr
-            message = (f"fsi: {signal.Signals(signum).name} received: stopping after this step "
-                       "with a checkpoint (again: stop at once)\n")
+            message = (
+                f"fsi: {signal.Signals(signum).name} received: stopping after this step "
+                "with a checkpoint (again: stop at once)\n"
+            )
             try:
                 os.write(sys.stderr.fileno(), message.encode())
             except (OSError, ValueError):  # no usable stderr (closed, or captured in memory)
@@ -364,14 +460,21 @@ def _sweep(args: argparse.Namespace) -> int:
         return EXIT_OK
 
     def run_one(run: sweep.SweepRun, resume: bool, overwrite: bool) -> tuple[int, str]:
-        request = RunRequest(args.config, run.folder, run.overrides,
-                             run.folder if resume else None, overwrite)
+        request = RunRequest(
+            args.config, run.folder, run.overrides, run.folder if resume else None, overwrite
+        )
         outcome = run_case(request, run.case)
         return outcome.status, outcome.reason
 
-    resume = ["fsi", "sweep", str(args.config), "--out", str(args.out),
-              *[a for v in variations for a in ("--vary", v.option)],
-              *[a for s in args.overrides for a in ("--set", s)]]
+    resume = [
+        "fsi",
+        "sweep",
+        str(args.config),
+        "--out",
+        str(args.out),
+        *[a for v in variations for a in ("--vary", v.option)],
+        *[a for s in args.overrides for a in ("--set", s)],
+    ]
     with _StopOnSignal() as stop:
         return sweep.execute(runs, variations, args.out, run_one, stop, resume, comm)
 
@@ -393,8 +496,13 @@ def _mesh(args: argparse.Namespace, case: config.Case) -> int:
         _error(comm, f"cannot write the mesh: {e}")
         return EXIT_OUTPUT_FAILED
     cells = summary["cells"]
-    log.info("mesh of %s (%s): %d triangles (%s)", args.config, case.mesh.level, cells["total"],
-             ", ".join(f"{k} {v}" for k, v in cells.items() if k != "total"))
+    log.info(
+        "mesh of %s (%s): %d triangles (%s)",
+        args.config,
+        case.mesh.level,
+        cells["total"],
+        ", ".join(f"{k} {v}" for k, v in cells.items() if k != "total"),
+    )
     for name, value in summary.get("measures", {}).items():
         log.info("  %s: %.6g", name, value)
     log.info("wrote %s and %s", args.out / "mesh.xdmf", args.out / "mesh.json")
@@ -433,21 +541,28 @@ def _plot(args: argparse.Namespace) -> int:
     if comm.rank == 0:  # reading two files and drawing one picture: rank 0 alone
         try:
             plot.check_out(args.out)
-            snapshot = plot.read_field(args.run, args.field, args.time, warp=args.warp,
-                                       region=args.region)
+            snapshot = plot.read_field(
+                args.run, args.field, args.time, warp=args.warp, region=args.region
+            )
             flow = plot.streamline_field(snapshot) if args.streamlines else None
             written = plot.draw(snapshot, args.out, component=args.component, flow=flow)
         except plot.PlotError as e:
             print(f"fsi: error: {e}", file=sys.stderr, flush=True)
             status = EXIT_USAGE
         except OSError as e:
-            print(f"fsi: error: --out: cannot write {args.out} ({e.strerror or e})",
-                  file=sys.stderr, flush=True)
+            print(
+                f"fsi: error: --out: cannot write {args.out} ({e.strerror or e})",
+                file=sys.stderr,
+                flush=True,
+            )
             status = EXIT_OUTPUT_FAILED
         else:
             if snapshot.time_differs:
-                print(f"{args.run}: {args.field} is stored at t = {snapshot.time:.6g} s, the "
-                      f"nearest to --time {args.time:g}", flush=True)
+                print(
+                    f"{args.run}: {args.field} is stored at t = {snapshot.time:.6g} s, the "
+                    f"nearest to --time {args.time:g}",
+                    flush=True,
+                )
             log.info("wrote %s", written)
     return comm.bcast(status, root=0)
 

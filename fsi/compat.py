@@ -122,8 +122,10 @@ def mixed_space(mesh, parts):
         import ufl
 
         cell = mesh.ufl_cell()
-        elements = [ufl.FiniteElement(f, cell, d) if not s else
-                    ufl.VectorElement(f, cell, d, dim=s[0]) for f, d, s in parts]
+        elements = [
+            ufl.FiniteElement(f, cell, d) if not s else ufl.VectorElement(f, cell, d, dim=s[0])
+            for f, d, s in parts
+        ]
         return dolfinx.fem.FunctionSpace(mesh, ufl.MixedElement(elements))
     import basix.ufl
 

@@ -27,14 +27,28 @@ import math
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal, Union
+from typing import Any, Literal
 
 import yaml
 
-from fsi.boundary_data import (FORMULA_NAMES, FormulaError, WaveformError, read_waveform,
-                               time_function)
-from fsi.config_reader import (ConfigError, apply_overrides, at_least, build, checked,
-                               non_negative, open_interval, positive, read_case_file)
+from fsi.boundary_data import (
+    FORMULA_NAMES,
+    FormulaError,
+    WaveformError,
+    read_waveform,
+    time_function,
+)
+from fsi.config_reader import (
+    ConfigError,
+    apply_overrides,
+    at_least,
+    build,
+    checked,
+    non_negative,
+    open_interval,
+    positive,
+    read_case_file,
+)
 from fsi.petsc_options import check_petsc_options
 from fsi.run_size import BYTES_PER_CELL, count_steps, estimated_cells, format_count
 from fsi.timestepping import steps
@@ -108,8 +122,11 @@ class MeshSettings:
 
 def quadrature(default: int) -> Any:
     """A quadrature degree in [1, :data:`MAX_QUADRATURE_DEGREE`]."""
-    return checked(default, lambda v: 1 <= v <= MAX_QUADRATURE_DEGREE,
-                  f"an integer in [1, {MAX_QUADRATURE_DEGREE}]")
+    return checked(
+        default,
+        lambda v: 1 <= v <= MAX_QUADRATURE_DEGREE,
+        f"an integer in [1, {MAX_QUADRATURE_DEGREE}]",
+    )
 
 
 MAX_QUADRATURE_DEGREE = 20
@@ -189,7 +206,7 @@ class Casson:
     regularization: float = positive(100.0, " (s)")
 
 
-Rheology = Union[Newtonian, Carreau, CarreauYasuda, Cross, PowerLaw, Casson]
+Rheology = Newtonian | Carreau | CarreauYasuda | Cross | PowerLaw | Casson
 
 
 @dataclass(frozen=True)
@@ -212,13 +229,20 @@ class InletPressure:
     """Inlet normal traction σ n = −P(t) n (P pushes blood in) with P (Pa) a formula in t."""
 
     kind: Literal["pressure"] = "pressure"
-    formula: str = checked("0", _is_time_formula, "an expression in t (numbers, + - * / ** %,"
-                          " comparisons, pi, e, " + ", ".join(FORMULA_NAMES) + ")")
+    formula: str = checked(
+        "0",
+        _is_time_formula,
+        "an expression in t (numbers, + - * / ** %,"
+        " comparisons, pi, e, " + ", ".join(FORMULA_NAMES) + ")",
+    )
 
 
 def _is_time_table(rows: tuple) -> bool:
-    return (len(rows) >= 1 and all(len(r) == 2 for r in rows)
-            and all(b[0] > a[0] for a, b in zip(rows, rows[1:])))
+    return (
+        len(rows) >= 1
+        and all(len(r) == 2 for r in rows)
+        and all(b[0] > a[0] for a, b in zip(rows, rows[1:]))
+    )
 
 
 def _period() -> Any:
@@ -233,7 +257,8 @@ class InletPressureTable:
 
     kind: Literal["pressure_table"] = "pressure_table"
     table: tuple[tuple[float, ...], ...] = checked(
-        ((0.0, 0.0),), _is_time_table, "a non-empty list of [t, P] pairs with increasing t")
+        ((0.0, 0.0),), _is_time_table, "a non-empty list of [t, P] pairs with increasing t"
+    )
     period: float = _period()
 
 
@@ -262,8 +287,7 @@ class ParabolicInflow:
     ramp_time: float = non_negative(2.0, " (s)")
 
 
-Inlet = Union[InletPulse, InletPressure, InletPressureTable, InletPressureFile,
-              ParabolicInflow]
+Inlet = InletPulse | InletPressure | InletPressureTable | InletPressureFile | ParabolicInflow
 
 
 @dataclass(frozen=True)
@@ -305,7 +329,7 @@ class WindkesselOutlet:
     backflow_stabilization: float = non_negative(1.0)
 
 
-Outlet = Union[TractionFreeOutlet, ResistanceOutlet, WindkesselOutlet]
+Outlet = TractionFreeOutlet | ResistanceOutlet | WindkesselOutlet
 
 
 @dataclass(frozen=True)
@@ -326,7 +350,7 @@ class SolverSettings:
     jacobian_reuse: Literal["none", "step", "run"] = "none"
     jacobian_reuse_rate: float = open_interval(0.3, 0.0, 1.0)
     # Names and values are checked against an allow-list (check_petsc_options) in validate().
-    petsc_options: dict[str, Union[str, int, float]] = field(
+    petsc_options: dict[str, str | int | float] = field(
         default_factory=lambda: {
             "ksp_type": "preonly",
             "pc_type": "lu",
@@ -425,7 +449,7 @@ class QuasiStatic:
     scheme: Literal["quasi_static"] = "quasi_static"
 
 
-StructuralTimeIntegration = Union[GeneralizedAlpha, Newmark, QuasiStatic]
+StructuralTimeIntegration = GeneralizedAlpha | Newmark | QuasiStatic
 
 
 @dataclass(frozen=True)
@@ -462,7 +486,8 @@ class Structure:
     flag: FlagMaterial = field(default_factory=FlagMaterial)
     support: TissueSupport = field(default_factory=TissueSupport)
     body_force: tuple[float, ...] = checked(
-        (0.0, 0.0), lambda v: len(v) == 2, "a list of two numbers [gx, gy] (m/s^2)")
+        (0.0, 0.0), lambda v: len(v) == 2, "a list of two numbers [gx, gy] (m/s^2)"
+    )
     time_integration: StructuralTimeIntegration = field(default_factory=GeneralizedAlpha)
     degree: int = checked(2, lambda v: 1 <= v <= 3, "an integer in [1, 3]")
     quadrature_degree: int = quadrature(4)
@@ -512,8 +537,11 @@ class Time:
     schedule: tuple[TimeSegment, ...] = (TimeSegment(0.4, 5.0e-3), TimeSegment(0.8, 1.0e-2))
     retries: int = checked(0, lambda v: 0 <= v <= 8, "an integer in [0, 8]")
     max_steps: int = at_least(1_000_000, 1)
-    cycles: int = checked(0, lambda v: 0 <= v <= MAX_CYCLES,
-                          f"an integer in [0, {MAX_CYCLES}] (0: time.end sets the end)")
+    cycles: int = checked(
+        0,
+        lambda v: 0 <= v <= MAX_CYCLES,
+        f"an integer in [0, {MAX_CYCLES}] (0: time.end sets the end)",
+    )
 
     def run_schedule(self, period: float) -> Time:
         """The schedule the run steps through (:func:`fsi.timestepping.steps` of it): this one
@@ -531,10 +559,12 @@ class Time:
         for k in range(self.cycles):
             for until, dt in beat:
                 end_of_beat = until >= period
-                segments.append(TimeSegment((k + 1) * period if end_of_beat
-                                            else k * period + until, dt))
-        return dataclasses.replace(self, end=self.cycles * period, schedule=tuple(segments),
-                                   cycles=0)
+                segments.append(
+                    TimeSegment((k + 1) * period if end_of_beat else k * period + until, dt)
+                )
+        return dataclasses.replace(
+            self, end=self.cycles * period, schedule=tuple(segments), cycles=0
+        )
 
 
 @dataclass(frozen=True)
@@ -575,7 +605,7 @@ class MeshMotion:
     stiffening_exponent: float = non_negative(1.0)
     poisson_ratio: float = open_interval(0.3, -1.0, 0.5)
     min_jacobian_ratio: float = open_interval(0.05, 0.0, 1.0)
-    petsc_options: dict[str, Union[str, int, float]] = field(
+    petsc_options: dict[str, str | int | float] = field(
         default_factory=lambda: {
             "ksp_type": "preonly",
             "pc_type": "lu",
@@ -591,16 +621,17 @@ class Output:
     fields: Literal["xdmf"] = "xdmf"
     fields_every: int = at_least(1, 1)
     checkpoint_every: int = at_least(10, 1)
-    report_times: tuple[float, ...] = checked((0.01, 0.02, 0.05, 0.1, 0.8),
-                                             lambda v: all(t >= 0 for t in v),
-                                             "a list of times >= 0 (s)")
+    report_times: tuple[float, ...] = checked(
+        (0.01, 0.02, 0.05, 0.1, 0.8), lambda v: all(t >= 0 for t in v), "a list of times >= 0 (s)"
+    )
 
 
 @dataclass(frozen=True)
 class Case:
     name: str = "case"
-    geometry: Union[StenosisGeometry, ChannelGeometry, TurekHronGeometry] = field(
-        default_factory=StenosisGeometry)
+    geometry: StenosisGeometry | ChannelGeometry | TurekHronGeometry = field(
+        default_factory=StenosisGeometry
+    )
     mesh: MeshSettings = field(default_factory=MeshSettings)
     fluid: Fluid = field(default_factory=Fluid)
     structure: Structure = field(default_factory=Structure)
@@ -639,8 +670,10 @@ def from_dict(data: dict, source: str = "<dict>", overridden: set[str] | None = 
         case = _read_inlet_file(case, source, overridden)
         validate(case)
     except ConfigError as e:
-        from_command_line = any(e.key == k or e.key.startswith((k + ".", k + "["))
-                                or k.startswith(e.key + ".") for k in overridden)
+        from_command_line = any(
+            e.key == k or e.key.startswith((k + ".", k + "[")) or k.startswith(e.key + ".")
+            for k in overridden
+        )
         raise e.from_source("--set" if from_command_line else source) from None
     return case
 
@@ -665,8 +698,9 @@ def validate(case: Case) -> None:
     _validate_structure_load(case)
     _validate_cell_count(case)  # before the size order: mesh.size 1e-6 gets the estimate
     if case.mesh.local_size > case.mesh.size:
-        raise ConfigError("", "mesh.local_size", f"at most mesh.size = {case.mesh.size} m",
-                          case.mesh.local_size)
+        raise ConfigError(
+            "", "mesh.local_size", f"at most mesh.size = {case.mesh.size} m", case.mesh.local_size
+        )
     _validate_schedule(case)
     _validate_solvers(case)
     check_petsc_options(case.fluid.solver.petsc_options, "fluid.solver.petsc_options")
@@ -683,47 +717,73 @@ def _validate_geometry(case: Case) -> None:
         # Any structure mode: 'rigid' is the CFD benchmark, the others make the flag elastic.
         _validate_turek_hron(g)
     elif case.structure.mode != "rigid":
-        raise ConfigError("", "structure.mode", f"'rigid' for geometry.kind '{g.kind}'"
-                          " (it has no structure)", case.structure.mode)
+        raise ConfigError(
+            "",
+            "structure.mode",
+            f"'rigid' for geometry.kind '{g.kind}' (it has no structure)",
+            case.structure.mode,
+        )
 
 
 def _validate_stenosis(g: StenosisGeometry) -> None:
     """Plaque sides once each; the stenosis inside the segment; the cap thinner than the
     plaque and nowhere thinner than ``cap_thickness`` over the lipid pool."""
     if len(set(g.plaque_sides)) != len(g.plaque_sides) or not g.plaque_sides:
-        raise ConfigError("", "geometry.plaque_sides", "'bottom', 'top' or both, once each",
-                          list(g.plaque_sides))
+        raise ConfigError(
+            "", "geometry.plaque_sides", "'bottom', 'top' or both, once each", list(g.plaque_sides)
+        )
     if g.stenosis_length >= g.length:
-        raise ConfigError("", "geometry.stenosis_length",
-                          f"less than geometry.length = {g.length} m", g.stenosis_length)
+        raise ConfigError(
+            "",
+            "geometry.stenosis_length",
+            f"less than geometry.length = {g.length} m",
+            g.stenosis_length,
+        )
     plaque = stenosis_geometry.plaque_height(g)
     if g.cap_thickness >= plaque:
-        raise ConfigError("", "geometry.cap_thickness",
-                          f"less than the plaque height {plaque:g} m (stenosis_degree × height"
-                          " / plaque sides)", g.cap_thickness)
+        raise ConfigError(
+            "",
+            "geometry.cap_thickness",
+            f"less than the plaque height {plaque:g} m (stenosis_degree × height / plaque sides)",
+            g.cap_thickness,
+        )
     if g.lipid_length >= g.stenosis_length:
-        raise ConfigError("", "geometry.lipid_length",
-                          f"less than geometry.stenosis_length = {g.stenosis_length} m",
-                          g.lipid_length)
+        raise ConfigError(
+            "",
+            "geometry.lipid_length",
+            f"less than geometry.stenosis_length = {g.stenosis_length} m",
+            g.lipid_length,
+        )
     thinnest = stenosis_geometry.min_cap_thickness(g)
     if thinnest < g.cap_thickness * (1 - 1e-4):
-        raise ConfigError("", "geometry.lipid_length",
-                          "a lipid pool short enough that the fibrous cap is nowhere thinner"
-                          f" than cap_thickness = {g.cap_thickness} m (it would be"
-                          f" {thinnest:.3g} m)", g.lipid_length)
+        raise ConfigError(
+            "",
+            "geometry.lipid_length",
+            "a lipid pool short enough that the fibrous cap is nowhere thinner"
+            f" than cap_thickness = {g.cap_thickness} m (it would be"
+            f" {thinnest:.3g} m)",
+            g.lipid_length,
+        )
 
 
 def _validate_structure_load(case: Case) -> None:
     if case.structure.interface_load != "fluid":
         if case.structure.mode == "rigid":
-            raise ConfigError("", "structure.interface_load", "'fluid' when structure.mode is "
-                              "'rigid' (there is no structure to load)",
-                              case.structure.interface_load)
-        if (case.structure.interface_load == "inlet_pressure"
-                and isinstance(case.fluid.inlet, ParabolicInflow)):
-            raise ConfigError("", "structure.interface_load", "'fluid' or 'none' with a "
-                              "velocity inlet ('inlet_pressure' needs a traction inlet)",
-                              case.structure.interface_load)
+            raise ConfigError(
+                "",
+                "structure.interface_load",
+                "'fluid' when structure.mode is 'rigid' (there is no structure to load)",
+                case.structure.interface_load,
+            )
+        if case.structure.interface_load == "inlet_pressure" and isinstance(
+            case.fluid.inlet, ParabolicInflow
+        ):
+            raise ConfigError(
+                "",
+                "structure.interface_load",
+                "'fluid' or 'none' with a velocity inlet ('inlet_pressure' needs a traction inlet)",
+                case.structure.interface_load,
+            )
 
 
 def _validate_schedule(case: Case) -> None:
@@ -734,49 +794,86 @@ def _validate_schedule(case: Case) -> None:
         raise ConfigError("", "time.schedule", "at least one {until, dt} segment", [])
     for i in range(1, len(schedule)):
         if schedule[i].until <= schedule[i - 1].until:
-            raise ConfigError("", f"time.schedule[{i}].until",
-                              f"greater than time.schedule[{i - 1}].until = "
-                              f"{schedule[i - 1].until} s", schedule[i].until)
+            raise ConfigError(
+                "",
+                f"time.schedule[{i}].until",
+                f"greater than time.schedule[{i - 1}].until = {schedule[i - 1].until} s",
+                schedule[i].until,
+            )
     period = heartbeat_period(case)
     _validate_cycles(case.time, period)
     if case.time.cycles >= 1 and period > 0:  # the schedule is one heartbeat's
         if schedule[-1].until < period * (1 - 1e-12):
-            raise ConfigError("", f"time.schedule[{len(schedule) - 1}].until",
-                              f"at least fluid.inlet.period = {period} s (with time.cycles the "
-                              "schedule is one heartbeat's)", schedule[-1].until)
+            raise ConfigError(
+                "",
+                f"time.schedule[{len(schedule) - 1}].until",
+                f"at least fluid.inlet.period = {period} s (with time.cycles the "
+                "schedule is one heartbeat's)",
+                schedule[-1].until,
+            )
     elif schedule[-1].until < case.time.end * (1 - 1e-12):
-        raise ConfigError("", f"time.schedule[{len(schedule) - 1}].until",
-                          f"at least time.end = {case.time.end} s", schedule[-1].until)
+        raise ConfigError(
+            "",
+            f"time.schedule[{len(schedule) - 1}].until",
+            f"at least time.end = {case.time.end} s",
+            schedule[-1].until,
+        )
     run = run_time(case)
     count = count_steps(run)
     if count > case.time.max_steps:
-        raise_limit = (f"raise the limit (--set time.max_steps={int(count)}) if you mean it"
-                       if math.isfinite(count) else "no limit can be that high")
-        to = (f"time.end = {case.time.end:g} s" if run is case.time else
-              f"the end of time.cycles = {case.time.cycles} heartbeats, {run.end:g} s")
-        raise ConfigError("", "time.schedule", reason=(
-            f"{format_count(count)} steps to {to}, more than "
-            f"time.max_steps = {case.time.max_steps:,}: use larger dt, or {raise_limit}"))
+        raise_limit = (
+            f"raise the limit (--set time.max_steps={int(count)}) if you mean it"
+            if math.isfinite(count)
+            else "no limit can be that high"
+        )
+        to = (
+            f"time.end = {case.time.end:g} s"
+            if run is case.time
+            else f"the end of time.cycles = {case.time.cycles} heartbeats, {run.end:g} s"
+        )
+        raise ConfigError(
+            "",
+            "time.schedule",
+            reason=(
+                f"{format_count(count)} steps to {to}, more than "
+                f"time.max_steps = {case.time.max_steps:,}: use larger dt, or {raise_limit}"
+            ),
+        )
 
 
 def _validate_solvers(case: Case) -> None:
-    if (case.time.scheme == "steady" and case.structure.mode != "rigid"
-            and case.structure.time_integration.scheme != "quasi_static"):
-        raise ConfigError("", "structure.time_integration.scheme", "'quasi_static' when "
-                          "time.scheme is 'steady' (a steady fluid cannot load a structure "
-                          "with inertia)", case.structure.time_integration.scheme)
+    if (
+        case.time.scheme == "steady"
+        and case.structure.mode != "rigid"
+        and case.structure.time_integration.scheme != "quasi_static"
+    ):
+        raise ConfigError(
+            "",
+            "structure.time_integration.scheme",
+            "'quasi_static' when "
+            "time.scheme is 'steady' (a steady fluid cannot load a structure "
+            "with inertia)",
+            case.structure.time_integration.scheme,
+        )
 
     if case.coupling.max_relaxation < case.coupling.initial_relaxation:
-        raise ConfigError("", "coupling.max_relaxation", "at least coupling.initial_relaxation ="
-                          f" {case.coupling.initial_relaxation}", case.coupling.max_relaxation)
+        raise ConfigError(
+            "",
+            "coupling.max_relaxation",
+            f"at least coupling.initial_relaxation = {case.coupling.initial_relaxation}",
+            case.coupling.max_relaxation,
+        )
 
     # Sub-solvers must be well below the coupling tolerance or the coupling stalls near it.
     for name in ("fluid", "structure"):
         rtol = getattr(case, name).solver.rtol
         if rtol > case.coupling.tolerance / 10:
-            raise ConfigError("", f"{name}.solver.rtol",
-                              f"at most coupling.tolerance / 10 = {case.coupling.tolerance / 10:g}",
-                              rtol)
+            raise ConfigError(
+                "",
+                f"{name}.solver.rtol",
+                f"at most coupling.tolerance / 10 = {case.coupling.tolerance / 10:g}",
+                rtol,
+            )
 
 
 def _validate_cell_count(case: Case) -> None:
@@ -785,14 +882,25 @@ def _validate_cell_count(case: Case) -> None:
     if cells > case.mesh.max_cells:
         m = case.mesh
         gigabytes = cells * BYTES_PER_CELL / 1e9
-        memory = (f"{gigabytes:.2g} GB" if gigabytes < 10 else f"{gigabytes:,.0f} GB"
-                  if gigabytes < 1e9 else "too much")
-        raise ConfigError("", "mesh", reason=(
-            f"{format_count(cells)} triangles estimated (mesh.size = {m.size:g} m, mesh.local_size = "
-            f"{m.local_size:g} m, mesh.level = {m.level}), more than mesh.max_cells = "
-            f"{m.max_cells:,} (a coupled run needs ~{BYTES_PER_CELL / 1e3:.0f} kB per triangle:"
-            f" {memory}): use larger sizes or a coarser level, or raise mesh.max_cells if you "
-            "mean it"))
+        memory = (
+            f"{gigabytes:.2g} GB"
+            if gigabytes < 10
+            else f"{gigabytes:,.0f} GB"
+            if gigabytes < 1e9
+            else "too much"
+        )
+        raise ConfigError(
+            "",
+            "mesh",
+            reason=(
+                f"{format_count(cells)} triangles estimated (mesh.size = {m.size:g} m, "
+                f"mesh.local_size = {m.local_size:g} m, mesh.level = {m.level}), more than "
+                f"mesh.max_cells = {m.max_cells:,} (a coupled run needs "
+                f"~{BYTES_PER_CELL / 1e3:.0f} kB per triangle: {memory}): use larger sizes or a "
+                "coarser level, or raise mesh.max_cells if you "
+                "mean it"
+            ),
+        )
 
 
 def _validate_cycles(time: Time, period: float) -> None:
@@ -800,15 +908,25 @@ def _validate_cycles(time: Time, period: float) -> None:
     is one heartbeat (T) or the whole run (N T), within 1e-9 relative (:class:`Time`)."""
     n = time.cycles
     if n > 1 and not period > 0:
-        raise ConfigError("", "time.cycles", reason=(
-            f"{n} heartbeats need a periodic inlet (a pressure_table or pressure_file "
-            "fluid.inlet with period > 0); this inlet does not repeat: use time.end instead"))
+        raise ConfigError(
+            "",
+            "time.cycles",
+            reason=(
+                f"{n} heartbeats need a periodic inlet (a pressure_table or pressure_file "
+                "fluid.inlet with period > 0); this inlet does not repeat: use time.end instead"
+            ),
+        )
     if n >= 1 and period > 0:
         whole = n * period
         if not any(abs(time.end - t) <= 1e-9 * t for t in (period, whole)):
-            raise ConfigError("", "time.end", f"fluid.inlet.period = {period:g} s (one "
-                              f"heartbeat) or time.cycles × period = {whole:g} s (the whole "
-                              f"run) when time.cycles is {n}", time.end)
+            raise ConfigError(
+                "",
+                "time.end",
+                f"fluid.inlet.period = {period:g} s (one "
+                f"heartbeat) or time.cycles × period = {whole:g} s (the whole "
+                f"run) when time.cycles is {n}",
+                time.end,
+            )
 
 
 def _validate_inlet(case: Case) -> None:
@@ -825,28 +943,44 @@ def _validate_inlet(case: Case) -> None:
         for step in steps(case.time):
             pressure(step.t)
     except FormulaError as e:
-        raise ConfigError("", "fluid.inlet.formula",
-                          reason=f"evaluation fails at t = {e.t:.6g} s ({e.reason})") from None
+        raise ConfigError(
+            "", "fluid.inlet.formula", reason=f"evaluation fails at t = {e.t:.6g} s ({e.reason})"
+        ) from None
 
 
 def _validate_turek_hron(g: TurekHronGeometry) -> None:
     """The cylinder inside the channel, the flag attached to it and ending inside the channel."""
     if len(g.cylinder_centre) != 2:
-        raise ConfigError("", "geometry.cylinder_centre", "a list of two numbers [x, y] (m)",
-                          list(g.cylinder_centre))
+        raise ConfigError(
+            "",
+            "geometry.cylinder_centre",
+            "a list of two numbers [x, y] (m)",
+            list(g.cylinder_centre),
+        )
     cx, cy = g.cylinder_centre
     r = g.cylinder_radius
     if not (r < cx and r < cy < g.height - r):
-        raise ConfigError("", "geometry.cylinder_radius",
-                          f"a cylinder of centre {list(g.cylinder_centre)} inside the channel"
-                          f" [0, {g.length}] x [0, {g.height}] m", r)
+        raise ConfigError(
+            "",
+            "geometry.cylinder_radius",
+            f"a cylinder of centre {list(g.cylinder_centre)} inside the channel"
+            f" [0, {g.length}] x [0, {g.height}] m",
+            r,
+        )
     if g.flag_thickness >= 2 * r:
-        raise ConfigError("", "geometry.flag_thickness",
-                          f"less than the cylinder diameter {2 * r} m", g.flag_thickness)
+        raise ConfigError(
+            "",
+            "geometry.flag_thickness",
+            f"less than the cylinder diameter {2 * r} m",
+            g.flag_thickness,
+        )
     if cx + r + g.flag_length >= g.length:
-        raise ConfigError("", "geometry.flag_length",
-                          f"a flag tip (x = centre + radius + length) before the outlet x ="
-                          f" {g.length} m", g.flag_length)
+        raise ConfigError(
+            "",
+            "geometry.flag_length",
+            f"a flag tip (x = centre + radius + length) before the outlet x = {g.length} m",
+            g.flag_length,
+        )
 
 
 def to_dict(case: Case) -> dict:
@@ -864,8 +998,9 @@ def to_dict(case: Case) -> dict:
     data = plain(dataclasses.asdict(case))
     inlet = case.fluid.inlet
     if isinstance(inlet, InletPressureFile):  # self-contained: the rows, not the file
-        data["fluid"]["inlet"] = plain(dataclasses.asdict(
-            InletPressureTable(table=inlet.table, period=inlet.period)))
+        data["fluid"]["inlet"] = plain(
+            dataclasses.asdict(InletPressureTable(table=inlet.table, period=inlet.period))
+        )
     return data
 
 
@@ -887,12 +1022,19 @@ def _read_inlet_file(case: Case, source: str, overridden: set[str]) -> Case:
     if not isinstance(inlet, InletPressureFile):
         return case
     if inlet.table:
-        raise ConfigError("", "fluid.inlet.table", reason="not a key of kind 'pressure_file' "
-                          "(its rows come from fluid.inlet.file; use kind 'pressure_table' to "
-                          "give them inline)")
+        raise ConfigError(
+            "",
+            "fluid.inlet.table",
+            reason="not a key of kind 'pressure_file' "
+            "(its rows come from fluid.inlet.file; use kind 'pressure_table' to "
+            "give them inline)",
+        )
     if not inlet.file:
-        raise ConfigError("", "fluid.inlet.file", "the name of a CSV file of rows t, P "
-                          "(relative to the case file's folder)")
+        raise ConfigError(
+            "",
+            "fluid.inlet.file",
+            "the name of a CSV file of rows t, P (relative to the case file's folder)",
+        )
     from_command_line = bool({"fluid", "fluid.inlet", "fluid.inlet.file"} & overridden)
     path = Path(inlet.file)
     if not path.is_absolute() and not from_command_line and source not in ("<dict>", "--set"):
@@ -900,8 +1042,9 @@ def _read_inlet_file(case: Case, source: str, overridden: set[str]) -> Case:
     try:
         rows = read_waveform(path)
     except OSError as e:
-        raise ConfigError("", "fluid.inlet.file", reason=f"cannot read {path} "
-                          f"({e.strerror or type(e).__name__})") from None
+        raise ConfigError(
+            "", "fluid.inlet.file", reason=f"cannot read {path} ({e.strerror or type(e).__name__})"
+        ) from None
     except WaveformError as e:
         raise ConfigError("", "fluid.inlet.file", reason=str(e)) from None
     inlet = dataclasses.replace(inlet, file=str(path), table=rows)
@@ -913,8 +1056,16 @@ def _validate_period(inlet: InletPressureTable | InletPressureFile) -> None:
     period = inlet.period
     first, last = inlet.table[0][0], inlet.table[-1][0]
     if period > 0 and not (first <= 0 <= period <= last):
-        rows = (f"the rows of {inlet.file}" if isinstance(inlet, InletPressureFile)
-                else "fluid.inlet.table")
-        raise ConfigError("", "fluid.inlet.period", reason=(
-            f"{rows} cover t in [{first:g}, {last:g}] s, not the whole period [0, {period:g}] s "
-            "(the first t must be <= 0 and the last >= period)"))
+        rows = (
+            f"the rows of {inlet.file}"
+            if isinstance(inlet, InletPressureFile)
+            else "fluid.inlet.table"
+        )
+        raise ConfigError(
+            "",
+            "fluid.inlet.period",
+            reason=(
+                f"{rows} cover t in [{first:g}, {last:g}] s, not the whole period "
+                f"[0, {period:g}] s (the first t must be <= 0 and the last >= period)"
+            ),
+        )

@@ -35,8 +35,10 @@ class YAMLTooDeep(yaml.YAMLError):
 
     def __init__(self, mark: yaml.Mark):
         self.line, self.column = mark.line + 1, mark.column + 1
-        super().__init__(f"YAML nested more than {MAX_YAML_DEPTH} levels deep (line {self.line},"
-                         f" column {self.column})")
+        super().__init__(
+            f"YAML nested more than {MAX_YAML_DEPTH} levels deep (line {self.line},"
+            f" column {self.column})"
+        )
 
 
 class _Loader(yaml.SafeLoader):
@@ -57,8 +59,10 @@ class _Loader(yaml.SafeLoader):
 
 _Loader.add_implicit_resolver(
     "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9][0-9_]*\.[0-9_]*(?:[eE][-+]?[0-9]+)?|\.[0-9_]+(?:[eE][-+]?[0-9]+)?"
-               r"|[0-9][0-9_]*[eE][-+]?[0-9]+|\.inf|\.Inf|\.INF|\.nan|\.NaN|\.NAN)$"),
+    re.compile(
+        r"^[-+]?(?:[0-9][0-9_]*\.[0-9_]*(?:[eE][-+]?[0-9]+)?|\.[0-9_]+(?:[eE][-+]?[0-9]+)?"
+        r"|[0-9][0-9_]*[eE][-+]?[0-9]+|\.inf|\.Inf|\.INF|\.nan|\.NaN|\.NAN)$"
+    ),
     list("-+0123456789."),
 )
 
@@ -99,13 +103,19 @@ def _refuse_duplicate_keys(root: yaml.Node, source: str, root_key: str) -> None:
             for key_node, value_node in node.value:
                 name = str(key_node.value) if isinstance(key_node, yaml.ScalarNode) else "?"
                 sub = f"{key}.{name}" if key else name
-                identity = (key_node.tag, name) if isinstance(key_node, yaml.ScalarNode) else (
-                    id(key_node),)
+                identity = (
+                    (key_node.tag, name)
+                    if isinstance(key_node, yaml.ScalarNode)
+                    else (id(key_node),)
+                )
                 mark = key_node.start_mark
                 if identity in first:
                     a = first[identity]
-                    where = (f"lines {a.line + 1} and {mark.line + 1}" if a.line != mark.line else
-                             f"line {a.line + 1}, columns {a.column + 1} and {mark.column + 1}")
+                    where = (
+                        f"lines {a.line + 1} and {mark.line + 1}"
+                        if a.line != mark.line
+                        else f"line {a.line + 1}, columns {a.column + 1} and {mark.column + 1}"
+                    )
                     raise ConfigError(source, sub, reason=f"duplicate key ({where})")
                 first[identity] = mark
                 stack.append((value_node, sub))
@@ -117,8 +127,14 @@ class ConfigError(Exception):
     """A configuration value is wrong: ``source: key: expected ..., got ...``, or, when there
     is no single expected value, ``source: key: reason`` (``source: reason`` without a key)."""
 
-    def __init__(self, source: str, key: str, expected: str = "",
-                 got: Any = dataclasses.MISSING, reason: str | None = None):
+    def __init__(
+        self,
+        source: str,
+        key: str,
+        expected: str = "",
+        got: Any = dataclasses.MISSING,
+        reason: str | None = None,
+    ):
         self.source, self.key, self.expected, self.got = source, key, expected, got
         self.reason = reason
         where = f"{source}: {key}" if key else source
@@ -196,13 +212,16 @@ def read_case_file(path: str | Path) -> dict:
     except OSError as e:
         raise ConfigError(source, "<file>", "a readable YAML file", e.strerror) from None
     if len(raw) > MAX_FILE_BYTES:
-        raise ConfigError(source, "", reason=f"larger than {MAX_FILE_BYTES} bytes: not a case "
-                                              "file")
+        raise ConfigError(source, "", reason=f"larger than {MAX_FILE_BYTES} bytes: not a case file")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as e:
-        raise ConfigError(source, "", reason=f"not UTF-8 text (byte 0x{raw[e.start]:02x} at "
-                                              f"offset {e.start}): not a case file") from None
+        raise ConfigError(
+            source,
+            "",
+            reason=f"not UTF-8 text (byte 0x{raw[e.start]:02x} at "
+            f"offset {e.start}): not a case file",
+        ) from None
     try:
         data = parse_yaml(text, source)
     except YAMLTooDeep as e:
@@ -257,7 +276,9 @@ def _describe(tp: Any) -> str:
     if origin is Literal:
         return "one of " + ", ".join(repr(a) for a in typing.get_args(tp))
     if origin is tuple:
-        return "a list of " + _describe(typing.get_args(tp)[0]).removeprefix("a ").removeprefix("an ")
+        return "a list of " + _describe(typing.get_args(tp)[0]).removeprefix("a ").removeprefix(
+            "an "
+        )
     if dataclasses.is_dataclass(tp):
         return "a mapping"
     if origin in (Union, types.UnionType):
@@ -292,8 +313,9 @@ def build(tp: Any, value: Any, key: str) -> Any:
                 try:
                     allowed = f.metadata["check"](v)
                 except ValueError as e:
-                    raise ConfigError("", sub, f"{expected} ({getattr(e, 'reason', e)})",
-                                      v) from None
+                    raise ConfigError(
+                        "", sub, f"{expected} ({getattr(e, 'reason', e)})", v
+                    ) from None
                 if not allowed:
                     raise ConfigError("", sub, expected, v)
             kwargs[name] = v

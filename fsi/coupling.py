@@ -26,8 +26,9 @@ from __future__ import annotations
 
 import logging
 from collections import deque
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Callable, Protocol, Sequence
+from typing import TYPE_CHECKING, Protocol
 
 from mpi4py import MPI
 
@@ -168,8 +169,9 @@ class Aitken:
 
     def __init__(self, comm: MPI.Comm, omega_initial: float, omega_max: float = 1.0):
         if not 0 < omega_initial <= omega_max:
-            raise ValueError("need 0 < omega_initial <= omega_max, got "
-                             f"{omega_initial}, {omega_max}")
+            raise ValueError(
+                f"need 0 < omega_initial <= omega_max, got {omega_initial}, {omega_max}"
+            )
         self.comm, self.omega_max = comm, omega_max
         self.omega = omega_initial
         self._previous_residual: np.ndarray | None = None
@@ -229,8 +231,9 @@ class IQNILS:
 
     def __init__(self, comm: MPI.Comm, omega: float, reuse: int = 0, threshold: float = 1e-8):
         if omega <= 0 or reuse < 0 or threshold <= 0:
-            raise ValueError(f"need omega > 0, reuse >= 0, threshold > 0; got {omega}, {reuse}, "
-                             f"{threshold}")
+            raise ValueError(
+                f"need omega > 0, reuse >= 0, threshold > 0; got {omega}, {reuse}, {threshold}"
+            )
         self.comm, self.omega, self.threshold = comm, omega, threshold
         self._old_steps: deque[tuple[list[np.ndarray], list[np.ndarray]]] = deque(maxlen=reuse or 1)
         self.reuse = reuse
@@ -352,9 +355,10 @@ class Predictor:
         """The recorded values (``values``: local interface entries × recorded steps, oldest
         first) and their times (``times``; empty if any was not given)."""
         times = np.array(self._times, dtype=float)
-        return {"values": (np.column_stack(list(self._values)) if self._values
-                           else np.zeros((0, 0))),
-                "times": times if not np.isnan(times).any() else np.zeros(0)}
+        return {
+            "values": (np.column_stack(list(self._values)) if self._values else np.zeros((0, 0))),
+            "times": times if not np.isnan(times).any() else np.zeros(0),
+        }
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
         """Take back :meth:`state`; of more values than this order needs, the newest count."""
@@ -407,7 +411,8 @@ class CouplingNotConverged(RuntimeError):
         super().__init__(
             f"coupling did not converge in step {step}: relative interface residual "
             f"{self.residuals[-1]:.3e} > tolerance {tolerance:.1e} after {len(self.residuals)} "
-            f"iterations (residuals {', '.join(f'{r:.2e}' for r in self.residuals)})")
+            f"iterations (residuals {', '.join(f'{r:.2e}' for r in self.residuals)})"
+        )
 
 
 @dataclass
@@ -422,9 +427,18 @@ class StepResult:
         return len(self.residuals)
 
 
-def couple_step(fluid: InterfaceSolver, solid: InterfaceSolver, acceleration: Acceleration,
-                predictor: Predictor, comm: MPI.Comm, *, tolerance: float, max_iterations: int,
-                step: int = 0, t: float | None = None) -> StepResult:
+def couple_step(
+    fluid: InterfaceSolver,
+    solid: InterfaceSolver,
+    acceleration: Acceleration,
+    predictor: Predictor,
+    comm: MPI.Comm,
+    *,
+    tolerance: float,
+    max_iterations: int,
+    step: int = 0,
+    t: float | None = None,
+) -> StepResult:
     """Dirichlet–Neumann iterations of one time step (ending at ``t``) until
     ``|x̃ − x| / |x̃| <= tolerance``.
 

@@ -31,8 +31,9 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Callable, Literal, Sequence, Union
+from typing import Literal
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -53,8 +54,9 @@ from geometry.tags import Boundary
 log = logging.getLogger(__name__)
 
 Scheme = Literal["backward_euler", "bdf2", "steady"]
-TractionFunction = Callable[[ufl.core.expr.Expr, ufl.core.expr.Expr, dolfinx.fem.Constant],
-                            ufl.core.expr.Expr]
+TractionFunction = Callable[
+    [ufl.core.expr.Expr, ufl.core.expr.Expr, dolfinx.fem.Constant], ufl.core.expr.Expr
+]
 """``g(x, n, t)``: a UFL vector of the spatial coordinate, the outward normal and the time."""
 BodyForce = Callable[[ufl.core.expr.Expr, dolfinx.fem.Constant], ufl.core.expr.Expr]
 """``f(x, t)``: a UFL vector (N/m³) of the spatial coordinate and the time."""
@@ -152,27 +154,31 @@ class Traction:
         object.__setattr__(self, "tags", _tags(self.tags))
 
 
-BoundaryCondition = Union[NoSlip, Velocity, Inflow, Outflow, Slip, Traction]
+BoundaryCondition = NoSlip | Velocity | Inflow | Outflow | Slip | Traction
 
 
-def walls(boundaries: Sequence[Boundary], moving_interface: bool = False
-          ) -> tuple[Boundary, ...]:
+def walls(boundaries: Sequence[Boundary], moving_interface: bool = False) -> tuple[Boundary, ...]:
     """The fluid's walls among a geometry's ``boundaries``, in their order: the rigid wall
     (Γw2), the Turek–Hron obstacle and the interface Γw1, unless it moves (a coupled run gives
     it :class:`Velocity`). The one list of walls: no-slip conditions and wall shear stress."""
-    kinds = (Boundary.RIGID_WALL, Boundary.OBSTACLE,
-             *(() if moving_interface else (Boundary.INTERFACE,)))
+    kinds = (
+        Boundary.RIGID_WALL,
+        Boundary.OBSTACLE,
+        *(() if moving_interface else (Boundary.INTERFACE,)),
+    )
     return tuple(b for b in boundaries if b in kinds)
 
 
-def boundary_conditions(fluid: config.Fluid, boundaries: Sequence[Boundary],
-                        moving_interface: bool) -> tuple[BoundaryCondition, ...]:
+def boundary_conditions(
+    fluid: config.Fluid, boundaries: Sequence[Boundary], moving_interface: bool
+) -> tuple[BoundaryCondition, ...]:
     """The fluid's boundary conditions in every mode (MODEL.md §2), for a geometry with
     ``boundaries``: the configured inlet, the configured outlet, u = ∂η/∂t on the interface if
     it moves (a coupled run), no-slip on the :func:`walls`."""
     inlet = Inflow(Boundary.INLET, fluid.inlet, fluid.inflow_stabilization)
-    outlet = Outflow(Boundary.OUTLET, fluid.outlet.backflow_stabilization,
-                     outlets.from_config(fluid.outlet))
+    outlet = Outflow(
+        Boundary.OUTLET, fluid.outlet.backflow_stabilization, outlets.from_config(fluid.outlet)
+    )
     moving = (Velocity(Boundary.INTERFACE),) if moving_interface else ()
     return (inlet, outlet, *moving, NoSlip(walls(boundaries, moving_interface)))
 
@@ -189,8 +195,10 @@ def inlet_pressure(spec: config.Inlet) -> Callable[[float], float]:
         return boundary_data.time_function(spec.formula)
     if isinstance(spec, (config.InletPressureTable, config.InletPressureFile)):
         if not spec.table:
-            raise ValueError(f"fluid.inlet ({spec.kind}) has no rows (a pressure_file inlet "
-                             "is read by config.load or config.from_dict)")
+            raise ValueError(
+                f"fluid.inlet ({spec.kind}) has no rows (a pressure_file inlet "
+                "is read by config.load or config.from_dict)"
+            )
         times, values = np.array(spec.table, dtype=float).T
         period = spec.period
         if period > 0:
@@ -229,8 +237,12 @@ class AleMesh:
             raise ValueError("AleMesh needs an affine (P1) geometry")
         self._nodes, self._dofs = nodes.ravel(), dofs.ravel()
         coordinates = self.space.tabulate_dof_coordinates()
-        if not np.allclose(coordinates[self._dofs, :gdim], self.reference[self._nodes, :gdim],
-                           rtol=0, atol=1e-12 * (1 + np.abs(self.reference).max())):
+        if not np.allclose(
+            coordinates[self._dofs, :gdim],
+            self.reference[self._nodes, :gdim],
+            rtol=0,
+            atol=1e-12 * (1 + np.abs(self.reference).max()),
+        ):
             raise RuntimeError("AleMesh: P1 dofs and geometry nodes do not match")
         self.d_n = np.zeros_like(self.d.x.array)
         self.d_nm1 = np.zeros_like(self.d.x.array)
@@ -245,8 +257,9 @@ class AleMesh:
         self.d.x.scatter_forward()
         gdim = self.mesh.geometry.dim
         values = self.d.x.array.reshape(-1, gdim)
-        self.mesh.geometry.x[self._nodes, :gdim] = (self.reference[self._nodes, :gdim]
-                                                    + values[self._dofs])
+        self.mesh.geometry.x[self._nodes, :gdim] = (
+            self.reference[self._nodes, :gdim] + values[self._dofs]
+        )
 
     def set_velocity(self, weights: Sequence[float]) -> None:
         """w = Σ_k a_k d^{n+1−k} (the mesh velocity consistent with the fluid's time scheme)."""
@@ -310,8 +323,7 @@ class LumpedOutlet:
     (the Windkessel's P_c^n, P_c^{n−1}) advances with the accepted step's Q (:meth:`advance`).
     """
 
-    def __init__(self, model: outlets.OutletModel, tags: Sequence[int], W, ds_outlet,
-                 normal):
+    def __init__(self, model: outlets.OutletModel, tags: Sequence[int], W, ds_outlet, normal):
         self.model, self.tags = model, tuple(tags)
         self.state = model.initial_state()
         self.pressure = dolfinx.fem.Constant(W.mesh, PETSc.ScalarType(0.0))
@@ -348,8 +360,12 @@ class LumpedOutlet:
         column_values = np.concatenate(comm.allgather(values))
         b.destroy()
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-        A.setValues(rows, columns, self._law[1] * np.outer(values, column_values),
-                    addv=PETSc.InsertMode.ADD_VALUES)
+        A.setValues(
+            rows,
+            columns,
+            self._law[1] * np.outer(values, column_values),
+            addv=PETSc.InsertMode.ADD_VALUES,
+        )
         A.assemble()
 
     def advance(self, weights: Sequence[float]) -> None:
@@ -358,8 +374,10 @@ class LumpedOutlet:
 
     def values(self) -> dict[str, float]:
         """``outlet_pressure`` P (Pa) at the last flow rate, and the model's state values."""
-        return {"outlet_pressure": float(self.pressure.value),
-                **self.model.state_values(self.state)}
+        return {
+            "outlet_pressure": float(self.pressure.value),
+            **self.model.state_values(self.state),
+        }
 
 
 class _FluidProblem(dolfinx.fem.petsc.NonlinearProblem):
@@ -367,8 +385,9 @@ class _FluidProblem(dolfinx.fem.petsc.NonlinearProblem):
     their pressures from the iterate, and each Jacobian gets their rank-one blocks
     (:class:`LumpedOutlet`). Without them it is dolfinx's problem unchanged."""
 
-    def __init__(self, F: ufl.Form, U: dolfinx.fem.Function, bcs: list,
-                 lumped: Sequence[LumpedOutlet]):
+    def __init__(
+        self, F: ufl.Form, U: dolfinx.fem.Function, bcs: list, lumped: Sequence[LumpedOutlet]
+    ):
         dU = ufl.TrialFunction(U.function_space)
         super().__init__(F, U, bcs, J=ufl.derivative(F, U, dU))
         self.lumped = tuple(lumped)
@@ -455,8 +474,9 @@ class FluidResidual:
 
     def _dirichlet(self, value: dolfinx.fem.Function, tags: Sequence[int]):
         fdim = self.mesh.topology.dim - 1
-        dofs = dolfinx.fem.locate_dofs_topological((self.W.sub(0), self.V), fdim,
-                                                   facets_of(self.facet_tags, tags))
+        dofs = dolfinx.fem.locate_dofs_topological(
+            (self.W.sub(0), self.V), fdim, facets_of(self.facet_tags, tags)
+        )
         return dolfinx.fem.dirichletbc(value, dofs, self.W.sub(0))
 
     # ---- the residual, term by term (the module docstring's weak form)
@@ -470,8 +490,13 @@ class FluidResidual:
         and the Dirichlet conditions of the boundaries (in ``self.bcs``, ordered by
         :data:`_Contribution` precedence: later ones win at shared corner dofs)."""
         s = self._weak_form()
-        F = (self._inertia(s) + self._convection(s) + self._viscous_stress(s)
-             - self._pressure(s) - self._continuity(s)) * s.dx
+        F = (
+            self._inertia(s)
+            + self._convection(s)
+            + self._viscous_stress(s)
+            - self._pressure(s)
+            - self._continuity(s)
+        ) * s.dx
         if body_force is not None:
             F -= self._body_force(s, body_force) * s.dx
         if self.config.supg:
@@ -496,11 +521,18 @@ class FluidResidual:
         v, q = ufl.TestFunctions(self.W)
         a0, a1, a2 = self._a
         return _WeakForm(
-            u=u, p=p, v=v, q=q, mu=self.law.mu(rheology.shear_rate(u)),
+            u=u,
+            p=p,
+            v=v,
+            q=q,
+            mu=self.law.mu(rheology.shear_rate(u)),
             dudt=a0 * u + a1 * self.u_n + a2 * self.u_nm1,
             dx=ufl.Measure("dx", domain=mesh, metadata=metadata),
             ds=ufl.Measure("ds", domain=mesh, subdomain_data=self.facet_tags, metadata=metadata),
-            x=ufl.SpatialCoordinate(mesh), n=ufl.FacetNormal(mesh), h=ufl.CellDiameter(mesh))
+            x=ufl.SpatialCoordinate(mesh),
+            n=ufl.FacetNormal(mesh),
+            h=ufl.CellDiameter(mesh),
+        )
 
     def _inertia(self, s: _WeakForm):
         """ρ (Σ_k a_k u^{n+1−k}) · v: the BDF derivative at fixed reference position X."""
@@ -536,8 +568,9 @@ class FluidResidual:
 
     def _velocity(self, bc: Velocity, s: _WeakForm) -> _Contribution:
         """u = :attr:`boundary_velocity` (the coupler's ∂η/∂t on the interface)."""
-        return _Contribution(dirichlet=[(_PRESCRIBED, self._dirichlet(self.boundary_velocity,
-                                                                      bc.tags))])
+        return _Contribution(
+            dirichlet=[(_PRESCRIBED, self._dirichlet(self.boundary_velocity, bc.tags))]
+        )
 
     def _inflow(self, bc: Inflow, s: _WeakForm) -> _Contribution:
         """A parabolic velocity inlet (Dirichlet), or a traction inlet: σ n = −P(t) n as an
@@ -548,8 +581,10 @@ class FluidResidual:
         pressure = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(0.0))
         law = inlet_pressure(bc.spec)
         self.updates.append(lambda t, c=pressure, law=law: c.value.fill(law(t)))
-        terms = [*self._open_boundary(s, pressure, bc.tags),
-                 self._inflow_energy_balance(s, bc.inflow_stabilization, bc.tags)]
+        terms = [
+            *self._open_boundary(s, pressure, bc.tags),
+            self._inflow_energy_balance(s, bc.inflow_stabilization, bc.tags),
+        ]
         dirichlet = [(_NORMAL_FLOW, self._normal_flow(bc.tags))] if self.config.normal_flow else []
         return _Contribution(terms, dirichlet)
 
@@ -561,9 +596,12 @@ class FluidResidual:
             outlet = LumpedOutlet(bc.model, bc.tags, self.W, s.ds_of(bc.tags), s.n)
             self.lumped.append(outlet)
             pressure = outlet.pressure
-        return _Contribution([*self._open_boundary(s, pressure, bc.tags),
-                              self._inflow_energy_balance(s, bc.backflow_stabilization,
-                                                          bc.tags)])
+        return _Contribution(
+            [
+                *self._open_boundary(s, pressure, bc.tags),
+                self._inflow_energy_balance(s, bc.backflow_stabilization, bc.tags),
+            ]
+        )
 
     def _slip(self, bc: Slip, s: _WeakForm) -> _Contribution:
         """u·n = 0 by Nitsche's method (consistency, symmetry and penalty γ μ/h terms) and the
@@ -572,8 +610,14 @@ class FluidResidual:
         sigma = rheology.cauchy_stress(u, s.p, self.law)
         sigma_v = -s.q * ufl.Identity(len(u)) + 2 * s.mu * rheology.strain_rate(v)
         un, vn = ufl.dot(u, n), ufl.dot(v, n)
-        terms = [(-ufl.dot(n, sigma * n) * vn - ufl.dot(n, sigma_v * n) * un
-                  + NITSCHE_PENALTY * s.mu / s.h * un * vn) * s.ds_of(bc.tags)]
+        terms = [
+            (
+                -ufl.dot(n, sigma * n) * vn
+                - ufl.dot(n, sigma_v * n) * un
+                + NITSCHE_PENALTY * s.mu / s.h * un * vn
+            )
+            * s.ds_of(bc.tags)
+        ]
         if bc.traction is not None:
             g = bc.traction(s.x, n, self.t)
             terms.append(-(ufl.dot(g - ufl.dot(g, n) * n, v) * s.ds_of(bc.tags)))
@@ -581,12 +625,16 @@ class FluidResidual:
 
     def _traction(self, bc: Traction, s: _WeakForm) -> _Contribution:
         """σ n = g(x, n, t): −∫ g · v."""
-        return _Contribution([-(ufl.dot(bc.traction(s.x, s.n, self.t), s.v)
-                                * s.ds_of(bc.tags))])
+        return _Contribution([-(ufl.dot(bc.traction(s.x, s.n, self.t), s.v) * s.ds_of(bc.tags))])
 
     BOUNDARY_KINDS: dict[type, Callable] = {
-        NoSlip: _no_slip, Velocity: _velocity, Inflow: _inflow, Outflow: _outflow,
-        Slip: _slip, Traction: _traction}
+        NoSlip: _no_slip,
+        Velocity: _velocity,
+        Inflow: _inflow,
+        Outflow: _outflow,
+        Slip: _slip,
+        Traction: _traction,
+    }
     """The function that turns each kind of boundary condition into its residual terms and
     Dirichlet conditions."""
 
@@ -601,8 +649,14 @@ class FluidResidual:
     def _inflow_energy_balance(self, s: _WeakForm, beta: float, tags: Sequence[int]):
         """−β/2 ρ min(u·n, 0) u·v on an open boundary: balances the kinetic energy that inflow
         (u·n < 0) carries into the domain (Bazilevs et al. 2009); 0 for β = 0."""
-        return -(beta / 2 * self._rho * ufl.min_value(ufl.dot(s.u, s.n), 0.0)
-                 * ufl.dot(s.u, s.v) * s.ds_of(tags))
+        return -(
+            beta
+            / 2
+            * self._rho
+            * ufl.min_value(ufl.dot(s.u, s.n), 0.0)
+            * ufl.dot(s.u, s.v)
+            * s.ds_of(tags)
+        )
 
     def _supg(self, s: _WeakForm, body_force: BodyForce | None):
         """SUPG: τ ((u − w)·∇)v · R with the strong momentum residual
@@ -619,15 +673,20 @@ class FluidResidual:
         large, in particular in the cells of an open inlet (docs/boundary-conditions.md)."""
         rho, w, u, h = self._rho, self.ale.w, s.u, s.h
         a = u - w
-        residual = (rho * s.dudt + rho * ufl.grad(u) * a + ufl.grad(s.p)
-                    - ufl.div(2 * s.mu * rheology.strain_rate(u)))
+        residual = (
+            rho * s.dudt
+            + rho * ufl.grad(u) * a
+            + ufl.grad(s.p)
+            - ufl.div(2 * s.mu * rheology.strain_rate(u))
+        )
         if body_force is not None:
             residual -= body_force(s.x, self.t)
         a_n = self.u_n - w
         mu_n = self.law.mu(rheology.shear_rate(self.u_n))
         speed = ufl.sqrt(ufl.dot(a_n, a_n))
-        tau = ((2 * self._a[0]) ** 2 + (2 * speed / h) ** 2
-               + (4 * mu_n / (rho * h**2)) ** 2) ** -0.5
+        tau = (
+            (2 * self._a[0]) ** 2 + (2 * speed / h) ** 2 + (4 * mu_n / (rho * h**2)) ** 2
+        ) ** -0.5
         return tau * ufl.dot(ufl.grad(s.v) * a, residual)
 
     # ---- Dirichlet conditions
@@ -635,8 +694,9 @@ class FluidResidual:
     def _boundary_points(self, tags: Sequence[int]) -> np.ndarray:
         """The (x, y) of the vertices of the facets ``tags``, gathered from every rank (the
         same array on each; vertices shared by facets repeat). Collective."""
-        nodes = compat.entities_to_geometry(self.mesh, self.mesh.topology.dim - 1,
-                                            facets_of(self.facet_tags, tags)).ravel()
+        nodes = compat.entities_to_geometry(
+            self.mesh, self.mesh.topology.dim - 1, facets_of(self.facet_tags, tags)
+        ).ravel()
         return np.concatenate(self.comm.allgather(self.mesh.geometry.x[nodes, :2]))
 
     def _normal_flow(self, tags: Sequence[int]):
@@ -647,11 +707,14 @@ class FluidResidual:
         extent = points.max(axis=0) - points.min(axis=0)
         normal_axis = int(np.argmin(extent))
         if extent[normal_axis] > 1e-9 * extent.max():
-            raise ValueError(f"fluid.normal_flow needs straight open boundaries parallel to an "
-                             f"axis; boundary {list(tags)} spans {extent[0]:g} x {extent[1]:g} m")
+            raise ValueError(
+                f"fluid.normal_flow needs straight open boundaries parallel to an "
+                f"axis; boundary {list(tags)} spans {extent[0]:g} x {extent[1]:g} m"
+            )
         component = self.W.sub(0).sub(1 - normal_axis)
-        dofs = dolfinx.fem.locate_dofs_topological(component, self.mesh.topology.dim - 1,
-                                                   facets_of(self.facet_tags, tags))
+        dofs = dolfinx.fem.locate_dofs_topological(
+            component, self.mesh.topology.dim - 1, facets_of(self.facet_tags, tags)
+        )
         zero = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(0.0))
         return dolfinx.fem.dirichletbc(zero, dofs, component)
 
@@ -660,10 +723,13 @@ class FluidResidual:
         spec: config.ParabolicInflow = bc.spec
         gathered = self._boundary_points(bc.tags)
         # The inlet's end points: the pair of its vertices farthest apart.
-        ends = gathered[[np.argmin(gathered @ d) for d in ((1, 0), (0, 1))]
-                        + [np.argmax(gathered @ d) for d in ((1, 0), (0, 1))]]
-        i, j = np.unravel_index(np.argmax(np.linalg.norm(ends[:, None] - ends[None], axis=2)),
-                                (4, 4))
+        ends = gathered[
+            [np.argmin(gathered @ d) for d in ((1, 0), (0, 1))]
+            + [np.argmax(gathered @ d) for d in ((1, 0), (0, 1))]
+        ]
+        i, j = np.unravel_index(
+            np.argmax(np.linalg.norm(ends[:, None] - ends[None], axis=2)), (4, 4)
+        )
         start, tangent = ends[i], ends[j] - ends[i]
         width = np.linalg.norm(tangent)
         tangent = tangent / width
@@ -718,15 +784,17 @@ def _subspace_map(W, i: int, V) -> np.ndarray:
     return V_to_W
 
 
-def _copy_from_mixed(target: dolfinx.fem.Function, U: dolfinx.fem.Function,
-                     target_to_U: np.ndarray) -> None:
+def _copy_from_mixed(
+    target: dolfinx.fem.Function, U: dolfinx.fem.Function, target_to_U: np.ndarray
+) -> None:
     owned = target_to_U >= 0
     target.x.array[owned] = U.x.array[target_to_U[owned]]
     target.x.scatter_forward()
 
 
-def _copy_to_mixed(U: dolfinx.fem.Function, source: dolfinx.fem.Function,
-                   source_to_U: np.ndarray) -> None:
+def _copy_to_mixed(
+    U: dolfinx.fem.Function, source: dolfinx.fem.Function, source_to_U: np.ndarray
+) -> None:
     owned = source_to_U >= 0
     U.x.array[source_to_U[owned]] = source.x.array[owned]
     U.x.scatter_forward()
@@ -745,9 +813,15 @@ class FluidSolver:
         body_force: optional f(x, t).
     """
 
-    def __init__(self, mesh: dolfinx.mesh.Mesh, facet_tags: dolfinx.mesh.MeshTags,
-                 fluid: config.Fluid, boundaries: Sequence[BoundaryCondition],
-                 scheme: Scheme = "bdf2", body_force: BodyForce | None = None):
+    def __init__(
+        self,
+        mesh: dolfinx.mesh.Mesh,
+        facet_tags: dolfinx.mesh.MeshTags,
+        fluid: config.Fluid,
+        boundaries: Sequence[BoundaryCondition],
+        scheme: Scheme = "bdf2",
+        body_force: BodyForce | None = None,
+    ):
         if scheme not in ("backward_euler", "bdf2", "steady"):
             raise ValueError(f"unknown time scheme {scheme!r}")
         self.mesh, self.facet_tags, self.config, self.scheme = mesh, facet_tags, fluid, scheme
@@ -802,17 +876,21 @@ class FluidSolver:
         for bc in self.boundaries:
             for tag in bc.tags:
                 if tag in seen:
-                    raise ValueError(f"boundary tag {tag} has two conditions: {seen[tag]} and"
-                                     f" {type(bc).__name__}")
+                    raise ValueError(
+                        f"boundary tag {tag} has two conditions: {seen[tag]} and"
+                        f" {type(bc).__name__}"
+                    )
                 if tag not in present:
-                    raise ValueError(f"boundary tag {tag} ({type(bc).__name__}) is not on the"
-                                     " fluid mesh")
+                    raise ValueError(
+                        f"boundary tag {tag} ({type(bc).__name__}) is not on the fluid mesh"
+                    )
                 seen[tag] = type(bc).__name__
 
     # ---- the coupler's interface
 
-    def set_mesh_displacement(self, d: dolfinx.fem.Function,
-                              w: dolfinx.fem.Function | None = None) -> None:
+    def set_mesh_displacement(
+        self, d: dolfinx.fem.Function, w: dolfinx.fem.Function | None = None
+    ) -> None:
         """Move the mesh to x = X + d. The mesh velocity is ``w`` if given, else (at :meth:`step`)
         the scheme's derivative of the displacement history."""
         self.ale.move(d)
@@ -860,7 +938,8 @@ class FluidSolver:
         result = self.newton.solve(self.U, self.newton.solver.b.norm, step=self.accepted_steps)
         if not result.converged:
             result = replace(
-                result, reason=f"fluid step to t = {t:g} s (dt = {dt:g} s): {result.reason}")
+                result, reason=f"fluid step to t = {t:g} s (dt = {dt:g} s): {result.reason}"
+            )
             log.warning(result.reason)
         self._sync_outputs()
         return result
@@ -882,11 +961,19 @@ class FluidSolver:
         """Snapshot of the solution, the time history and the mesh (also kept for
         :meth:`restore_state`)."""
         self._saved = FluidState(
-            self.time, self.dt_previous, self.accepted_steps, self.U.x.array.copy(),
-            self.u_n.x.array.copy(), self.u_nm1.x.array.copy(), self.ale.d.x.array.copy(),
-            self.ale.d_n.copy(), self.ale.d_nm1.copy(), self.ale.w.x.array.copy(),
+            self.time,
+            self.dt_previous,
+            self.accepted_steps,
+            self.U.x.array.copy(),
+            self.u_n.x.array.copy(),
+            self.u_nm1.x.array.copy(),
+            self.ale.d.x.array.copy(),
+            self.ale.d_n.copy(),
+            self.ale.d_nm1.copy(),
+            self.ale.w.x.array.copy(),
             self._mesh_velocity_given,
-            np.concatenate([np.zeros(0), *(outlet.state for outlet in self.lumped)]))
+            np.concatenate([np.zeros(0), *(outlet.state for outlet in self.lumped)]),
+        )
         return self._saved
 
     def restore_state(self, state: FluidState | None = None) -> None:
@@ -910,11 +997,12 @@ class FluidSolver:
     def _restore_outlets(self, state: np.ndarray) -> None:
         sizes = [len(outlet.state) for outlet in self.lumped]
         if len(state) != sum(sizes):
-            raise ValueError(f"an outlet state of {len(state)} values for lumped outlets of "
-                             f"{sum(sizes)}")
+            raise ValueError(
+                f"an outlet state of {len(state)} values for lumped outlets of {sum(sizes)}"
+            )
         start = 0
         for outlet, size in zip(self.lumped, sizes, strict=True):
-            outlet.state = np.array(state[start:start + size], dtype=float)
+            outlet.state = np.array(state[start : start + size], dtype=float)
             start += size
 
     def outlet_values(self) -> dict[str, float]:
@@ -923,8 +1011,11 @@ class FluidSolver:
         ``windkessel_pressure`` P_c after the last accepted step (names suffixed ``_<tag>``
         when there are several lumped outlets); empty without one."""
         several = len(self.lumped) > 1
-        return {name + (f"_{outlet.tags[0]}" if several else ""): value
-                for outlet in self.lumped for name, value in outlet.values().items()}
+        return {
+            name + (f"_{outlet.tags[0]}" if several else ""): value
+            for outlet in self.lumped
+            for name, value in outlet.values().items()
+        }
 
     def _sync_outputs(self) -> None:
         _copy_from_mixed(self.u, self.U, self._V_to_W)
@@ -981,12 +1072,19 @@ class FluidSolver:
         if tags is None:
             tags = [t for bc in self.boundaries if isinstance(bc, Velocity) for t in bc.tags]
         tags = list(_tags(tags))
-        ds = ufl.Measure("ds", domain=self.mesh, subdomain_data=self.facet_tags,
-                         metadata={"quadrature_degree": 2})
+        ds = ufl.Measure(
+            "ds",
+            domain=self.mesh,
+            subdomain_data=self.facet_tags,
+            metadata={"quadrature_degree": 2},
+        )
         v = ufl.TestFunction(self.V)
         one = ufl.as_vector([1.0] * self.mesh.geometry.dim)
-        mass = dolfinx.fem.petsc.assemble_vector(dolfinx.fem.form(
-            sum((ufl.dot(one, v) * ds(t) for t in tags[1:]), ufl.dot(one, v) * ds(tags[0]))))
+        mass = dolfinx.fem.petsc.assemble_vector(
+            dolfinx.fem.form(
+                sum((ufl.dot(one, v) * ds(t) for t in tags[1:]), ufl.dot(one, v) * ds(tags[0]))
+            )
+        )
         mass.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         traction = dolfinx.fem.Function(self.V, name="traction")
         gdim = self.mesh.geometry.dim

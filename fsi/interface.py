@@ -53,15 +53,20 @@ class InterfaceMap:
         all_src = np.concatenate(self.comm.allgather(src_points)).reshape(-1, 3)
         all_dst = np.concatenate(self.comm.allgather(dst_points)).reshape(-1, 3)
         if len(all_src) != len(all_dst):
-            raise ValueError(f"interface dof counts differ: {len(all_src)} source, "
-                             f"{len(all_dst)} destination")
+            raise ValueError(
+                f"interface dof counts differ: {len(all_src)} source, {len(all_dst)} destination"
+            )
         extent = float(np.ptp(all_src, axis=0).max()) if len(all_src) else 1.0
         tree = cKDTree(all_src)
-        distance, self._pick = tree.query(dst_points) if len(dst_points) else (np.zeros(0), np.zeros(0, int))
+        distance, self._pick = (
+            tree.query(dst_points) if len(dst_points) else (np.zeros(0), np.zeros(0, int))
+        )
         bad = self.comm.allreduce(int(np.count_nonzero(distance > tolerance * extent)))
         if bad:
-            raise ValueError(f"{bad} interface dofs have no partner within {tolerance:g} × the "
-                             "interface extent: the fluid and solid meshes do not conform")
+            raise ValueError(
+                f"{bad} interface dofs have no partner within {tolerance:g} × the "
+                "interface extent: the fluid and solid meshes do not conform"
+            )
         self.size = len(all_src)  # interface nodes in all
 
     def gather(self, src_values: np.ndarray) -> np.ndarray:

@@ -16,9 +16,10 @@ import os
 import shutil
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, TypeVar
+from typing import TypeVar
 
 from mpi4py import MPI
 
@@ -79,8 +80,12 @@ def _meet(comm: MPI.Comm, message: str) -> None:
     deadline = time.monotonic() + AGREEMENT_TIMEOUT_S
     while not request.Test():
         if time.monotonic() > deadline:
-            print(f"fsi: cannot write the run's files: {message} (rank {comm.rank}; the other "
-                  "ranks are stuck in the write: ending the job)", file=sys.stderr, flush=True)
+            print(
+                f"fsi: cannot write the run's files: {message} (rank {comm.rank}; the other "
+                "ranks are stuck in the write: ending the job)",
+                file=sys.stderr,
+                flush=True,
+            )
             comm.Abort(4)
         time.sleep(0.01)
 
@@ -92,8 +97,9 @@ def ensure_space(comm: MPI.Comm, folder: Path, needed: int, what: str) -> None:
     free = shutil.disk_usage(folder).free if comm.rank == 0 else 0
     free = comm.bcast(free, root=0)
     if free < needed:
-        raise OutputError(f"{folder}: {free} bytes free, {what} needs about {needed} "
-                          "(the disk is full)")
+        raise OutputError(
+            f"{folder}: {free} bytes free, {what} needs about {needed} (the disk is full)"
+        )
 
 
 def on_rank0(comm: MPI.Comm, write: Callable[[], object], path: Path | None = None) -> None:
@@ -172,8 +178,11 @@ def read_rows(path: Path, until_step: int | None = None) -> list[MetricsRow]:
 
     def leave_out_cut() -> None:
         if cut:
-            log.warning("%s: line %d is cut short (a run stopped while writing it): left out",
-                        path, len(lines) + 1)
+            log.warning(
+                "%s: line %d is cut short (a run stopped while writing it): left out",
+                path,
+                len(lines) + 1,
+            )
 
     if not lines:
         leave_out_cut()
@@ -192,8 +201,9 @@ def read_rows(path: Path, until_step: int | None = None) -> list[MetricsRow]:
         if not cells:  # a blank line
             continue
         if len(cells) != len(header):
-            raise MetricsError(f"{path}: line {number}: {len(cells)} cells, the header has "
-                               f"{len(header)} columns")
+            raise MetricsError(
+                f"{path}: line {number}: {len(cells)} cells, the header has {len(header)} columns"
+            )
         text = {k: v for k, v in zip(header, cells) if v != ""}
         for name in REQUIRED_COLUMNS:
             if name not in text:
@@ -201,8 +211,9 @@ def read_rows(path: Path, until_step: int | None = None) -> list[MetricsRow]:
         values = {name: _number(path, number, name, cell) for name, cell in text.items()}
         step = values["step"]
         if step < 1 or step != int(step):
-            raise MetricsError(f"{path}: line {number}: step: {text['step']!r} is not a step "
-                               "number (1, 2, ...)")
+            raise MetricsError(
+                f"{path}: line {number}: step: {text['step']!r} is not a step number (1, 2, ...)"
+            )
         if until_step is not None and step > until_step:
             break
         rows.append(MetricsRow(number, text, values))
@@ -224,8 +235,7 @@ def _number(path: Path, number: int, name: str, cell: str) -> float:
     except ValueError:
         value = math.nan
     if not math.isfinite(value):
-        raise MetricsError(f"{path}: line {number}: {name}: {cell[:40]!r} is not a finite "
-                           "number")
+        raise MetricsError(f"{path}: line {number}: {name}: {cell[:40]!r} is not a finite number")
     return value
 
 
@@ -245,8 +255,14 @@ class MetricsTable:
     Collective; a failure to read ``source`` (OSError, :class:`MetricsError`) is raised on
     every rank, one to write ``path`` on rank 0 (after the last collective)."""
 
-    def __init__(self, comm: MPI.Comm, path: Path, columns: list[str],
-                 keep_until_step: int | None = None, source: Path | None = None):
+    def __init__(
+        self,
+        comm: MPI.Comm,
+        path: Path,
+        columns: list[str],
+        keep_until_step: int | None = None,
+        source: Path | None = None,
+    ):
         self.comm, self.path, self.columns = comm, path, list(columns)
         self._file = None
         source = path if source is None else source
@@ -257,8 +273,9 @@ class MetricsTable:
                 rows = read_rows(source, until_step=keep_until_step)
             except (OSError, MetricsError) as e:
                 error = e
-        kept, error = comm.bcast(([{k: _parse(v) for k, v in r.text.items()} for r in rows],
-                                  error), root=0)
+        kept, error = comm.bcast(
+            ([{k: _parse(v) for k, v in r.text.items()} for r in rows], error), root=0
+        )
         if error is not None:
             raise error
         self.kept: list[dict] = kept
@@ -325,7 +342,7 @@ def remove_later_segments(out: Path, names: list[str], first_step: int) -> list[
     for name in names:
         stem = Path(name).stem
         for path in out.glob(f"{stem}.restart*.*"):
-            k = path.name[len(stem) + len(".restart"):].split(".")[0]
+            k = path.name[len(stem) + len(".restart") :].split(".")[0]
             if k.isdigit() and int(k) > first_step and path.suffix in (".xdmf", ".h5"):
                 path.unlink()
                 removed.append(path)
@@ -347,8 +364,9 @@ class FieldWriter:
         if f.name not in self._outputs:
             discontinuous, _, shape = compat.element_info(f.function_space)
             family, degree = ("DG", 0) if discontinuous else ("Lagrange", 1)
-            out = dolfinx.fem.Function(compat.function_space(f.function_space.mesh, family,
-                                                             degree, shape))
+            out = dolfinx.fem.Function(
+                compat.function_space(f.function_space.mesh, family, degree, shape)
+            )
             out.name = f.name
             self._outputs[f.name] = out
         return self._outputs[f.name]
@@ -356,17 +374,22 @@ class FieldWriter:
     def write(self, t: float, fields: list[dolfinx.fem.Function]) -> None:
         outputs = [self._output_for(f) for f in fields]
         # Room for the values (8-byte numbers) and as much again for the HDF5 layer's metadata.
-        values = sum(8 * f.function_space.dofmap.index_map.size_global
-                     * f.function_space.dofmap.index_map_bs for f in outputs)
-        ensure_space(outputs[0].function_space.mesh.comm, self.path.parent,
-                     2 * values + SPACE_MARGIN, f"writing {self.path.name} at t = {t:g} s")
+        values = sum(
+            8 * f.function_space.dofmap.index_map.size_global * f.function_space.dofmap.index_map_bs
+            for f in outputs
+        )
+        ensure_space(
+            outputs[0].function_space.mesh.comm,
+            self.path.parent,
+            2 * values + SPACE_MARGIN,
+            f"writing {self.path.name} at t = {t:g} s",
+        )
         for f, out in zip(fields, outputs):
             out.interpolate(f)
             self._xdmf.write_function(out, t)
 
     def close(self) -> None:
         self._xdmf.close()
-
 
 
 class RunFiles:
@@ -377,9 +400,18 @@ class RunFiles:
     field segments after it. Every write is agreed by all ranks (:func:`collectively`): a failure
     raises :class:`OutputError` on every rank. Collective."""
 
-    def __init__(self, comm: MPI.Comm, out: Path, config_yaml: str, columns: list[str],
-                 field_files: dict[str, tuple[object, list]], first: int | None, *,
-                 continuing: bool, metrics_source: Path | None):
+    def __init__(
+        self,
+        comm: MPI.Comm,
+        out: Path,
+        config_yaml: str,
+        columns: list[str],
+        field_files: dict[str, tuple[object, list]],
+        first: int | None,
+        *,
+        continuing: bool,
+        metrics_source: Path | None,
+    ):
         self.comm = comm
 
         def prepare() -> None:
@@ -394,14 +426,23 @@ class RunFiles:
         self._log: logging.Handler | None = None
         on_rank0(comm, lambda: self._start_log(out / "run.log"), out / "run.log")
         path = out / "metrics.csv"
-        self.table = collectively(comm, lambda: MetricsTable(
-            comm, path, columns, keep_until_step=first, source=metrics_source), path)
+        self.table = collectively(
+            comm,
+            lambda: MetricsTable(comm, path, columns, keep_until_step=first, source=metrics_source),
+            path,
+        )
         self.writers: list[tuple[FieldWriter, list]] = []
         try:
             for name, (mesh, fields) in field_files.items():
                 path = out / field_segment(name, first)
                 self.writers.append(
-                    (collectively(comm, lambda: FieldWriter(comm, path, mesh), path), fields))
+                    (
+                        collectively(
+                            comm, lambda path=path, mesh=mesh: FieldWriter(comm, path, mesh), path
+                        ),
+                        fields,
+                    )
+                )
         except OutputError:
             self.close()
             raise
@@ -416,8 +457,10 @@ class RunFiles:
 
         with path.open("a", encoding="utf-8") as f:
             describe = provenance.describe()
-            f.write(f"{time.strftime('%Y-%m-%d %H:%M:%S')} {provenance.version_line()}: "
-                    f"{describe['command']}\n")
+            f.write(
+                f"{time.strftime('%Y-%m-%d %H:%M:%S')} {provenance.version_line()}: "
+                f"{describe['command']}\n"
+            )
         log.addHandler(handler)
         self._log = handler
 
@@ -431,7 +474,7 @@ class RunFiles:
 
     def write_fields(self, t: float) -> None:
         for writer, fields in self.writers:
-            collectively(self.comm, lambda: writer.write(t, fields), writer.path)
+            collectively(self.comm, lambda w=writer, f=fields: w.write(t, f), writer.path)
 
     def close(self) -> None:
         """Close every file; a failure is only logged (each row was flushed when written). The
@@ -440,8 +483,10 @@ class RunFiles:
             log.removeHandler(self._log)
             self._log.close()
             self._log = None
-        for close, path in [(self.table.close, self.table.path),
-                            *[(w.close, w.path) for w, _ in self.writers]]:
+        for close, path in [
+            (self.table.close, self.table.path),
+            *[(w.close, w.path) for w, _ in self.writers],
+        ]:
             try:
                 collectively(self.comm, close, path)
             except OutputError as e:  # raised on every rank: said once
@@ -453,10 +498,22 @@ SPACE_MARGIN = 64 * 1024
 """Bytes kept free beyond what a write needs (:func:`ensure_space`)."""
 
 
-RUN_FILES = ("config.yaml", "metrics.csv", "metrics.csv.partial", "summary.json", "run.log",
-             "wall_indices.csv", "wall_indices.csv.partial",
-             "fields*.xdmf", "fields*.h5", "solid*.xdmf", "solid*.h5", "checkpoint",
-             "checkpoint.partial", "checkpoint.previous")
+RUN_FILES = (
+    "config.yaml",
+    "metrics.csv",
+    "metrics.csv.partial",
+    "summary.json",
+    "run.log",
+    "wall_indices.csv",
+    "wall_indices.csv.partial",
+    "fields*.xdmf",
+    "fields*.h5",
+    "solid*.xdmf",
+    "solid*.h5",
+    "checkpoint",
+    "checkpoint.partial",
+    "checkpoint.previous",
+)
 """What ``fsi run`` writes into its ``--out`` folder (glob patterns); ``--overwrite`` deletes
 these and nothing else."""
 
@@ -513,8 +570,10 @@ def _check_folder(out: Path, earlier_run: bool) -> str:
     earlier = run_files(out) if existing == out and not earlier_run else []
     if earlier:
         names = ", ".join(p.name for p in earlier[:4]) + (", ..." if len(earlier) > 4 else "")
-        return (f"{out} holds an earlier run ({names}): continue it with --restart {out},"
-                " replace it with --overwrite, or choose another --out")
+        return (
+            f"{out} holds an earlier run ({names}): continue it with --restart {out},"
+            " replace it with --overwrite, or choose another --out"
+        )
     return ""
 
 
@@ -524,6 +583,7 @@ def write_table(comm: MPI.Comm, path: Path, columns: list[str], rows: list[list]
     cell, infinity as ``inf``. Written to ``<path>.partial`` and renamed, so ``path`` is always
     a complete table. Collective (:func:`on_rank0`: :class:`OutputError` on every rank if it
     cannot be written)."""
+
     def cell(value) -> str:
         return "" if isinstance(value, float) and math.isnan(value) else _format(value)
 

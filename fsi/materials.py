@@ -22,11 +22,11 @@ Both linearise to Hooke's law with the same ``λ, μ``; :func:`lame` turns (E, �
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Protocol, Union, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import ufl
 
-Parameter = Union[float, Any]
+Parameter = float | Any
 """A number, a :class:`dolfinx.fem.Constant` or a UFL expression (e.g. a DG0 field)."""
 
 
@@ -119,8 +119,10 @@ class NeoHookean:
     def strain_energy(self, F):
         J = ufl.det(F)
         d = F.ufl_shape[0]
-        return (0.5 * self.mu * (ufl.tr(F.T * F) - d - 2 * ufl.ln(J))
-                + 0.5 * self.lmbda * ufl.ln(J) ** 2)
+        return (
+            0.5 * self.mu * (ufl.tr(F.T * F) - d - 2 * ufl.ln(J))
+            + 0.5 * self.lmbda * ufl.ln(J) ** 2
+        )
 
     def second_piola(self, F):
         J = ufl.det(F)
@@ -156,13 +158,13 @@ class KelvinVoigt:
     name: str = "kelvin_voigt"
 
     @classmethod
-    def stiffness_proportional(cls, relaxation_time: Parameter, lmbda: Parameter,
-                               mu: Parameter) -> KelvinVoigt:
+    def stiffness_proportional(
+        cls, relaxation_time: Parameter, lmbda: Parameter, mu: Parameter
+    ) -> KelvinVoigt:
         """``λ_v = τλ, μ_v = τμ`` for the relaxation time τ (s)."""
         return cls(relaxation_time * lmbda, relaxation_time * mu)
 
-    def second_piola(self, F: ufl.core.expr.Expr, grad_v: ufl.core.expr.Expr
-                     ) -> ufl.core.expr.Expr:
+    def second_piola(self, F: ufl.core.expr.Expr, grad_v: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
         """``S_v(F, ∇η̇)``."""
         rate = green_lagrange_rate(F, grad_v)
         return self.lmbda * ufl.tr(rate) * ufl.Identity(F.ufl_shape[0]) + 2 * self.mu * rate

@@ -149,12 +149,13 @@ def _build_model(case: Case) -> None:
 
 def geometry_module(case: Case):
     """The module of geometry/ that builds the case's geometry."""
-    return {StenosisGeometry: stenosis, ChannelGeometry: channel,
-            TurekHronGeometry: turek_hron}[type(case.geometry)]
+    return {StenosisGeometry: stenosis, ChannelGeometry: channel, TurekHronGeometry: turek_hron}[
+        type(case.geometry)
+    ]
 
 
 def extract(tagged: TaggedMesh, *regions: Region):
-    """The submesh of ``regions`` (e.g. the fluid, or wall + cap + lipid) and its parent-cell map."""
+    """The submesh of ``regions`` (e.g. the fluid, or wall + cap + lipid), its parent-cell map."""
     return compat.create_submesh(tagged.mesh, tagged.mesh.topology.dim, tagged.cells(*regions))
 
 
@@ -169,11 +170,16 @@ def restrict(tagged: TaggedMesh, *regions: Region) -> TaggedMesh:
     mesh.topology.create_connectivity(tdim, tdim - 1)
 
     # A submesh cell keeps its parent's vertex order, so local facet k is the parent's facet k.
-    n_sub = submesh.topology.index_map(tdim).size_local + submesh.topology.index_map(tdim).num_ghosts
+    n_sub = (
+        submesh.topology.index_map(tdim).size_local + submesh.topology.index_map(tdim).num_ghosts
+    )
     sub_c2f = _cell_facets(submesh, n_sub)
-    parent_c2f = _cell_facets(mesh, mesh.topology.index_map(tdim).size_local
-                              + mesh.topology.index_map(tdim).num_ghosts)[parent_cells[:n_sub]]
-    n_parent_facets = mesh.topology.index_map(tdim - 1).size_local + mesh.topology.index_map(tdim - 1).num_ghosts
+    parent_c2f = _cell_facets(
+        mesh, mesh.topology.index_map(tdim).size_local + mesh.topology.index_map(tdim).num_ghosts
+    )[parent_cells[:n_sub]]
+    n_parent_facets = (
+        mesh.topology.index_map(tdim - 1).size_local + mesh.topology.index_map(tdim - 1).num_ghosts
+    )
     parent_to_sub = np.full(n_parent_facets, -1, dtype=np.int32)
     parent_to_sub[parent_c2f.ravel()] = sub_c2f.ravel()
 
@@ -184,23 +190,33 @@ def restrict(tagged: TaggedMesh, *regions: Region) -> TaggedMesh:
     order = np.argsort(sub_facets)
     sub_facets, values = sub_facets[order], values[order]
     parent_facets = np.flatnonzero(keep)[order].astype(np.int32)
-    if not np.allclose(_midpoints(submesh, sub_facets), _midpoints(mesh, parent_facets),
-                       rtol=0.0, atol=1e-12 * _extent(mesh)):
+    if not np.allclose(
+        _midpoints(submesh, sub_facets),
+        _midpoints(mesh, parent_facets),
+        rtol=0.0,
+        atol=1e-12 * _extent(mesh),
+    ):
         raise RuntimeError("restrict: the submesh's facets do not match the parent's")
     facet_tags = dolfinx.mesh.meshtags(submesh, tdim - 1, sub_facets, values)
 
-    parent_cell_values = np.full(mesh.topology.index_map(tdim).size_local
-                                 + mesh.topology.index_map(tdim).num_ghosts, -1, dtype=np.int32)
+    parent_cell_values = np.full(
+        mesh.topology.index_map(tdim).size_local + mesh.topology.index_map(tdim).num_ghosts,
+        -1,
+        dtype=np.int32,
+    )
     parent_cell_values[tagged.cell_tags.indices] = tagged.cell_tags.values
     cell_values = parent_cell_values[parent_cells]
-    cell_tags = dolfinx.mesh.meshtags(submesh, tdim, np.arange(len(parent_cells), dtype=np.int32),
-                                      cell_values)
+    cell_tags = dolfinx.mesh.meshtags(
+        submesh, tdim, np.arange(len(parent_cells), dtype=np.int32), cell_values
+    )
     cell_tags.name, facet_tags.name = "cell_tags", "facet_tags"
     return TaggedMesh(submesh, cell_tags, facet_tags, parent_cells)
 
 
 def _midpoints(mesh, facets: np.ndarray) -> np.ndarray:
-    nodes = compat.entities_to_geometry(mesh, mesh.topology.dim - 1, facets).reshape(len(facets), -1)
+    nodes = compat.entities_to_geometry(mesh, mesh.topology.dim - 1, facets).reshape(
+        len(facets), -1
+    )
     return mesh.geometry.x[nodes].mean(axis=1)
 
 
@@ -235,13 +251,16 @@ def summary(tagged: TaggedMesh, case: Case) -> dict:
         return float(comm.allreduce(local, op=MPI.SUM))
 
     builder = geometry_module(case)
-    cells = {r.label: comm.allreduce(_owned_count(tagged.cells(r), cell_map))
-             for r in builder.REGIONS}
+    cells = {
+        r.label: comm.allreduce(_owned_count(tagged.cells(r), cell_map)) for r in builder.REGIONS
+    }
     cells["total"] = cell_map.size_global
     areas = {r.label: area(dx(int(r))) for r in builder.REGIONS}
     areas["total"] = area(dx)
-    facets = {b.label: comm.allreduce(_owned_count(tagged.facets(b), facet_map))
-              for b in builder.BOUNDARIES}
+    facets = {
+        b.label: comm.allreduce(_owned_count(tagged.facets(b), facet_map))
+        for b in builder.BOUNDARIES
+    }
     result = {"cells": cells, "area_m2": areas, "facets": facets}
     if isinstance(case.geometry, StenosisGeometry):
         result["measures"] = stenosis_measures(tagged, case.geometry)
@@ -268,7 +287,8 @@ def turek_hron_measures(tagged: TaggedMesh, g: TurekHronGeometry) -> dict:
     from point A to the nearest mesh vertex (0 when A is a vertex).
     """
     cylinder = len(facet_segments(tagged, Boundary.OBSTACLE)) + len(
-        facet_segments(tagged, Boundary.CLAMPED))
+        facet_segments(tagged, Boundary.CLAMPED)
+    )
     interface = facet_segments(tagged, Boundary.INTERFACE)
     on_tip = np.abs(interface[:, :, 0] - turek_hron.tip_x(g)) <= 1e-12 * g.length
     a = np.array(turek_hron.point_a(g))
@@ -290,7 +310,11 @@ def stenosis_measures(tagged: TaggedMesh, g: StenosisGeometry) -> dict:
     interface = facet_segments(tagged, Boundary.INTERFACE)
     y = interface[:, :, 1].ravel()
     # With plaque on both sides each is lower than half the lumen; with one, all is that side's.
-    split = g.height / 2 if len(g.plaque_sides) == 2 else (np.inf if "bottom" in g.plaque_sides else -np.inf)
+    split = (
+        g.height / 2
+        if len(g.plaque_sides) == 2
+        else (np.inf if "bottom" in g.plaque_sides else -np.inf)
+    )
     bottom = y[y < split].max(initial=0.0)
     top = (g.height - y[y >= split]).max(initial=0.0)
     lipid_vertices = facet_segments(tagged, Boundary.CAP_LIPID).reshape(-1, 2)

@@ -47,8 +47,8 @@ import ufl
 
 from fsi import compat, config
 from fsi.interface import owned_interface_dofs
-from fsi.newton import petsc_options
 from fsi.mesh import TaggedMesh
+from fsi.newton import petsc_options
 from fsi.timestepping import bdf_weights
 from geometry.stenosis import distance_to_segments
 from geometry.tags import Boundary
@@ -69,7 +69,8 @@ class MeshQualityError(RuntimeError):
         super().__init__(
             f"fluid mesh {what}: a cell's area ratio J/J_ref = {ratio:.4g} at "
             f"({self.where[0]:.6g}, {self.where[1]:.6g}) m is below the threshold "
-            f"mesh_motion.min_jacobian_ratio = {threshold:g}")
+            f"mesh_motion.min_jacobian_ratio = {threshold:g}"
+        )
 
 
 @dataclass
@@ -105,9 +106,14 @@ class MeshMotion:
             0 is exact); the biharmonic's forms are integrated exactly whatever it is.
     """
 
-    def __init__(self, tagged: TaggedMesh, settings: config.MeshMotion | None = None,
-                 moving: Sequence[Boundary] = (Boundary.INTERFACE,),
-                 fixed: Sequence[Boundary] | None = None, quadrature_degree: int = 1):
+    def __init__(
+        self,
+        tagged: TaggedMesh,
+        settings: config.MeshMotion | None = None,
+        moving: Sequence[Boundary] = (Boundary.INTERFACE,),
+        fixed: Sequence[Boundary] | None = None,
+        quadrature_degree: int = 1,
+    ):
         settings = settings or config.MeshMotion()
         self.settings = settings
         self.mesh = mesh = tagged.mesh
@@ -144,8 +150,9 @@ class MeshMotion:
         self.dof_points = self.V.tabulate_dof_coordinates()[:, :gdim].copy()
         points = self.dof_points[self._node_dofs]
         scale = 1.0 + np.abs(self.reference).max(initial=0.0)
-        local_ok = np.allclose(points, self.reference[self._nodes, :gdim], rtol=0,
-                               atol=1e-12 * scale)
+        local_ok = np.allclose(
+            points, self.reference[self._nodes, :gdim], rtol=0, atol=1e-12 * scale
+        )
         if not self.comm.allreduce(bool(local_ok), op=MPI.LAND):
             raise RuntimeError("MeshMotion: P1 dofs and geometry nodes do not coincide")
         self._n_owned_cells = mesh.topology.index_map(tdim).size_local
@@ -165,8 +172,10 @@ class MeshMotion:
         self.interface_dofs = owned_interface_dofs(self.V, self._moving_facets)
         n_moving = self.comm.allreduce(len(self.interface_dofs), op=MPI.SUM)
         if n_moving == 0:
-            raise ValueError("MeshMotion: no facet carries a moving boundary tag "
-                             f"{[b.label for b in self.moving]}")
+            raise ValueError(
+                "MeshMotion: no facet carries a moving boundary tag "
+                f"{[b.label for b in self.moving]}"
+            )
         bs = self.V.dofmap.index_map_bs
         n_owned = self.V.dofmap.index_map.size_local
         bc = np.union1d(self._moving_dofs, fixed_dofs)
@@ -210,8 +219,9 @@ class MeshMotion:
     def _forms(self):
         """The bilinear form of the harmonic or elastic extension."""
         u, v = ufl.TrialFunction(self.V), ufl.TestFunction(self.V)
-        dx = ufl.Measure("dx", domain=self.mesh,
-                         metadata={"quadrature_degree": self.quadrature_degree})
+        dx = ufl.Measure(
+            "dx", domain=self.mesh, metadata={"quadrature_degree": self.quadrature_degree}
+        )
         if self.settings.method == "harmonic":
             return self.k * ufl.inner(ufl.grad(u), ufl.grad(v)) * dx
         nu = self.settings.poisson_ratio
@@ -242,7 +252,8 @@ class MeshMotion:
 
         def lumped(weight):
             vec = dolfinx.fem.petsc.assemble_vector(
-                dolfinx.fem.form(weight * ufl.inner(ones, v) * dx))
+                dolfinx.fem.form(weight * ufl.inner(ones, v) * dx)
+            )
             vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
             return vec
 
@@ -253,8 +264,7 @@ class MeshMotion:
         A0 = None
         for i in range(self.gdim):
             for j in range(self.gdim):  # H_ij = ∂_i ∂_j d
-                b_ij = (-ufl.inner(u.dx(j), v.dx(i)) * dx
-                        + ufl.inner(u.dx(j), v) * n[i] * ds)
+                b_ij = -ufl.inner(u.dx(j), v.dx(i)) * dx + ufl.inner(u.dx(j), v) * n[i] * ds
                 B = dolfinx.fem.petsc.assemble_matrix(dolfinx.fem.form(b_ij))
                 B.assemble()
                 WB = B.copy()
@@ -343,8 +353,8 @@ class MeshMotion:
         """Move the mesh to x = X + d (X the reference coordinates)."""
         gdim = self.gdim
         self.mesh.geometry.x[self._nodes, :gdim] = (
-            self.reference[self._nodes, :gdim]
-            + self.d.x.array.reshape(-1, gdim)[self._node_dofs])
+            self.reference[self._nodes, :gdim] + self.d.x.array.reshape(-1, gdim)[self._node_dofs]
+        )
 
     def reset(self) -> None:
         """Move the mesh back to its reference coordinates X (d is kept)."""
@@ -392,8 +402,9 @@ class MeshMotion:
 
     # ---- time levels
 
-    def mesh_velocity(self, dt: float, order: int = 1,
-                      dt_previous: float | None = None) -> dolfinx.fem.Function:
+    def mesh_velocity(
+        self, dt: float, order: int = 1, dt_previous: float | None = None
+    ) -> dolfinx.fem.Function:
         """w = Σ_k a_k d^{n+1−k}: backward Euler (d − d^n)/dt, or variable-step BDF2."""
         weights = bdf_weights(order, dt, dt_previous)
         history = (self.d.x.array, self.d_n, self.d_nm1)
@@ -407,8 +418,13 @@ class MeshMotion:
 
     def save_state(self) -> MeshMotionState:
         """Snapshot of d, its history, the boundary data and w (kept for restore_state)."""
-        self._saved = MeshMotionState(self.d.x.array.copy(), self.d_n.copy(), self.d_nm1.copy(),
-                                      self.g.x.array.copy(), self.w.x.array.copy())
+        self._saved = MeshMotionState(
+            self.d.x.array.copy(),
+            self.d_n.copy(),
+            self.d_nm1.copy(),
+            self.g.x.array.copy(),
+            self.w.x.array.copy(),
+        )
         return self._saved
 
     def restore_state(self, state: MeshMotionState | None = None) -> None:

@@ -10,10 +10,11 @@ exceptions say so (:meth:`WallSampler.local`, :class:`WallIndices` of a rank's s
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 from mpi4py import MPI
+from petsc4py import PETSc
 
 import dolfinx
 import dolfinx.fem
@@ -21,7 +22,6 @@ import dolfinx.fem.petsc
 import dolfinx.mesh
 import numpy as np
 import ufl
-from petsc4py import PETSc
 
 from fsi import compat, rheology
 
@@ -52,8 +52,9 @@ def nodal_value(f: dolfinx.fem.Function, point: Sequence[float]) -> np.ndarray:
     V = f.function_space
     n, bs = V.dofmap.index_map.size_local, V.dofmap.index_map_bs
     x = V.tabulate_dof_coordinates()[:n, : len(point)]
-    hit = np.flatnonzero(np.linalg.norm(x - np.asarray(point), axis=1) < 1e-10 * (
-        1 + np.linalg.norm(point)))
+    hit = np.flatnonzero(
+        np.linalg.norm(x - np.asarray(point), axis=1) < 1e-10 * (1 + np.linalg.norm(point))
+    )
     found = np.concatenate(V.mesh.comm.allgather(_owned_blocks(f)[hit])).reshape(-1, bs)
     if len(found) != 1:
         raise ValueError(f"{len(found)} nodes of {f.name!r} at {list(point)} (expected one)")
@@ -75,7 +76,7 @@ class WallShearStress:
     tau: np.ndarray
     normal: np.ndarray
 
-    def where(self, mask: np.ndarray) -> "WallShearStress":
+    def where(self, mask: np.ndarray) -> WallShearStress:
         return WallShearStress(self.s[mask], self.x[mask], self.tau[mask], self.normal[mask])
 
 
@@ -109,9 +110,15 @@ class WallSampler:
     local sample's facet tag, ``reference`` its coordinates when the sampler was built (the
     reference configuration if built before the mesh moves), both (size,) and (size, 2)."""
 
-    def __init__(self, u: dolfinx.fem.Function, p: dolfinx.fem.Function,
-                 law: rheology.ViscosityLaw, facet_tags: dolfinx.mesh.MeshTags,
-                 tags: Sequence[int], direction: Sequence[float] = (1.0, 0.0)):
+    def __init__(
+        self,
+        u: dolfinx.fem.Function,
+        p: dolfinx.fem.Function,
+        law: rheology.ViscosityLaw,
+        facet_tags: dolfinx.mesh.MeshTags,
+        tags: Sequence[int],
+        direction: Sequence[float] = (1.0, 0.0),
+    ):
         mesh = u.function_space.mesh
         self.mesh, self.comm = mesh, mesh.comm
         tdim = mesh.topology.dim
@@ -125,13 +132,14 @@ class WallSampler:
         f2c = mesh.topology.connectivity(fdim, tdim)
         c2f = mesh.topology.connectivity(tdim, fdim)
         self.cells = np.array([f2c.links(f)[0] for f in self.facets], dtype=np.int32)
-        local_facet = np.array([int(np.flatnonzero(c2f.links(c) == f)[0])
-                                for c, f in zip(self.cells, self.facets)], dtype=np.int64)
+        local_facet = np.array(
+            [int(np.flatnonzero(c2f.links(c) == f)[0]) for c, f in zip(self.cells, self.facets)],
+            dtype=np.int64,
+        )
         self._rows = np.stack([2 * local_facet, 2 * local_facet + 1], axis=1)  # (nf, 2)
         x = ufl.SpatialCoordinate(mesh)
         sigma = rheology.cauchy_stress(u, p, law)
-        values_at = ufl.as_vector([sigma[0, 0], sigma[0, 1], sigma[1, 0], sigma[1, 1],
-                                   x[0], x[1]])
+        values_at = ufl.as_vector([sigma[0, 0], sigma[0, 1], sigma[1, 0], sigma[1, 1], x[0], x[1]])
         self._expression = dolfinx.fem.Expression(values_at, _facet_points())
         self._direction = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
         self.walls = np.repeat(values[owned].astype(np.int64), 2)
@@ -180,10 +188,14 @@ class WallSampler:
         return WallShearStress(s[order], points[order], tau[order], normal[order])
 
 
-def wall_shear_stress(u: dolfinx.fem.Function, p: dolfinx.fem.Function,
-                      law: rheology.ViscosityLaw, facet_tags: dolfinx.mesh.MeshTags,
-                      tags: Sequence[int], direction: Sequence[float] = (1.0, 0.0)
-                      ) -> WallShearStress:
+def wall_shear_stress(
+    u: dolfinx.fem.Function,
+    p: dolfinx.fem.Function,
+    law: rheology.ViscosityLaw,
+    facet_tags: dolfinx.mesh.MeshTags,
+    tags: Sequence[int],
+    direction: Sequence[float] = (1.0, 0.0),
+) -> WallShearStress:
     """τ_w = t·(σ n) at two Gauss points of every facet of the walls ``tags``, gathered on
     every rank and ordered by ``s`` (:class:`WallSampler`, built for this one call: a loop
     keeps a sampler instead). Collective."""
@@ -200,11 +212,19 @@ def lumen_sides(wss: WallShearStress) -> dict[str, WallShearStress]:
 def wall_shear_summary(wss: WallShearStress) -> dict[str, float]:
     """``min_wss``, ``max_wss`` (Pa) over the walls and ``recirculation_length`` (m), the
     longest reversed-flow zone along either wall of the lumen (MODEL.md §6, Figure 9)."""
-    length = max((recirculation_length(side.s, side.tau)
-                  for side in lumen_sides(wss).values() if len(side.s)), default=0.0)
-    return {"min_wss": float(wss.tau.min(initial=np.inf)),
-            "max_wss": float(wss.tau.max(initial=-np.inf)),
-            "recirculation_length": float(length)}
+    length = max(
+        (
+            recirculation_length(side.s, side.tau)
+            for side in lumen_sides(wss).values()
+            if len(side.s)
+        ),
+        default=0.0,
+    )
+    return {
+        "min_wss": float(wss.tau.min(initial=np.inf)),
+        "max_wss": float(wss.tau.max(initial=-np.inf)),
+        "recirculation_length": float(length),
+    }
 
 
 def recirculation_zones(s: np.ndarray, tau: np.ndarray) -> list[tuple[float, float]]:
@@ -275,8 +295,7 @@ class WallIndices:
             raise ValueError(f"a step must end after the last one ({self.time!r}), got t = {t!r}")
         tau = np.asarray(tau, dtype=float)
         if tau.shape != (len(self.integrals),):
-            raise ValueError(f"expected {len(self.integrals)} wall shear stresses, got "
-                             f"{tau.shape}")
+            raise ValueError(f"expected {len(self.integrals)} wall shear stresses, got {tau.shape}")
         weight = t - max(self.time, self.start) if t > self.start else 0.0
         self.integrals[:, 0] += weight * tau
         self.integrals[:, 1] += weight * np.abs(tau)
@@ -314,15 +333,15 @@ class WallIndices:
     def state(self) -> dict[str, np.ndarray]:
         """``integrals`` (size, 2): ∫ τ dt and ∫ |τ| dt per sample; ``window`` (2,): the time
         of the last step and T."""
-        return {"integrals": self.integrals.copy(),
-                "window": np.array([self.time, self.duration])}
+        return {"integrals": self.integrals.copy(), "window": np.array([self.time, self.duration])}
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
         """Continue from :meth:`state`'s arrays (the integrals of the same samples)."""
         integrals = np.asarray(state["integrals"], dtype=float).reshape(-1, 2)
         if len(integrals) != len(self.integrals):
-            raise ValueError(f"expected integrals of {len(self.integrals)} samples, got "
-                             f"{len(integrals)}")
+            raise ValueError(
+                f"expected integrals of {len(self.integrals)} samples, got {len(integrals)}"
+            )
         self.integrals = integrals.copy()
         self.time, self.duration = (float(v) for v in state["window"])
 
@@ -331,20 +350,31 @@ class WallIndices:
 # Forces
 
 
-def surface_force(u: dolfinx.fem.Function, p: dolfinx.fem.Function, law: rheology.ViscosityLaw,
-                  facet_tags: dolfinx.mesh.MeshTags, tags: Sequence[int],
-                  quadrature_degree: int = 4) -> np.ndarray:
+def surface_force(
+    u: dolfinx.fem.Function,
+    p: dolfinx.fem.Function,
+    law: rheology.ViscosityLaw,
+    facet_tags: dolfinx.mesh.MeshTags,
+    tags: Sequence[int],
+    quadrature_degree: int = 4,
+) -> np.ndarray:
     """(F_x, F_y) = ∫ σ n_b ds over ``tags``, the force of the fluid on a body whose outward
     normal n_b = −n points into the fluid (Turek–Hron's drag and lift, N/m). The residual-based
     :meth:`fsi.fluid.FluidSolver.boundary_force` is the more accurate variant."""
     mesh = u.function_space.mesh
-    ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags,
-                     metadata={"quadrature_degree": quadrature_degree})
+    ds = ufl.Measure(
+        "ds",
+        domain=mesh,
+        subdomain_data=facet_tags,
+        metadata={"quadrature_degree": quadrature_degree},
+    )
     tags = [int(t) for t in tags]
     measure = sum((ds(t) for t in tags[1:]), ds(tags[0]))
     traction = -rheology.cauchy_stress(u, p, law) * ufl.FacetNormal(mesh)
-    force = [dolfinx.fem.assemble_scalar(dolfinx.fem.form(traction[i] * measure))
-             for i in range(mesh.geometry.dim)]
+    force = [
+        dolfinx.fem.assemble_scalar(dolfinx.fem.form(traction[i] * measure))
+        for i in range(mesh.geometry.dim)
+    ]
     return mesh.comm.allreduce(np.array(force, dtype=float), op=MPI.SUM)
 
 
@@ -352,15 +382,23 @@ def surface_force(u: dolfinx.fem.Function, p: dolfinx.fem.Function, law: rheolog
 # Flow rates
 
 
-def flow_rate_form(u: dolfinx.fem.Function, facet_tags: dolfinx.mesh.MeshTags,
-                   tags: Sequence[int], quadrature_degree: int = 2) -> dolfinx.fem.Form:
+def flow_rate_form(
+    u: dolfinx.fem.Function,
+    facet_tags: dolfinx.mesh.MeshTags,
+    tags: Sequence[int],
+    quadrature_degree: int = 2,
+) -> dolfinx.fem.Form:
     """The compiled form ∫_Γ u·n ds over the facets ``tags`` of ``u``'s mesh (n the outward
     unit normal), for :func:`total`: compile it once, assemble it every step (it reads the
     mesh's current coordinates, so it follows a moving mesh). The default degree 2 integrates
     a P2 velocity exactly on straight facets (n is constant)."""
     mesh = u.function_space.mesh
-    ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags,
-                     metadata={"quadrature_degree": quadrature_degree})
+    ds = ufl.Measure(
+        "ds",
+        domain=mesh,
+        subdomain_data=facet_tags,
+        metadata={"quadrature_degree": quadrature_degree},
+    )
     tags = [int(t) for t in tags]
     measure = sum((ds(t) for t in tags[1:]), ds(tags[0]))
     return dolfinx.fem.form(ufl.dot(u, ufl.FacetNormal(mesh)) * measure)
@@ -372,8 +410,13 @@ def total(form: dolfinx.fem.Form, comm: MPI.Comm) -> float:
     return comm.allreduce(dolfinx.fem.assemble_scalar(form), op=MPI.SUM)
 
 
-def flow_rate(u: dolfinx.fem.Function, facet_tags: dolfinx.mesh.MeshTags,
-              tags: Sequence[int], sign: float = 1.0, quadrature_degree: int = 2) -> float:
+def flow_rate(
+    u: dolfinx.fem.Function,
+    facet_tags: dolfinx.mesh.MeshTags,
+    tags: Sequence[int],
+    sign: float = 1.0,
+    quadrature_degree: int = 2,
+) -> float:
     """Q = sign ∫_Γ u·n ds over the facets ``tags`` of ``u``'s mesh, n the outward unit normal:
     the volume flow rate per unit depth (m²/s) through Γ, on the mesh as it is now (moved or
     not). ``sign`` = +1 counts outflow as positive (an outlet), −1 inflow (an inlet), so that
@@ -394,12 +437,21 @@ class BoundaryMean:
     current coordinates, so the mean follows a moving mesh). The default degree 2 integrates a
     P1 or P2 ``f`` exactly on straight facets."""
 
-    def __init__(self, f: dolfinx.fem.Function, facet_tags: dolfinx.mesh.MeshTags,
-                 tags: Sequence[int], quadrature_degree: int = 2):
+    def __init__(
+        self,
+        f: dolfinx.fem.Function,
+        facet_tags: dolfinx.mesh.MeshTags,
+        tags: Sequence[int],
+        quadrature_degree: int = 2,
+    ):
         mesh = f.function_space.mesh
         self.comm = mesh.comm
-        ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags,
-                         metadata={"quadrature_degree": quadrature_degree})
+        ds = ufl.Measure(
+            "ds",
+            domain=mesh,
+            subdomain_data=facet_tags,
+            metadata={"quadrature_degree": quadrature_degree},
+        )
         tags = [int(t) for t in tags]
         measure = sum((ds(t) for t in tags[1:]), ds(tags[0]))
         self._integral = dolfinx.fem.form(f * measure)
@@ -431,8 +483,9 @@ def shear_rate_field(u: dolfinx.fem.Function, degree: int = 1) -> dolfinx.fem.Fu
     return _field(rheology.shear_rate(u), u.function_space.mesh, "shear_rate", degree)
 
 
-def viscosity_field(u: dolfinx.fem.Function, law: rheology.ViscosityLaw,
-                    degree: int = 1) -> dolfinx.fem.Function:
+def viscosity_field(
+    u: dolfinx.fem.Function, law: rheology.ViscosityLaw, degree: int = 1
+) -> dolfinx.fem.Function:
     """The effective viscosity μ(s(u)) (Pa s) interpolated into discontinuous P``degree``."""
     return _field(law.mu(rheology.shear_rate(u)), u.function_space.mesh, "viscosity", degree)
 
@@ -448,9 +501,15 @@ class FluidFields:
     tangent with t·e_x ≥ 0, the sign convention of :func:`wall_shear_stress`.
     """
 
-    def __init__(self, u: dolfinx.fem.Function, p: dolfinx.fem.Function,
-                 law: rheology.ViscosityLaw, facet_tags: dolfinx.mesh.MeshTags,
-                 walls: Sequence[int], quadrature_degree: int = 2):
+    def __init__(
+        self,
+        u: dolfinx.fem.Function,
+        p: dolfinx.fem.Function,
+        law: rheology.ViscosityLaw,
+        facet_tags: dolfinx.mesh.MeshTags,
+        walls: Sequence[int],
+        quadrature_degree: int = 2,
+    ):
         mesh = u.function_space.mesh
         cells = compat.function_space(mesh, "DG", 0)
         self.shear_rate = dolfinx.fem.Function(cells, name="shear_rate")
@@ -463,11 +522,16 @@ class FluidFields:
             self.viscosity.x.array[:] = float(mu)
         else:
             self._expressions.append((self.viscosity, dolfinx.fem.Expression(mu, points)))
-        self.wall_shear_stress = dolfinx.fem.Function(compat.function_space(mesh, "Lagrange", 1),
-                                                      name="wall_shear_stress")
+        self.wall_shear_stress = dolfinx.fem.Function(
+            compat.function_space(mesh, "Lagrange", 1), name="wall_shear_stress"
+        )
         walls = [int(w) for w in walls]
-        ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags,
-                         metadata={"quadrature_degree": quadrature_degree})
+        ds = ufl.Measure(
+            "ds",
+            domain=mesh,
+            subdomain_data=facet_tags,
+            metadata={"quadrature_degree": quadrature_degree},
+        )
         on_walls = sum((ds(w) for w in walls[1:]), ds(walls[0]))
         n = ufl.FacetNormal(mesh)
         along = ufl.as_vector((n[1], -n[0]))
@@ -484,8 +548,9 @@ class FluidFields:
     def update(self) -> None:
         for target, expression in self._expressions:
             target.interpolate(expression)
-        weighted, mass = (dolfinx.fem.petsc.assemble_vector(f)
-                          for f in (self._weighted, self._mass))
+        weighted, mass = (
+            dolfinx.fem.petsc.assemble_vector(f) for f in (self._weighted, self._mass)
+        )
         for vec in (weighted, mass):
             vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         tau = self.wall_shear_stress

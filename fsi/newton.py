@@ -30,8 +30,9 @@ from __future__ import annotations
 
 import contextlib
 import logging
+from collections.abc import Callable, Hashable, Iterator
 from dataclasses import dataclass
-from typing import Callable, Hashable, Iterator, Literal
+from typing import Literal
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -177,8 +178,14 @@ class Newton:
     (|δx_k|), against ``atol`` or ``rtol`` times the first one.
     """
 
-    def __init__(self, comm: MPI.Comm, problem, settings, prefix: str,
-                 criterion: Literal["residual", "incremental"] = "residual"):
+    def __init__(
+        self,
+        comm: MPI.Comm,
+        problem,
+        settings,
+        prefix: str,
+        criterion: Literal["residual", "incremental"] = "residual",
+    ):
         self.comm, self.prefix = comm, prefix
         self.options = dict(settings.petsc_options)
         solver = dolfinx.nls.petsc.NewtonSolver(comm, problem)
@@ -194,11 +201,13 @@ class Newton:
             ksp.setFromOptions()
         self.solver = solver
         # Residual and Jacobian through one object: Jacobian (and LU) reuse, counters.
-        self.callbacks = NewtonCallbacks(problem, solver, settings.jacobian_reuse,
-                                         settings.jacobian_reuse_rate)
+        self.callbacks = NewtonCallbacks(
+            problem, solver, settings.jacobian_reuse, settings.jacobian_reuse_rate
+        )
 
-    def solve(self, u: dolfinx.fem.Function, residual: Callable[[], float],
-              step: Hashable = None) -> SolveResult:
+    def solve(
+        self, u: dolfinx.fem.Function, residual: Callable[[], float], step: Hashable = None
+    ) -> SolveResult:
         """Solve for ``u`` from its current value (collective). ``residual()`` gives the
         residual norm after the solve; ``step`` identifies the time step for Jacobian reuse.
         On failure (no convergence, a PETSc error, a non-finite residual or ``u``) ``u`` is
@@ -211,13 +220,18 @@ class Newton:
         except RuntimeError as e:  # a PETSc error, raised on every rank
             iterations, converged, reason = self.solver.max_it, False, f"PETSc: {e}"
         norm = float(residual())
-        finite = bool(self.comm.allreduce(bool(np.isfinite(u.x.array).all())
-                                          and np.isfinite(norm), op=MPI.LAND))
+        finite = bool(
+            self.comm.allreduce(
+                bool(np.isfinite(u.x.array).all()) and np.isfinite(norm), op=MPI.LAND
+            )
+        )
         if not finite:
             converged, reason = False, reason or "non-finite residual or solution"
         elif not converged and not reason:
-            reason = (f"Newton did not converge in {iterations} iterations (residual"
-                      f" {norm:.3e}, atol {self.solver.atol:g}, rtol {self.solver.rtol:g})")
+            reason = (
+                f"Newton did not converge in {iterations} iterations (residual"
+                f" {norm:.3e}, atol {self.solver.atol:g}, rtol {self.solver.rtol:g})"
+            )
         if not converged:
             u.x.array[:] = guess
             u.x.scatter_forward()

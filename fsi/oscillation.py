@@ -87,8 +87,9 @@ def up_crossings(t: np.ndarray, y: np.ndarray, level: float, band: float = 0.0) 
     return np.asarray(times)
 
 
-def analyse(t: np.ndarray, y: np.ndarray, start: float | None = None,
-            window: int = 1) -> Oscillation:
+def analyse(
+    t: np.ndarray, y: np.ndarray, start: float | None = None, window: int = 1
+) -> Oscillation:
     """Mean, amplitude and frequency of y(t) over its last ``window`` full periods.
 
     Args:
@@ -112,8 +113,9 @@ def analyse(t: np.ndarray, y: np.ndarray, start: float | None = None,
         t, y = t[keep], y[keep]
     needed = max(2, window)
     if len(t) < 3:
-        raise OscillationError(f"{len(t)} samples{_after(start)}: need at least {needed} "
-                               "complete periods")
+        raise OscillationError(
+            f"{len(t)} samples{_after(start)}: need at least {needed} complete periods"
+        )
     tail = t >= t[0] + 0.75 * (t[-1] - t[0])
     level = (y[tail].max() + y[tail].min()) / 2
     half_range = (y[tail].max() - y[tail].min()) / 2
@@ -123,7 +125,8 @@ def analyse(t: np.ndarray, y: np.ndarray, start: float | None = None,
             raise OscillationError(
                 f"only {max(len(crossings) - 1, 0)} complete period(s) in t = [{t[0]:.6g}, "
                 f"{t[-1]:.6g}]{_after(start)} ({len(crossings)} upward crossings of the level "
-                f"{level:.6g}); need at least {needed}: run longer or start the analysis earlier")
+                f"{level:.6g}); need at least {needed}: run longer or start the analysis earlier"
+            )
         a, b = crossings[-1 - window], crossings[-1]
         inside = (t >= a) & (t <= b)
         high, low = y[inside].max(), y[inside].min()
@@ -132,9 +135,16 @@ def analyse(t: np.ndarray, y: np.ndarray, start: float | None = None,
             break
         level = new_level
     periods = np.diff(crossings)
-    return Oscillation(mean=(high + low) / 2, amplitude=(high - low) / 2,
-                       frequency=window / (b - a), periods=len(periods), start=a, end=b,
-                       period_change=(periods[-1] - periods[-2]) / periods[-1], level=level)
+    return Oscillation(
+        mean=(high + low) / 2,
+        amplitude=(high - low) / 2,
+        frequency=window / (b - a),
+        periods=len(periods),
+        start=a,
+        end=b,
+        period_change=(periods[-1] - periods[-2]) / periods[-1],
+        level=level,
+    )
 
 
 def _after(start: float | None) -> str:
@@ -158,12 +168,16 @@ class Reference:
     def parse(cls, text: str) -> Reference:
         """From ``"439.45 ± 5.6183 [4.3956]"`` (``+-`` for ±; amplitude and frequency optional)."""
         number = r"([-+−]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)"
-        match = re.fullmatch(rf"\s*{number}\s*(?:(?:±|\+-)\s*{number})?\s*(?:\[\s*{number}\s*"
-                             r"(?:Hz)?\s*\])?\s*", text)
+        match = re.fullmatch(
+            rf"\s*{number}\s*(?:(?:±|\+-)\s*{number})?\s*(?:\[\s*{number}\s*"
+            r"(?:Hz)?\s*\])?\s*",
+            text,
+        )
         if match is None:
             raise ValueError(f"not a reference 'mean ± amplitude [frequency]': {text!r}")
-        mean, amplitude, frequency = (None if g is None else float(g.replace("−", "-"))
-                                      for g in match.groups())
+        mean, amplitude, frequency = (
+            None if g is None else float(g.replace("−", "-")) for g in match.groups()
+        )
         return cls(mean, amplitude or 0.0, frequency)
 
     def __str__(self) -> str:
@@ -206,13 +220,18 @@ def relative_difference(measured: float, reference: float) -> float:
     return measured / reference - 1
 
 
-def compare(measured: Oscillation, reference: Reference,
-            tolerance: Tolerance = Tolerance()) -> dict[str, Difference]:
+def compare(
+    measured: Oscillation, reference: Reference, tolerance: Tolerance = Tolerance()
+) -> dict[str, Difference]:
     """Relative differences of mean, amplitude and (if the reference has one) frequency, each
     with its tolerance: ``{"mean": Difference, "amplitude": ..., "frequency": ...}``."""
-    pairs = {"mean": (measured.mean, reference.mean, tolerance.mean),
-             "amplitude": (measured.amplitude, reference.amplitude, tolerance.amplitude)}
+    pairs = {
+        "mean": (measured.mean, reference.mean, tolerance.mean),
+        "amplitude": (measured.amplitude, reference.amplitude, tolerance.amplitude),
+    }
     if reference.frequency is not None:
         pairs["frequency"] = (measured.frequency, reference.frequency, tolerance.frequency)
-    return {name: Difference(m, r, relative_difference(m, r), tol)
-            for name, (m, r, tol) in pairs.items()}
+    return {
+        name: Difference(m, r, relative_difference(m, r), tol)
+        for name, (m, r, tol) in pairs.items()
+    }

@@ -43,8 +43,7 @@ class OutletModel(Protocol):
         rate, with the time weights (a₀, a₁, a₂) of the step."""
         ...
 
-    def advance(self, state: np.ndarray, flow_rate: float,
-                weights: Sequence[float]) -> np.ndarray:
+    def advance(self, state: np.ndarray, flow_rate: float, weights: Sequence[float]) -> np.ndarray:
         """The state after the step whose flow rate was ``flow_rate``."""
         ...
 
@@ -66,8 +65,7 @@ class Resistance:
     def pressure_law(self, state: np.ndarray, weights: Sequence[float]) -> tuple[float, float]:
         return self.reference_pressure, self.resistance
 
-    def advance(self, state: np.ndarray, flow_rate: float,
-                weights: Sequence[float]) -> np.ndarray:
+    def advance(self, state: np.ndarray, flow_rate: float, weights: Sequence[float]) -> np.ndarray:
         return state
 
     def state_values(self, state: np.ndarray) -> dict[str, float]:
@@ -87,24 +85,24 @@ class Windkessel:
     def initial_state(self) -> np.ndarray:
         return np.array([self.initial_pressure, self.initial_pressure])
 
-    def capacitor_pressure(self, state: np.ndarray, flow_rate: float,
-                           weights: Sequence[float]) -> float:
+    def capacitor_pressure(
+        self, state: np.ndarray, flow_rate: float, weights: Sequence[float]
+    ) -> float:
         """P_c^{n+1} = (Q + P_ref/R_d − C (a₁ P_c^n + a₂ P_c^{n−1})) / (C a₀ + 1/R_d)."""
         a0, a1, a2 = weights
         C, Rd = self.compliance, self.distal_resistance
         history = a1 * state[0] + a2 * state[1]
-        return float((flow_rate + self.reference_pressure / Rd - C * history)
-                     / (C * a0 + 1 / Rd))
+        return float((flow_rate + self.reference_pressure / Rd - C * history) / (C * a0 + 1 / Rd))
 
     def pressure_law(self, state: np.ndarray, weights: Sequence[float]) -> tuple[float, float]:
         """P = P_c^{n+1}(Q) + R_p Q: P₀' = P_c^{n+1}(0), R' = R_p + 1/(C a₀ + 1/R_d)."""
         a0 = weights[0]
         at_zero_flow = self.capacitor_pressure(state, 0.0, weights)
-        return at_zero_flow, self.proximal_resistance + 1 / (self.compliance * a0
-                                                             + 1 / self.distal_resistance)
+        return at_zero_flow, self.proximal_resistance + 1 / (
+            self.compliance * a0 + 1 / self.distal_resistance
+        )
 
-    def advance(self, state: np.ndarray, flow_rate: float,
-                weights: Sequence[float]) -> np.ndarray:
+    def advance(self, state: np.ndarray, flow_rate: float, weights: Sequence[float]) -> np.ndarray:
         return np.array([self.capacitor_pressure(state, flow_rate, weights), state[0]])
 
     def state_values(self, state: np.ndarray) -> dict[str, float]:

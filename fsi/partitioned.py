@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Optional
 
 from mpi4py import MPI
 
@@ -40,9 +39,9 @@ import dolfinx.fem
 import numpy as np
 
 from fsi import config, coupling, fluid, mesh, solid
-from fsi.newton import SolveResult
 from fsi.interface import InterfaceMap
 from fsi.mesh_motion import MeshMotion
+from fsi.newton import SolveResult
 from geometry.tags import Boundary, Region
 
 
@@ -61,16 +60,21 @@ class FluidInterface:
     collapse a cell, and :class:`fsi.newton.SolveFailed` when the fluid step fails.
     """
 
-    def __init__(self, fluid_solver: fluid.FluidSolver, motion: MeshMotion,
-                 to_fluid: InterfaceMap, to_solid: InterfaceMap,
-                 interface: tuple[Boundary, ...] = (Boundary.INTERFACE,),
-                 warm_start: bool = True):
+    def __init__(
+        self,
+        fluid_solver: fluid.FluidSolver,
+        motion: MeshMotion,
+        to_fluid: InterfaceMap,
+        to_solid: InterfaceMap,
+        interface: tuple[Boundary, ...] = (Boundary.INTERFACE,),
+        warm_start: bool = True,
+    ):
         self.fluid, self.motion = fluid_solver, motion
         self.to_fluid, self.to_solid = to_fluid, to_solid
         self.interface, self.warm_start = tuple(int(b) for b in interface), warm_start
         self.eta = dolfinx.fem.Function(fluid_solver.V, name="interface_displacement")
         self.t, self.dt = math.nan, math.nan
-        self.last: Optional[SolveResult] = None
+        self.last: SolveResult | None = None
         self.newton_iterations = 0  # over the coupling iterations of the current step
         self.solves = 0  # coupling iterations of the current step so far
         self.mesh_quality = 1.0  # min J/J_ref of the last mesh motion
@@ -168,12 +172,19 @@ class CoupledProblem:
         """The Dirichlet–Neumann iterations of the step ending at ``t`` (collective)."""
         self.begin_step(t, dt)
         return coupling.couple_step(
-            self.fluid_side, self.solid_side, self.acceleration, self.predictor,
-            self.fluid.comm, tolerance=self.settings.tolerance,
-            max_iterations=self.settings.max_iterations, step=index, t=t)
+            self.fluid_side,
+            self.solid_side,
+            self.acceleration,
+            self.predictor,
+            self.fluid.comm,
+            tolerance=self.settings.tolerance,
+            max_iterations=self.settings.max_iterations,
+            step=index,
+            t=t,
+        )
 
     @property
-    def relaxation(self) -> Optional[float]:
+    def relaxation(self) -> float | None:
         """The relaxation factor ω of the last iteration (Aitken, constant), else None."""
         return self.acceleration.relaxation
 
@@ -189,25 +200,40 @@ def build_coupled(case: config.Case, comm: MPI.Comm = MPI.COMM_WORLD) -> Coupled
         raise ValueError("structure.mode 'rigid' has no structure to couple")
     whole = mesh.build(case, comm)
     fluid_mesh = mesh.restrict(whole, Region.FLUID)
-    boundaries = fluid.boundary_conditions(case.fluid, mesh.geometry_module(case).BOUNDARIES,
-                                           moving_interface=True)
-    fluid_solver = fluid.FluidSolver(fluid_mesh.mesh, fluid_mesh.facet_tags, case.fluid,
-                                     boundaries, scheme=case.time.scheme)
+    boundaries = fluid.boundary_conditions(
+        case.fluid, mesh.geometry_module(case).BOUNDARIES, moving_interface=True
+    )
+    fluid_solver = fluid.FluidSolver(
+        fluid_mesh.mesh, fluid_mesh.facet_tags, case.fluid, boundaries, scheme=case.time.scheme
+    )
     # Built before the mesh ever moves: both keep the reference coordinates X.
     motion = MeshMotion(fluid_mesh, case.mesh_motion, moving=(Boundary.INTERFACE,))
     solid_solver = solid.build(case, whole, comm)
     fluid_facets = fluid_mesh.facets(Boundary.INTERFACE)
-    to_fluid = InterfaceMap(solid_solver.V, solid_solver.interface_facets, fluid_solver.V,
-                            fluid_facets)
-    to_solid = InterfaceMap(fluid_solver.V, fluid_facets, solid_solver.V,
-                            solid_solver.interface_facets)
-    if not (np.array_equal(to_fluid.src_dofs, solid_solver.interface_dofs)
-            and np.array_equal(to_solid.dst_dofs, solid_solver.interface_dofs)):
+    to_fluid = InterfaceMap(
+        solid_solver.V, solid_solver.interface_facets, fluid_solver.V, fluid_facets
+    )
+    to_solid = InterfaceMap(
+        fluid_solver.V, fluid_facets, solid_solver.V, solid_solver.interface_facets
+    )
+    if not (
+        np.array_equal(to_fluid.src_dofs, solid_solver.interface_dofs)
+        and np.array_equal(to_solid.dst_dofs, solid_solver.interface_dofs)
+    ):
         raise RuntimeError("the solid's interface vector and the interface maps disagree")
     fluid_side = FluidInterface(fluid_solver, motion, to_fluid, to_solid)
     solid_side = SolidInterface(solid_solver)
     predictor = coupling.predictor_from_config(case.coupling)
     predictor.record(solid_solver.interface_displacement().ravel(), 0.0)
-    return CoupledProblem(whole, fluid_mesh, fluid_solver, motion, fluid_side, solid_solver,
-                          solid_side, coupling.from_config(case.coupling, comm), predictor,
-                          case.coupling)
+    return CoupledProblem(
+        whole,
+        fluid_mesh,
+        fluid_solver,
+        motion,
+        fluid_side,
+        solid_solver,
+        solid_side,
+        coupling.from_config(case.coupling, comm),
+        predictor,
+        case.coupling,
+    )

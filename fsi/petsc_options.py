@@ -9,8 +9,10 @@ from fsi.config_reader import ConfigError, shorten
 
 # Sub-solver prefixes inside one solver's options: the blocks of block Jacobi / ASM (sub_),
 # the redundant PC, multigrid levels, fieldsplit blocks and a smoother's eigenvalue estimator.
-_PETSC_SUBSOLVER = (r"(?:(?:sub|redundant|mg_coarse|mg_levels(?:_[0-9]+)?|fieldsplit_[a-z0-9]+"
-                    r"|esteig)_)*")
+_PETSC_SUBSOLVER = (
+    r"(?:(?:sub|redundant|mg_coarse|mg_levels(?:_[0-9]+)?|fieldsplit_[a-z0-9]+"
+    r"|esteig)_)*"
+)
 
 _PETSC_OPTIONS = (
     # Krylov method: type, tolerances, iteration limits, restart lengths
@@ -61,13 +63,44 @@ _PETSC_REFUSED = (
     ("draw", "drawing options open windows or write files"),
 )
 _PETSC_TYPE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,63}")
-_HYPRE_NAMES = frozenset((
-    "Jacobi", "sequential-Gauss-Seidel", "seqboundary-Gauss-Seidel", "SOR/Jacobi",
-    "backward-SOR/Jacobi", "symmetric-SOR/Jacobi", "l1scaled-SOR/Jacobi",
-    "Gaussian-elimination", "l1-Gauss-Seidel", "backward-l1-Gauss-Seidel", "CG", "Chebyshev",
-    "FCF-Jacobi", "l1scaled-Jacobi", "CLJP", "Ruge-Stueben", "modifiedRuge-Stueben", "Falgout",
-    "PMIS", "HMIS", "classical", "direct", "multipass", "multipass-wts", "ext+i", "ext+i-cc",
-    "standard", "standard-wts", "FF", "FF1", "ext", "ext-mm", "ext+i-mm", "ext+e-mm"))
+_HYPRE_NAMES = frozenset(
+    (
+        "Jacobi",
+        "sequential-Gauss-Seidel",
+        "seqboundary-Gauss-Seidel",
+        "SOR/Jacobi",
+        "backward-SOR/Jacobi",
+        "symmetric-SOR/Jacobi",
+        "l1scaled-SOR/Jacobi",
+        "Gaussian-elimination",
+        "l1-Gauss-Seidel",
+        "backward-l1-Gauss-Seidel",
+        "CG",
+        "Chebyshev",
+        "FCF-Jacobi",
+        "l1scaled-Jacobi",
+        "CLJP",
+        "Ruge-Stueben",
+        "modifiedRuge-Stueben",
+        "Falgout",
+        "PMIS",
+        "HMIS",
+        "classical",
+        "direct",
+        "multipass",
+        "multipass-wts",
+        "ext+i",
+        "ext+i-cc",
+        "standard",
+        "standard-wts",
+        "FF",
+        "FF1",
+        "ext",
+        "ext-mm",
+        "ext+i-mm",
+        "ext+e-mm",
+    )
+)
 """BoomerAMG's smoother, coarsening and interpolation names: fixed words of PETSc's hypre
 interface, accepted although they contain ``/``, ``-`` or ``+``."""
 _NUMBER = r"[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?"
@@ -92,22 +125,42 @@ def check_petsc_options(options: dict[str, str | int | float], key: str) -> None
         sub = f"{key}.{name}"
         lower = name.lower()
         if len(name) > 100 or not re.fullmatch(r"[a-z0-9_]+", lower):
-            raise ConfigError("", shorten(sub), reason="not a PETSc option name: letters, "
-                              "digits and _ only, without the leading '-' (the prefix is added)")
+            raise ConfigError(
+                "",
+                shorten(sub),
+                reason="not a PETSc option name: letters, "
+                "digits and _ only, without the leading '-' (the prefix is added)",
+            )
         for pattern, why in _PETSC_REFUSED:
             if re.search(pattern, lower):
                 raise ConfigError("", sub, reason=f"refused PETSc option: {why}")
         if not _PETSC_ALLOWED.fullmatch(lower):
-            raise ConfigError("", sub, reason="not an allowed PETSc option (solver and "
-                              "preconditioner types, tolerances, iteration limits and tuning: "
-                              "the list is in docs/configuration.md)")
+            raise ConfigError(
+                "",
+                sub,
+                reason="not an allowed PETSc option (solver and "
+                "preconditioner types, tolerances, iteration limits and tuning: "
+                "the list is in docs/configuration.md)",
+            )
         if isinstance(value, str) and value not in _HYPRE_NAMES:
             if "python" in value.lower():
-                raise ConfigError("", sub, reason=f"refused value {shorten(repr(value))}: a "
-                                  "Python type imports and runs code the configuration names")
+                raise ConfigError(
+                    "",
+                    sub,
+                    reason=f"refused value {shorten(repr(value))}: a "
+                    "Python type imports and runs code the configuration names",
+                )
             if any(c in value for c in ":/\\~"):
-                raise ConfigError("", sub, reason=f"refused value {shorten(repr(value))}: no "
-                                  "file paths or viewer specifications")
+                raise ConfigError(
+                    "",
+                    sub,
+                    reason=f"refused value {shorten(repr(value))}: no "
+                    "file paths or viewer specifications",
+                )
             if not (_PETSC_TYPE_NAME.fullmatch(value) or _PETSC_NUMBERS.fullmatch(value)):
-                raise ConfigError("", sub, "a type name (letters, digits, _), a number or "
-                                  "comma-separated numbers", value)
+                raise ConfigError(
+                    "",
+                    sub,
+                    "a type name (letters, digits, _), a number or comma-separated numbers",
+                    value,
+                )

@@ -31,8 +31,7 @@ FILES = {"fluid": "fields", "structure": "solid"}
 """The field files' stems per domain."""
 DISPLACEMENTS = {"fluid": ("mesh_displacement",), "structure": ("displacement", "eta")}
 """The names a domain's displacement field may have (the first present is used)."""
-STRUCTURE_REGIONS = {r.label: int(r) for r in (Region.WALL, Region.CAP, Region.LIPID,
-                                                Region.FLAG)}
+STRUCTURE_REGIONS = {r.label: int(r) for r in (Region.WALL, Region.CAP, Region.LIPID, Region.FLAG)}
 REGIONS = ("fluid", *STRUCTURE_REGIONS)
 COMPONENTS = ("x", "y", "magnitude")
 
@@ -104,8 +103,7 @@ class Snapshot:
     @property
     def time_differs(self) -> bool:
         """True if the stored time is further than half a step from the requested one."""
-        return abs(self.time - self.requested_time) > 0.5 * self.step + _time_tolerance(
-            self.time)
+        return abs(self.time - self.requested_time) > 0.5 * self.step + _time_tolerance(self.time)
 
 
 def _time_tolerance(t: float) -> float:
@@ -118,7 +116,7 @@ def _segments(run_dir: Path, stem: str) -> list[Path]:
     exist), in the order they were written."""
     found = [(-1, run_dir / f"{stem}.xdmf")] if (run_dir / f"{stem}.xdmf").is_file() else []
     for path in run_dir.glob(f"{stem}.restart*.xdmf"):
-        k = path.name[len(stem) + len(".restart"):-len(".xdmf")]
+        k = path.name[len(stem) + len(".restart") : -len(".xdmf")]
         if k.isdigit():
             found.append((int(k), path))
     return [path for _, path in sorted(found)]
@@ -130,8 +128,7 @@ def _data_item(xdmf: Path, element: ET.Element | None, what: str) -> tuple[Path,
     item = None if element is None else element.find("DataItem")
     text = (item.text or "").strip() if item is not None else ""
     if item is None or item.get("Format") != "HDF" or ":" not in text:
-        raise PlotError(f"{xdmf}: {what} is not an HDF5 data item (not a file written by "
-                        "fsi run)")
+        raise PlotError(f"{xdmf}: {what} is not an HDF5 data item (not a file written by fsi run)")
     h5, dataset = text.rsplit(":", 1)
     return xdmf.parent / h5, dataset
 
@@ -159,14 +156,19 @@ def _read_segment(xdmf: Path) -> _Segment:
             try:
                 t = float(time.get("Value", ""))
             except ValueError:
-                raise PlotError(f"{xdmf}: field {name!r} has a time that is not a number: "
-                                f"{time.get('Value')!r}") from None
+                raise PlotError(
+                    f"{xdmf}: field {name!r} has a time that is not a number: {time.get('Value')!r}"
+                ) from None
             center = attribute.get("Center", "Node").lower()
             series.append((t, _data_item(xdmf, attribute, f"field {name!r} at t = {t:g}")))
         if series:
             fields[name] = (center, sorted(series, key=lambda s: s[0]))
-    return _Segment(xdmf, _data_item(xdmf, topology, "the topology"),
-                    _data_item(xdmf, mesh.find("Geometry"), "the geometry"), fields)
+    return _Segment(
+        xdmf,
+        _data_item(xdmf, topology, "the topology"),
+        _data_item(xdmf, mesh.find("Geometry"), "the geometry"),
+        fields,
+    )
 
 
 def _read_array(item: tuple[Path, str], xdmf: Path) -> np.ndarray:
@@ -215,8 +217,10 @@ def pick_time(times: list[float], t: float, what: str) -> tuple[int, float]:
         step = float(gaps[j])
     low, high = times_a[0] - step, times_a[-1] + step
     if not low - _time_tolerance(low) <= t <= high + _time_tolerance(high):
-        raise PlotError(f"--time {t:g}: outside the times stored in {what} "
-                        f"({times_a[0]:g} to {times_a[-1]:g} s)")
+        raise PlotError(
+            f"--time {t:g}: outside the times stored in {what} "
+            f"({times_a[0]:g} to {times_a[-1]:g} s)"
+        )
     return i, step
 
 
@@ -232,15 +236,18 @@ def _find(run_dir: Path, name: str) -> tuple[str, list[_Segment], list]:
         if segments:
             available[segments[0].xdmf.name] = sorted(merged)
     if not available:
-        raise PlotError(f"{run_dir}: no fields.xdmf or solid.xdmf (not a folder written by "
-                        "fsi run)")
-    listing = "; ".join(f"{file} has {', '.join(names) or 'none'}"
-                        for file, names in available.items())
+        raise PlotError(
+            f"{run_dir}: no fields.xdmf or solid.xdmf (not a folder written by fsi run)"
+        )
+    listing = "; ".join(
+        f"{file} has {', '.join(names) or 'none'}" for file, names in available.items()
+    )
     raise PlotError(f"--field {name}: {run_dir} has no such field ({listing})")
 
 
-def read_field(run_dir: Path, name: str, t: float, *, warp: float | None = None,
-               region: str | None = None) -> Snapshot:
+def read_field(
+    run_dir: Path, name: str, t: float, *, warp: float | None = None, region: str | None = None
+) -> Snapshot:
     """Field ``name`` of the run in ``run_dir`` at the stored time nearest to ``t`` (in the
     segment holding it; a later segment wins), on the triangles of ``region`` (``fluid`` for
     a fluid field; ``wall``, ``cap``, ``lipid``, ``flag`` for a structure field, from its
@@ -259,11 +266,15 @@ def read_field(run_dir: Path, name: str, t: float, *, warp: float | None = None,
     file = segments[0].xdmf.name
     if region is not None and (region == "fluid") != (domain == "fluid"):
         expected = "fluid" if domain == "fluid" else "wall, cap, lipid or flag"
-        raise PlotError(f"--region {region}: {name!r} is a {domain} field ({file}): use "
-                        f"--region {expected}")
+        raise PlotError(
+            f"--region {region}: {name!r} is a {domain} field ({file}): use --region {expected}"
+        )
     files = list(dict.fromkeys(entry[1].xdmf.name for entry in series))
-    i, step = pick_time([entry[0] for entry in series], t,
-                        f"{run_dir / files[0]}" + "".join(f", {f}" for f in files[1:]))
+    i, step = pick_time(
+        [entry[0] for entry in series],
+        t,
+        f"{run_dir / files[0]}" + "".join(f", {f}" for f in files[1:]),
+    )
     time, segment, item = series[i]
     center = segment.fields[name][0]
 
@@ -276,23 +287,42 @@ def read_field(run_dir: Path, name: str, t: float, *, warp: float | None = None,
     if warp is None:
         warp = 1.0 if domain == "fluid" and displacement is not None else 0.0
     if warp != 0.0 and displacement is None:
-        raise PlotError(f"--warp {warp:g}: {segment.xdmf} has no {DISPLACEMENTS[domain][0]} "
-                        f"field (the {domain} does not move in this run)")
+        raise PlotError(
+            f"--warp {warp:g}: {segment.xdmf} has no {DISPLACEMENTS[domain][0]} "
+            f"field (the {domain} does not move in this run)"
+        )
 
     cells = np.arange(len(triangles))
     if region is not None and region != "fluid":
         tags = _at_time(segment, ("region",), time)
         if tags is None:
-            raise PlotError(f"--region {region}: {segment.xdmf} has no 'region' field (a run "
-                            "written before fsi run stored it)")
+            raise PlotError(
+                f"--region {region}: {segment.xdmf} has no 'region' field (a run "
+                "written before fsi run stored it)"
+            )
         cells = np.flatnonzero(np.rint(tags).astype(np.int64) == STRUCTURE_REGIONS[region])
         if len(cells) == 0:
             raise PlotError(f"--region {region}: no {region} cells in {segment.xdmf}")
         triangles = triangles[cells]
         if center == "cell":
             values = values[cells]
-    return Snapshot(run_dir, name, domain, segment.xdmf, time, t, step, center, reference,
-                    displacement, float(warp), triangles, cells, values, region)
+    return Snapshot(
+        run_dir,
+        name,
+        domain,
+        segment.xdmf,
+        time,
+        t,
+        step,
+        center,
+        reference,
+        displacement,
+        float(warp),
+        triangles,
+        cells,
+        values,
+        region,
+    )
 
 
 def _at_time(segment: _Segment, names: tuple[str, ...], time: float) -> np.ndarray | None:
@@ -334,8 +364,10 @@ def streamline_field(snapshot: Snapshot) -> Snapshot:
     :func:`draw`'s streamlines. Raises :class:`PlotError` if the snapshot is not a fluid
     field."""
     if snapshot.domain != "fluid":
-        raise PlotError(f"--streamlines: draws the fluid velocity over a fluid field, but "
-                        f"{snapshot.name!r} is a {snapshot.domain} field ({snapshot.file.name})")
+        raise PlotError(
+            f"--streamlines: draws the fluid velocity over a fluid field, but "
+            f"{snapshot.name!r} is a {snapshot.domain} field ({snapshot.file.name})"
+        )
     return read_field(snapshot.run_dir, "velocity", snapshot.time, warp=snapshot.warp)
 
 
@@ -348,8 +380,11 @@ def title(snapshot: Snapshot) -> str:
     if snapshot.time_differs:
         text += f" (nearest stored to {snapshot.requested_time:.6g} s)"
     if snapshot.warp != 0.0:
-        text += (", current mesh" if snapshot.domain == "fluid" and snapshot.warp == 1.0
-                 else f", displacement ×{snapshot.warp:g}")
+        text += (
+            ", current mesh"
+            if snapshot.domain == "fluid" and snapshot.warp == 1.0
+            else f", displacement ×{snapshot.warp:g}"
+        )
     return text
 
 
@@ -364,8 +399,9 @@ def check_out(path: Path) -> None:
         raise PlotError(f"--out {path}: {path.parent} is not a folder")
 
 
-def draw(snapshot: Snapshot, path: Path, *, component: str | None = None,
-         flow: Snapshot | None = None) -> Path:
+def draw(
+    snapshot: Snapshot, path: Path, *, component: str | None = None, flow: Snapshot | None = None
+) -> Path:
     """Write ``path`` (PNG): the field as filled contours (node values shaded between the
     nodes, cell values flat) on the snapshot's coordinates in mm, equal aspect, with a colour
     bar labelled with the field and its unit and the :func:`title`; with ``flow`` (the fluid
@@ -399,11 +435,13 @@ def draw(snapshot: Snapshot, path: Path, *, component: str | None = None,
     triangulation = mtri.Triangulation(xy[:, 0], xy[:, 1], snapshot.triangles)
     lo, hi = xy[used].min(axis=0), xy[used].max(axis=0)
     aspect = (hi[1] - lo[1]) / max(hi[0] - lo[0], 1e-30)
-    fig, ax = plt.subplots(figsize=(9.0, min(max(9.0 * aspect + 1.6, 3.0), 9.0)),
-                           layout="constrained")
+    fig, ax = plt.subplots(
+        figsize=(9.0, min(max(9.0 * aspect + 1.6, 3.0), 9.0)), layout="constrained"
+    )
     if snapshot.center == "node":
-        image = ax.tripcolor(triangulation, values, shading="gouraud", cmap=cmap, vmin=low,
-                             vmax=high)
+        image = ax.tripcolor(
+            triangulation, values, shading="gouraud", cmap=cmap, vmin=low, vmax=high
+        )
     else:
         image = ax.tripcolor(triangulation, facecolors=values, cmap=cmap, vmin=low, vmax=high)
     if flow is not None:
@@ -415,14 +453,18 @@ def draw(snapshot: Snapshot, path: Path, *, component: str | None = None,
     ax.set_ylabel("y (mm)")
     ax.set_title(title(snapshot), fontsize=9)
     wide = aspect < 0.6  # a wide picture: the colour bar below it
-    bar = fig.colorbar(image, ax=ax, label=f"{prefix}{label}" + (f" ({unit})" if unit else ""),
-                       location="bottom" if wide else "right", shrink=0.6 if wide else 0.9,
-                       aspect=40 if wide else 20)
+    bar = fig.colorbar(
+        image,
+        ax=ax,
+        label=f"{prefix}{label}" + (f" ({unit})" if unit else ""),
+        location="bottom" if wide else "right",
+        shrink=0.6 if wide else 0.9,
+        aspect=40 if wide else 20,
+    )
     if quantity == "tag":  # name the regions present
         tags = [int(tag) for tag in np.unique(np.rint(shown))]
         bar.set_ticks(tags)
-        bar.set_ticklabels([Region(tag).label if tag in set(Region) else str(tag)
-                            for tag in tags])
+        bar.set_ticklabels([Region(tag).label if tag in set(Region) else str(tag) for tag in tags])
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_name(path.name + ".partial")
     try:
@@ -444,15 +486,33 @@ def _streamlines(ax, flow: Snapshot, lo: np.ndarray, hi: np.ndarray) -> None:
     ny = max(int(nx * (hi[1] - lo[1]) / max(hi[0] - lo[0], 1e-30)), 20)
     x, y = np.linspace(lo[0], hi[0], nx), np.linspace(lo[1], hi[1], ny)
     grid_x, grid_y = np.meshgrid(x, y)
-    u = [mtri.LinearTriInterpolator(triangulation, flow.values[:, k])(grid_x, grid_y)
-         for k in range(2)]
-    ax.streamplot(x, y, u[0], u[1], density=(2.0, max(2.0 * ny / nx, 0.6)), color="k",
-                  linewidth=0.5, arrowsize=0.6)
+    u = [
+        mtri.LinearTriInterpolator(triangulation, flow.values[:, k])(grid_x, grid_y)
+        for k in range(2)
+    ]
+    ax.streamplot(
+        x,
+        y,
+        u[0],
+        u[1],
+        density=(2.0, max(2.0 * ny / nx, 0.6)),
+        color="k",
+        linewidth=0.5,
+        arrowsize=0.6,
+    )
 
 
-def field_snapshot(run_dir: Path, field: str, t: float, path: Path, *,
-                   warp: float | None = None, region: str | None = None,
-                   streamlines: bool = False, component: str | None = None) -> Path:
+def field_snapshot(
+    run_dir: Path,
+    field: str,
+    t: float,
+    path: Path,
+    *,
+    warp: float | None = None,
+    region: str | None = None,
+    streamlines: bool = False,
+    component: str | None = None,
+) -> Path:
     """:func:`read_field` then :func:`draw` (with the velocity's streamlines if asked):
     writes ``path`` and returns it."""
     check_out(Path(path))

@@ -15,11 +15,11 @@ periodic inlet: summary.json's ``cycles``) get a table of their heartbeats
 with a caption line. Reads only the files ``fsi run`` writes: ``config.yaml``, ``metrics.csv``,
 ``summary.json``.
 
-Units (:func:`fsi.units.choose_unit`). ``metrics.csv`` holds SI units; each table and plot shows its
-quantity in one of a few units (:data:`fsi.units.UNITS`: stress and pressure Pa, kPa or MPa; displacement
-µm or mm; velocity cm/s or m/s; length mm; flow rate per unit depth cm²/s): the largest unit in
-which the largest magnitude shown is at least 1 (17 kPa, 300 Pa, 230 µm, 1.5 mm, 30 cm/s), the
-smallest one when there is none. Tables keep 4 significant digits.
+Units (:func:`fsi.units.choose_unit`). ``metrics.csv`` holds SI units; each table and plot shows
+its quantity in one of a few units (:data:`fsi.units.UNITS`: stress and pressure Pa, kPa or MPa;
+displacement µm or mm; velocity cm/s or m/s; length mm; flow rate per unit depth cm²/s): the
+largest unit in which the largest magnitude shown is at least 1 (17 kPa, 300 Pa, 230 µm,
+1.5 mm, 30 cm/s), the smallest one when there is none. Tables keep 4 significant digits.
 
 Scales (:func:`choose_scale`). Each plot has one group of lines per run (per waveform for
 P(t)), and a group's magnitude is its largest |value|. The plot is
@@ -61,8 +61,7 @@ class Run:
     @property
     def label(self) -> str:
         c = self.case
-        return (f"{self.path.name} ({c.structure.mode}, {c.fluid.rheology.model}, "
-                f"{c.mesh.level})")
+        return f"{self.path.name} ({c.structure.mode}, {c.fluid.rheology.model}, {c.mesh.level})"
 
 
 def load_run(path: Path) -> Run:
@@ -127,9 +126,11 @@ def choose_scale(series: Sequence[Sequence[float]]) -> str:
 # Tables
 
 
-TABLES = [("peak_velocity", "Peak velocity", "velocity"),
-          ("peak_pressure", "Peak pressure", "pressure"),
-          ("peak_displacement", "Peak displacement", "displacement")]
+TABLES = [
+    ("peak_velocity", "Peak velocity", "velocity"),
+    ("peak_pressure", "Peak pressure", "pressure"),
+    ("peak_displacement", "Peak displacement", "displacement"),
+]
 
 
 def value_at(rows: Sequence[dict[str, float]], t: float, column: str) -> float | None:
@@ -146,8 +147,13 @@ def _number(value: float | None, scale: float = 1.0) -> str:
     return "–" if value is None or not math.isfinite(value) else f"{scale * value:.4g}"
 
 
-def peaks_table(runs: Sequence[Run], column: str, title: str, quantity: str,
-                times: Sequence[float] | None = None) -> str:
+def peaks_table(
+    runs: Sequence[Run],
+    column: str,
+    title: str,
+    quantity: str,
+    times: Sequence[float] | None = None,
+) -> str:
     """A markdown table: one row per run, one column per report time (default: the first
     run's ``output.report_times``); '–' where a run has no step at that time. The values are
     in the unit :func:`choose_unit` picks for ``quantity`` from all of them, named in the
@@ -155,38 +161,43 @@ def peaks_table(runs: Sequence[Run], column: str, title: str, quantity: str,
     times = list(times if times is not None else runs[0].case.output.report_times)
     values = [[value_at(run.rows, t, column) for t in times] for run in runs]
     unit = choose_unit(quantity, [v for row in values for v in row if v is not None])
-    head = (f"| {title} ({unit.name}) | " + " | ".join(f"t = {t:g} s" for t in times) + " |")
+    head = f"| {title} ({unit.name}) | " + " | ".join(f"t = {t:g} s" for t in times) + " |"
     lines = [head, "|---" * (len(times) + 1) + "|"]
     for run, row in zip(runs, values):
-        lines.append(f"| {run.label} | " + " | ".join(_number(v, unit.scale) for v in row)
-                     + " |")
+        lines.append(f"| {run.label} | " + " | ".join(_number(v, unit.scale) for v in row) + " |")
     return "\n".join(lines)
 
 
 def effort_table(runs: Sequence[Run]) -> str:
     """Steps, simulated time, coupling iterations per step (mean, max) and wall time."""
-    lines = ["| run | steps | end (s) | coupling its/step (mean, max) | s/step | wall time (s) |",
-             "|---|---|---|---|---|---|"]
+    lines = [
+        "| run | steps | end (s) | coupling its/step (mean, max) | s/step | wall time (s) |",
+        "|---|---|---|---|---|---|",
+    ]
     for run in runs:
         its = [r["coupling_iterations"] for r in run.rows if "coupling_iterations" in r]
         wall = [r["wall_time_s"] for r in run.rows if "wall_time_s" in r]
         end = run.rows[-1]["t"] if run.rows else math.nan
         mean_its = f"{sum(its) / len(its):.2f}, {max(its):g}" if its else "–"
         finished = "" if run.summary else " (stopped)"
-        lines.append(f"| {run.label} | {len(run.rows)}{finished} | {_number(end)} | {mean_its} "
-                     f"| {_number(sum(wall) / len(wall) if wall else None)} "
-                     f"| {_number(sum(wall) if wall else None)} |")
+        lines.append(
+            f"| {run.label} | {len(run.rows)}{finished} | {_number(end)} | {mean_its} "
+            f"| {_number(sum(wall) / len(wall) if wall else None)} "
+            f"| {_number(sum(wall) if wall else None)} |"
+        )
     return "\n".join(lines)
 
 
-CYCLE_COLUMNS = [("peak_velocity", "peak velocity", "velocity"),
-                 ("peak_pressure", "peak pressure", "pressure"),
-                 ("peak_displacement", "peak displacement", "displacement"),
-                 ("max_sss", "max SSS", "stress"),
-                 ("max_principal_cap", "cap max principal", "stress"),
-                 ("inlet_flow_rate", "inlet flow rate", "flow_rate"),
-                 ("min_tawss", "min TAWSS", "stress"),
-                 ("max_osi", "max OSI", "count")]
+CYCLE_COLUMNS = [
+    ("peak_velocity", "peak velocity", "velocity"),
+    ("peak_pressure", "peak pressure", "pressure"),
+    ("peak_displacement", "peak displacement", "displacement"),
+    ("max_sss", "max SSS", "stress"),
+    ("max_principal_cap", "cap max principal", "stress"),
+    ("inlet_flow_rate", "inlet flow rate", "flow_rate"),
+    ("min_tawss", "min TAWSS", "stress"),
+    ("max_osi", "max OSI", "count"),
+]
 """The per-heartbeat values of summary.json's ``cycles`` that :func:`cycles_table` shows."""
 
 
@@ -206,8 +217,12 @@ def cycles_table(run: Run) -> str | None:
         if any(v for v in values):
             unit = choose_unit(quantity, [v for v in values if v is not None])
             shown.append((column, f"{title} ({unit.name})" if unit.name else title, unit))
-    lines = ["| heartbeat | t (s) | steps | " + " | ".join(head for _, head, _ in shown)
-             + " | largest change |", "|---" * (len(shown) + 4) + "|"]
+    lines = [
+        "| heartbeat | t (s) | steps | "
+        + " | ".join(head for _, head, _ in shown)
+        + " | largest change |",
+        "|---" * (len(shown) + 4) + "|",
+    ]
     for beat in cycles:
         cells = []
         for column, _, unit in shown:
@@ -216,29 +231,40 @@ def cycles_table(run: Run) -> str | None:
             cells.append(cell if change is None else f"{cell} ({100 * change:+.2g} %)")
         largest = beat.get("max_change")
         steps = f"{beat['steps']}{'' if beat['complete'] else ' (partial)'}"
-        lines.append(f"| {beat['cycle']} | {beat['start_s']:g}–{beat['end_s']:g} | {steps} | "
-                     + " | ".join(cells)
-                     + f" | {'–' if largest is None else f'{100 * largest:.2g} %'} |")
+        lines.append(
+            f"| {beat['cycle']} | {beat['start_s']:g}–{beat['end_s']:g} | {steps} | "
+            + " | ".join(cells)
+            + f" | {'–' if largest is None else f'{100 * largest:.2g} %'} |"
+        )
     return "\n".join(lines)
 
 
-def markdown(runs: Sequence[Run], times: Sequence[float] | None = None,
-             figures: Sequence[tuple[str, str]] = ()) -> str:
+def markdown(
+    runs: Sequence[Run],
+    times: Sequence[float] | None = None,
+    figures: Sequence[tuple[str, str]] = (),
+) -> str:
     """Tables 1–3 and the solver effort; for runs with heartbeats (a periodic inlet), a table
     of each run's heartbeats (:func:`cycles_table`); with ``figures`` ((PNG file name,
     caption) pairs), a section that shows each PNG followed by its caption line."""
-    parts = [f"## Table {i + 1}: {title}\n\n{peaks_table(runs, column, title, quantity, times)}"
-             for i, (column, title, quantity) in enumerate(TABLES)]
+    parts = [
+        f"## Table {i + 1}: {title}\n\n{peaks_table(runs, column, title, quantity, times)}"
+        for i, (column, title, quantity) in enumerate(TABLES)
+    ]
     parts.append(f"## Solver effort\n\n{effort_table(runs)}")
     beats = [(run, cycles_table(run)) for run in runs]
     if any(table for _, table in beats):
-        parts.append("## Heartbeats\n\nPer heartbeat: the largest value over its steps "
-                     "(TAWSS: the smallest of that heartbeat's own wall indices), in brackets "
-                     "its change from the previous heartbeat.\n\n" + "\n\n".join(
-                         f"{run.label}:\n\n{table}" for run, table in beats if table))
+        parts.append(
+            "## Heartbeats\n\nPer heartbeat: the largest value over its steps "
+            "(TAWSS: the smallest of that heartbeat's own wall indices), in brackets "
+            "its change from the previous heartbeat.\n\n"
+            + "\n\n".join(f"{run.label}:\n\n{table}" for run, table in beats if table)
+        )
     if figures:
-        parts.append("## Figures\n\n" + "\n\n".join(f"![{name}]({name})\n*{name}*: {caption}"
-                                                    for name, caption in figures))
+        parts.append(
+            "## Figures\n\n"
+            + "\n\n".join(f"![{name}]({name})\n*{name}*: {caption}" for name, caption in figures)
+        )
     return "\n\n".join(parts) + "\n"
 
 
@@ -274,8 +300,11 @@ def column_groups(runs: Sequence[Run], column: str) -> list[Group]:
     groups = []
     for k, run in enumerate(runs):
         rows = [r for r in run.rows if column in r]
-        groups.append(Group(run.label, k, [Line(run.label, [r["t"] for r in rows],
-                                                [r[column] for r in rows])]))
+        groups.append(
+            Group(
+                run.label, k, [Line(run.label, [r["t"] for r in rows], [r[column] for r in rows])]
+            )
+        )
     return groups
 
 
@@ -297,9 +326,17 @@ def range_groups(runs: Sequence[Run], low: str, high: str) -> list[Group]:
     for k, run in enumerate(runs):
         rows = [r for r in run.rows if low in r and high in r]
         t = [r["t"] for r in rows]
-        groups.append(Group(run.label, k, [Line("", t, [r[low] for r in rows], "--"),
-                                           Line("", t, [r[high] for r in rows], "-")],
-                            band=True))
+        groups.append(
+            Group(
+                run.label,
+                k,
+                [
+                    Line("", t, [r[low] for r in rows], "--"),
+                    Line("", t, [r[high] for r in rows], "-"),
+                ],
+                band=True,
+            )
+        )
     return groups
 
 
@@ -313,8 +350,14 @@ def flow_rate_groups(runs: Sequence[Run]) -> list[Group]:
         lines = []
         for column, boundary, style in FLOW_RATES:
             rows = [r for r in run.rows if column in r]
-            lines.append(Line(f"{run.label} {boundary}", [r["t"] for r in rows],
-                              [r[column] for r in rows], style))
+            lines.append(
+                Line(
+                    f"{run.label} {boundary}",
+                    [r["t"] for r in rows],
+                    [r[column] for r in rows],
+                    style,
+                )
+            )
         groups.append(Group(run.label, k, lines))
     return groups
 
@@ -340,8 +383,9 @@ def inlet_pressure_groups(runs: Sequence[Run]) -> list[Group]:
             pressure = inlet_pressure(inlet)
         except TypeError:  # a velocity inlet
             continue
-        end = max(run.rows[-1]["t"] if run.rows else config.run_time(run.case).end
-                  for run in sharing)  # time.cycles: N T
+        end = max(
+            run.rows[-1]["t"] if run.rows else config.run_time(run.case).end for run in sharing
+        )  # time.cycles: N T
         times = {end * i / (INLET_SAMPLES - 1) for i in range(INLET_SAMPLES)}
         times.update(r["t"] for run in sharing for r in run.rows)
         if isinstance(inlet, config.InletPressureTable):
@@ -361,8 +405,10 @@ def inlet_pressure_groups(runs: Sequence[Run]) -> list[Group]:
 def _describe(inlet: config.Inlet) -> str:
     """A short legend entry for a traction inlet."""
     if isinstance(inlet, config.InletPulse):
-        return (f"pulse (A/2)(1 − cos 2πt/T), A = {inlet.amplitude:g} Pa, "
-                f"T = {inlet.duration * 1e3:g} ms")
+        return (
+            f"pulse (A/2)(1 − cos 2πt/T), A = {inlet.amplitude:g} Pa, "
+            f"T = {inlet.duration * 1e3:g} ms"
+        )
     if isinstance(inlet, config.InletPressure):
         formula = inlet.formula if len(inlet.formula) <= 60 else inlet.formula[:57] + "..."
         return f"P = {formula}"
@@ -391,39 +437,94 @@ def _column(column: str) -> Callable[[Sequence[Run]], list[Group]]:
 
 
 FIGURES = [
-    Figure("max_sss", "Figure 6: the maximum structural shear stress max |σ₁₂| in the whole "
-           "structure (wall, cap and lipid) over time, one line per run.",
-           "max |σ₁₂| in the structure", "stress", _column("max_sss")),
-    Figure("max_sss_plaque", "Figure 6 in the plaque, as the study plots it: max |σ₁₂| over "
-           "the fibrous cap and the lipid pool (the larger of max_sss_cap and max_sss_lipid) "
-           "over time, one line per run.",
-           "max |σ₁₂| in the plaque", "stress",
-           lambda runs: maximum_groups(runs, ("max_sss_cap", "max_sss_lipid"))),
-    Figure("max_principal_cap", "The largest principal stress in the fibrous cap "
-           "(max_principal_cap, the usual rupture indicator) over time, one line per run.",
-           "max principal stress in the cap", "stress", _column("max_principal_cap")),
-    Figure("peak_velocity", "Table 1's peak velocity max |u| over time, one line per run.",
-           "peak velocity", "velocity", _column("peak_velocity")),
-    Figure("peak_pressure", "Table 2's peak pressure max p over time, one line per run.",
-           "peak pressure", "pressure", _column("peak_pressure")),
-    Figure("peak_displacement", "Table 3's peak displacement max |η| over time, one line per "
-           "run.", "peak displacement", "displacement", _column("peak_displacement")),
-    Figure("wall_shear_stress", "The range of the signed wall shear stress along the walls "
-           "over time, min_wss (dashed) to max_wss (solid), shaded, one band per run; negative "
-           "where the flow next to the wall reverses.",
-           "wall shear stress", "stress", lambda runs: range_groups(runs, "min_wss", "max_wss")),
-    Figure("recirculation_length", "The recirculation length (the longest reversed-flow zone "
-           "along either wall) over time, one line per run.",
-           "recirculation length", "length", _column("recirculation_length")),
-    Figure("coupling_iterations", "Dirichlet–Neumann coupling iterations per step, one line "
-           "per run.", "coupling iterations", "count", _column("coupling_iterations")),
-    Figure("flow_rate", "The inlet (solid) and outlet (dashed) flow rates per unit depth over "
-           "time, in cm²/s (= mL/s per cm of depth), one colour per run.",
-           "flow rate", "flow_rate", flow_rate_groups),
-    Figure("inlet_pressure", "The inlet pressure P(t) of the runs' configurations (traction "
-           "inlets; velocity inlets have none) over their time span, one line per distinct "
-           "waveform, named by the runs that share it.",
-           "inlet pressure P", "pressure", inlet_pressure_groups, group="waveform"),
+    Figure(
+        "max_sss",
+        "Figure 6: the maximum structural shear stress max |σ₁₂| in the whole "
+        "structure (wall, cap and lipid) over time, one line per run.",
+        "max |σ₁₂| in the structure",
+        "stress",
+        _column("max_sss"),
+    ),
+    Figure(
+        "max_sss_plaque",
+        "Figure 6 in the plaque, as the study plots it: max |σ₁₂| over "
+        "the fibrous cap and the lipid pool (the larger of max_sss_cap and max_sss_lipid) "
+        "over time, one line per run.",
+        "max |σ₁₂| in the plaque",
+        "stress",
+        lambda runs: maximum_groups(runs, ("max_sss_cap", "max_sss_lipid")),
+    ),
+    Figure(
+        "max_principal_cap",
+        "The largest principal stress in the fibrous cap "
+        "(max_principal_cap, the usual rupture indicator) over time, one line per run.",
+        "max principal stress in the cap",
+        "stress",
+        _column("max_principal_cap"),
+    ),
+    Figure(
+        "peak_velocity",
+        "Table 1's peak velocity max |u| over time, one line per run.",
+        "peak velocity",
+        "velocity",
+        _column("peak_velocity"),
+    ),
+    Figure(
+        "peak_pressure",
+        "Table 2's peak pressure max p over time, one line per run.",
+        "peak pressure",
+        "pressure",
+        _column("peak_pressure"),
+    ),
+    Figure(
+        "peak_displacement",
+        "Table 3's peak displacement max |η| over time, one line per run.",
+        "peak displacement",
+        "displacement",
+        _column("peak_displacement"),
+    ),
+    Figure(
+        "wall_shear_stress",
+        "The range of the signed wall shear stress along the walls "
+        "over time, min_wss (dashed) to max_wss (solid), shaded, one band per run; negative "
+        "where the flow next to the wall reverses.",
+        "wall shear stress",
+        "stress",
+        lambda runs: range_groups(runs, "min_wss", "max_wss"),
+    ),
+    Figure(
+        "recirculation_length",
+        "The recirculation length (the longest reversed-flow zone "
+        "along either wall) over time, one line per run.",
+        "recirculation length",
+        "length",
+        _column("recirculation_length"),
+    ),
+    Figure(
+        "coupling_iterations",
+        "Dirichlet–Neumann coupling iterations per step, one line per run.",
+        "coupling iterations",
+        "count",
+        _column("coupling_iterations"),
+    ),
+    Figure(
+        "flow_rate",
+        "The inlet (solid) and outlet (dashed) flow rates per unit depth over "
+        "time, in cm²/s (= mL/s per cm of depth), one colour per run.",
+        "flow rate",
+        "flow_rate",
+        flow_rate_groups,
+    ),
+    Figure(
+        "inlet_pressure",
+        "The inlet pressure P(t) of the runs' configurations (traction "
+        "inlets; velocity inlets have none) over their time span, one line per distinct "
+        "waveform, named by the runs that share it.",
+        "inlet pressure P",
+        "pressure",
+        inlet_pressure_groups,
+        group="waveform",
+    ),
 ]
 
 
@@ -441,8 +542,9 @@ def draw(groups: Sequence[Group], ylabel: str, quantity: str, path: Path) -> str
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    groups = [Group(g.label, g.colour, [line for line in g.lines if line.t], g.band)
-              for g in groups]
+    groups = [
+        Group(g.label, g.colour, [line for line in g.lines if line.t], g.band) for g in groups
+    ]
     groups = [g for g in groups if g.lines and (not g.band or len(g.lines) == 2)]
     if not groups:
         return None
@@ -451,20 +553,37 @@ def draw(groups: Sequence[Group], ylabel: str, quantity: str, path: Path) -> str
     scale = choose_scale(values)
     label = f"{ylabel} ({unit.name})" if unit.name else ylabel
     panels = len(groups) if scale == "panels" else 1
-    fig, axes = plt.subplots(panels, 1, sharex=True, squeeze=False, layout="constrained",
-                             figsize=(7, 4 if panels == 1 else 1.2 + 1.7 * panels))
+    fig, axes = plt.subplots(
+        panels,
+        1,
+        sharex=True,
+        squeeze=False,
+        layout="constrained",
+        figsize=(7, 4 if panels == 1 else 1.2 + 1.7 * panels),
+    )
     axes = list(axes[:, 0])
     for k, group in enumerate(groups):
         ax = axes[k if scale == "panels" else 0]
         colour = f"C{group.colour % 10}"
         for line in group.lines:
-            ax.plot(line.t, [unit.scale * v for v in line.y], line.style, lw=1.2, color=colour,
-                    label=line.label or "_nolegend_")
+            ax.plot(
+                line.t,
+                [unit.scale * v for v in line.y],
+                line.style,
+                lw=1.2,
+                color=colour,
+                label=line.label or "_nolegend_",
+            )
         if group.band:
             low, high = group.lines
-            ax.fill_between(low.t, [unit.scale * v for v in low.y],
-                            [unit.scale * v for v in high.y], color=colour, alpha=0.2,
-                            label=group.label)
+            ax.fill_between(
+                low.t,
+                [unit.scale * v for v in low.y],
+                [unit.scale * v for v in high.y],
+                color=colour,
+                alpha=0.2,
+                label=group.label,
+            )
     for ax in axes:
         if scale == "log":
             ax.set_yscale("log")
@@ -490,7 +609,7 @@ SCALE_NOTES = {
     "linear": "",
     "log": " Log y-axis: the {group}s' magnitudes differ by more than {ratio:g}×.",
     "panels": " One panel per {group} (each its own y-range): their magnitudes differ by more "
-              "than {ratio:g}× and not every value is positive.",
+    "than {ratio:g}× and not every value is positive.",
 }
 
 
@@ -514,8 +633,9 @@ def write(runs: Sequence[Run], out: Path, times: Sequence[float] | None = None) 
     return [out / "report.md", *pictures]
 
 
-def snapshots(runs: Sequence[Run], out: Path,
-              times: Sequence[float] | None = None) -> list[tuple[Path, str]]:
+def snapshots(
+    runs: Sequence[Run], out: Path, times: Sequence[float] | None = None
+) -> list[tuple[Path, str]]:
     """Field pictures (fsi/plot.py) at the report times of every run that has field files:
     the structural shear stress σ₁₂ on the structure (``<run>_sss_t<T>.png``) and the velocity
     with its streamlines on the current fluid mesh (``<run>_velocity_t<T>.png``). A time the
@@ -526,9 +646,15 @@ def snapshots(runs: Sequence[Run], out: Path,
     for run in runs:
         report_times = list(times if times is not None else run.case.output.report_times)
         last = run.rows[-1]["t"] if run.rows else -math.inf
-        pictures = [("sss", "solid.xdmf", {}, "structural shear stress σ₁₂ on the structure"),
-                    ("velocity", "fields.xdmf", {"streamlines": True},
-                     "velocity and streamlines on the current fluid mesh")]
+        pictures = [
+            ("sss", "solid.xdmf", {}, "structural shear stress σ₁₂ on the structure"),
+            (
+                "velocity",
+                "fields.xdmf",
+                {"streamlines": True},
+                "velocity and streamlines on the current fluid mesh",
+            ),
+        ]
         for field, file, options, what in pictures:
             if not (run.path / file).is_file():
                 continue

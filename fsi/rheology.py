@@ -176,8 +176,9 @@ class Casson:
             root = np.sqrt(m * s)
             with np.errstate(divide="ignore", invalid="ignore"):
                 # (1 − e^(−r)) / r → 1 as r = √(m s) → 0
-                ratio = np.where(root > 1e-8, -np.expm1(-root) / np.where(root > 0, root, 1),
-                                 1 - root / 2)
+                ratio = np.where(
+                    root > 1e-8, -np.expm1(-root) / np.where(root > 0, root, 1), 1 - root / 2
+                )
             yield_term = math.sqrt(tau_y * m) * ratio
         return (math.sqrt(mu_c) + yield_term) ** 2
 

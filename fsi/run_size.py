@@ -12,6 +12,7 @@ import math
 from geometry import stenosis as stenosis_geometry
 from geometry import turek_hron as turek_hron_geometry
 
+
 def format_count(n: float) -> str:
     """A step or cell count for a message: ``1,234,567``, ``8e+12`` if huge, ``over 1e308`` if
     it overflowed."""
@@ -76,8 +77,9 @@ def _turek_hron_cells_area(g, size: float, local: float) -> float:
     x_joint = g.cylinder_centre[0] + math.sqrt(r * r - t * t / 4)
     perimeter = 2 * math.pi * r + 2 * (turek_hron_geometry.tip_x(g) - x_joint) + t
     band = (size - local) / k
-    near = (perimeter / k * (1 / local - 1 / size)
-            + 2 * math.pi / k**2 * (math.log(size / local) + local / size - 1))
+    near = perimeter / k * (1 / local - 1 / size) + 2 * math.pi / k**2 * (
+        math.log(size / local) + local / size - 1
+    )
     total = turek_hron_geometry.analytic_areas(g)["total"]
     rest = max(total - perimeter * band - math.pi * band**2, 0.0)
     return near + rest / size / size

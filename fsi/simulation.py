@@ -14,16 +14,29 @@ from __future__ import annotations
 import logging
 import math
 import time as wallclock
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Protocol
+from typing import Protocol
 
 from mpi4py import MPI
 
 import numpy as np
 
-from fsi import (boundary_data, checkpoint, config, coupling, fluid, io, mesh, metrics,
-                 newton, partitioned, provenance, solid)
+from fsi import (
+    boundary_data,
+    checkpoint,
+    config,
+    coupling,
+    fluid,
+    io,
+    mesh,
+    metrics,
+    newton,
+    partitioned,
+    provenance,
+    solid,
+)
 from fsi.mesh_motion import MeshQualityError
 from fsi.timestepping import Step, steps
 from geometry import turek_hron
@@ -31,11 +44,26 @@ from geometry.tags import Boundary, Region
 
 log = logging.getLogger("fsi")
 
-COLUMNS = ["step", "t", "dt", "peak_velocity", "peak_pressure", "peak_displacement", "max_sss",
-           "coupling_iterations", "coupling_residual", "newton_iterations", "newton_residual",
-           "wall_time_s"]
-COUPLED_COLUMNS = COLUMNS + ["peak_wall_displacement", "relaxation", "solid_newton_iterations",
-                             "mesh_jacobian_ratio"]
+COLUMNS = [
+    "step",
+    "t",
+    "dt",
+    "peak_velocity",
+    "peak_pressure",
+    "peak_displacement",
+    "max_sss",
+    "coupling_iterations",
+    "coupling_residual",
+    "newton_iterations",
+    "newton_residual",
+    "wall_time_s",
+]
+COUPLED_COLUMNS = COLUMNS + [
+    "peak_wall_displacement",
+    "relaxation",
+    "solid_newton_iterations",
+    "mesh_jacobian_ratio",
+]
 WALL_COLUMNS = ["min_wss", "max_wss", "recirculation_length"]
 """Channel-like lumens (stenosis, channel): the signed wall shear stress's extremes (Pa) and the
 longest reversed-flow zone along either wall (m) (fsi.metrics.wall_shear_summary)."""
@@ -43,16 +71,23 @@ longest reversed-flow zone along either wall (m) (fsi.metrics.wall_shear_summary
 ``relaxation``: Aitken's (or the constant) ω of the step's last iteration, empty for IQN-ILS;
 ``newton_iterations``/``solid_newton_iterations``: fluid/solid Newton iterations summed over the
 step's coupling iterations; ``mesh_jacobian_ratio``: the fluid mesh's smallest J/J_ref."""
+
+
 def stress_columns(solver: solid.SolidSolver) -> list[str]:
     """The structure's stress maxima (Pa) beside ``max_sss``: ``max_von_mises``,
     ``max_principal`` over the whole structure, and ``max_sss_<region>``,
     ``max_von_mises_<region>``, ``max_principal_<region>`` per region (cap, lipid, wall; the
     Turek–Hron flag), where ``max_sss`` is the largest |σ₁₂| (fsi.solid.StressFields); with a
     fibrous cap, :data:`CAP_LOCATION_COLUMNS`."""
-    return ["max_von_mises", "max_principal"] + [
-        f"{name}_{region.label}" for region in solver.regions
-        for name in ("max_sss", "max_von_mises", "max_principal")] + (
-        CAP_LOCATION_COLUMNS if Region.CAP in solver.regions else [])
+    return (
+        ["max_von_mises", "max_principal"]
+        + [
+            f"{name}_{region.label}"
+            for region in solver.regions
+            for name in ("max_sss", "max_von_mises", "max_principal")
+        ]
+        + (CAP_LOCATION_COLUMNS if Region.CAP in solver.regions else [])
+    )
 
 
 CAP_LOCATION_COLUMNS = ["max_principal_cap_x", "max_principal_cap_y"]
@@ -66,9 +101,13 @@ def stress_row(solver: solid.SolidSolver) -> dict[str, float]:
     row = {}
     for label, m in solver.stress.region_maxima().items():
         suffix = "" if label == "all" else f"_{label}"
-        row.update({f"max_sss{suffix}": m.max_abs_shear,
-                    f"max_von_mises{suffix}": m.max_von_mises,
-                    f"max_principal{suffix}": m.max_principal})
+        row.update(
+            {
+                f"max_sss{suffix}": m.max_abs_shear,
+                f"max_von_mises{suffix}": m.max_von_mises,
+                f"max_principal{suffix}": m.max_principal,
+            }
+        )
     if Region.CAP in solver.regions:
         _, x, y = solver.stress.location_of_max("max_principal", Region.CAP)
         row.update(zip(CAP_LOCATION_COLUMNS, (x, y), strict=True))
@@ -95,10 +134,19 @@ def heartbeat(t: float, period: float) -> int:
     return max(1, math.ceil(t / period - 1e-9))
 
 
-HEADLINE = {"peak_velocity": max, "peak_pressure": max, "peak_displacement": max,
-            "max_sss": max, "max_principal_cap": max, "min_wss": min, "max_wss": max,
-            "recirculation_length": max, "inlet_flow_rate": max, "outlet_flow_rate": max,
-            "mean_inlet_pressure": max}
+HEADLINE = {
+    "peak_velocity": max,
+    "peak_pressure": max,
+    "peak_displacement": max,
+    "max_sss": max,
+    "max_principal_cap": max,
+    "min_wss": min,
+    "max_wss": max,
+    "recirculation_length": max,
+    "inlet_flow_rate": max,
+    "outlet_flow_rate": max,
+    "mean_inlet_pressure": max,
+}
 """The metrics columns summarised per heartbeat (:func:`cycle_table`) and how: their largest
 value over the heartbeat's steps (``min_wss``: the smallest)."""
 
@@ -123,21 +171,30 @@ def cycle_table(rows: list[dict], period: float, indices: list[dict]) -> list[di
                 values[column] = float(pick(found))
         if k <= len(indices):
             values.update({key: v for key, v in indices[k - 1].items() if v is not None})
-        change = {key: (v - previous[key]) / abs(previous[key])
-                  if previous.get(key) else None for key, v in values.items()}
+        change = {
+            key: (v - previous[key]) / abs(previous[key]) if previous.get(key) else None
+            for key, v in values.items()
+        }
         known = [abs(c) for c in change.values() if c is not None]
         end = beats[k][-1]["t"]
-        table.append({"cycle": k, "start_s": (k - 1) * period, "end_s": end,
-                      "steps": len(beats[k]), "complete": end >= k * period * (1 - 1e-9),
-                      "values": values, "change": change,
-                      "max_change": max(known) if known else None})
+        table.append(
+            {
+                "cycle": k,
+                "start_s": (k - 1) * period,
+                "end_s": end,
+                "steps": len(beats[k]),
+                "complete": end >= k * period * (1 - 1e-9),
+                "values": values,
+                "change": change,
+                "max_change": max(known) if known else None,
+            }
+        )
         previous = values
     return table
 
 
 def _number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(
-        value)
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 class RunStopped(Exception):
@@ -181,15 +238,21 @@ def unsupported(case: config.Case) -> str | None:
     mode = case.structure.mode
     if mode != "rigid" and case.structure.interface_load == "fluid":
         if case.structure.degree != 2:
-            return (f"structure.degree: the coupling pairs the fluid's P2 velocity nodes with "
-                    f"the structure's interface nodes, so structure.mode '{mode}' needs "
-                    f"structure.degree 2, got {case.structure.degree}")
+            return (
+                f"structure.degree: the coupling pairs the fluid's P2 velocity nodes with "
+                f"the structure's interface nodes, so structure.mode '{mode}' needs "
+                f"structure.degree 2, got {case.structure.degree}"
+            )
     return None
 
 
-def run(case: config.Case, out: Path, comm: MPI.Comm = MPI.COMM_WORLD,
-        restart: checkpoint.Checkpoint | None = None,
-        stop_requested: Callable[[], int | None] = lambda: None) -> RunResult:
+def run(
+    case: config.Case,
+    out: Path,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    restart: checkpoint.Checkpoint | None = None,
+    stop_requested: Callable[[], int | None] = lambda: None,
+) -> RunResult:
     """Run a case (rigid structure or coupled), writing ``out``'s files (see the README), from
     t = 0 or from the checkpoint ``restart`` (:func:`fsi.checkpoint.read`). ``stop_requested``
     returns the number of a signal that asks the run to stop, or None (polled after every
@@ -250,9 +313,15 @@ class Stepper(Protocol):
         localize`); the output fields are brought up to date."""
 
 
-def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start: float,
-          restart: checkpoint.Checkpoint | None = None,
-          stop_requested: Callable[[], int | None] = lambda: None) -> RunResult:
+def march(
+    case: config.Case,
+    out: Path,
+    comm: MPI.Comm,
+    stepper: Stepper,
+    start: float,
+    restart: checkpoint.Checkpoint | None = None,
+    stop_requested: Callable[[], int | None] = lambda: None,
+) -> RunResult:
     """Step ``stepper`` through the schedule: ``out/config.yaml``, a metrics row per step
     (flushed at once), fields every ``output.fields_every`` steps and at the end, a checkpoint
     (fsi/checkpoint.py) every ``output.checkpoint_every`` steps, at the end and when the run
@@ -287,15 +356,19 @@ def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start:
     files = _open_outputs(case, out, comm, stepper, restart, period)
     if restart is not None:
         stepper.load_state(loaded)
-    saved = _Checkpoints(out, comm, case, layouts, _Snapshot(
-        first, t0, None if restart is None else restart.dt, stepper.state()))
+    saved = _Checkpoints(
+        out,
+        comm,
+        case,
+        layouts,
+        _Snapshot(first, t0, None if restart is None else restart.dt, stepper.state()),
+    )
     rows: list[dict] = []
     retried: list[Step] = []  # the steps that had to be split
     try:
         files.write_fields(t0)
         for step in steps(schedule, t0, first):
-            row = _take_step(stepper, step, saved.good.state, case.time.retries, retried,
-                             period)
+            row = _take_step(stepper, step, saved.good.state, case.time.retries, retried, period)
             files.write_row(row)
             rows.append(row)
             final = step.index == last
@@ -315,8 +388,9 @@ def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start:
         raise stopped from e
     finally:
         files.close()
-    summary = run_summary(case, comm, files.kept + rows, t0, start, retried, stepper, restart,
-                          saved.latest)
+    summary = run_summary(
+        case, comm, files.kept + rows, t0, start, retried, stepper, restart, saved.latest
+    )
     try:
         io.write_json(comm, out / "summary.json", summary)
     except io.OutputError as e:
@@ -324,8 +398,14 @@ def march(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper, start:
     return RunResult(len(rows), summary["wall_time_s"], summary)
 
 
-def _open_outputs(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper,
-                  restart: checkpoint.Checkpoint | None, period: float) -> io.RunFiles:
+def _open_outputs(
+    case: config.Case,
+    out: Path,
+    comm: MPI.Comm,
+    stepper: Stepper,
+    restart: checkpoint.Checkpoint | None,
+    period: float,
+) -> io.RunFiles:
     """The run's files (config.yaml, metrics.csv with its kept rows, the field files of this
     segment). The field writers store the mesh now, in its reference configuration (a
     restart's state, which may move the fluid mesh, is loaded after)."""
@@ -334,50 +414,81 @@ def _open_outputs(case: config.Case, out: Path, comm: MPI.Comm, stepper: Stepper
         columns.insert(columns.index("dt") + 1, "cycle")
     continuing = restart is not None and restart.continues(out)
     try:
-        return io.RunFiles(comm, out, config.to_yaml(case), columns, stepper.field_files(),
-                           None if restart is None else restart.step, continuing=continuing,
-                           metrics_source=None if restart is None or continuing
-                           else restart.run_dir / "metrics.csv")
+        return io.RunFiles(
+            comm,
+            out,
+            config.to_yaml(case),
+            columns,
+            stepper.field_files(),
+            None if restart is None else restart.step,
+            continuing=continuing,
+            metrics_source=None
+            if restart is None or continuing
+            else restart.run_dir / "metrics.csv",
+        )
     except io.OutputError as e:
         raise OutputFailed(str(e)) from e
 
 
-def _take_step(stepper: Stepper, step: Step, before: dict, retries: int, retried: list[Step],
-               period: float) -> dict:
+def _take_step(
+    stepper: Stepper, step: Step, before: dict, retries: int, retried: list[Step], period: float
+) -> dict:
     """The metrics row of ``step`` (:func:`advance`, with its wall time and heartbeat); a row
     holding a non-finite number fails the step (a NaN is never written)."""
     tic = wallclock.perf_counter()
-    row = {"step": step.index, "t": step.t, "dt": step.dt,
-           **advance(stepper, step, before, retries, retried)}
+    row = {
+        "step": step.index,
+        "t": step.t,
+        "dt": step.dt,
+        **advance(stepper, step, before, retries, retried),
+    }
     row["wall_time_s"] = wallclock.perf_counter() - tic
     if period > 0:
         row["cycle"] = heartbeat(step.t, period)
     bad = [key for key, v in row.items() if isinstance(v, float) and not math.isfinite(v)]
     if bad:
-        raise StepFailed(f"step {step.index} to t = {step.t:g} s gave non-finite "
-                         f"{', '.join(bad)}")
+        raise StepFailed(f"step {step.index} to t = {step.t:g} s gave non-finite {', '.join(bad)}")
     return row
 
 
 def _report_progress(stepper: Stepper, row: dict, last: int, seconds_per_step: float) -> None:
-    log.info("step %d/%d  t = %.5g s  dt = %.3g s  %s  %.2f s/step  ~%.0f s left",
-             row["step"], last, row["t"], row["dt"], stepper.describe(row), row["wall_time_s"],
-             seconds_per_step * (last - row["step"]))
+    log.info(
+        "step %d/%d  t = %.5g s  dt = %.3g s  %s  %.2f s/step  ~%.0f s left",
+        row["step"],
+        last,
+        row["t"],
+        row["dt"],
+        stepper.describe(row),
+        row["wall_time_s"],
+        seconds_per_step * (last - row["step"]),
+    )
 
 
-def run_summary(case: config.Case, comm: MPI.Comm, rows: list[dict], t0: float, start: float,
-                retried: list[Step], stepper: Stepper, restart: checkpoint.Checkpoint | None,
-                saved: tuple[Path, int, float] | None) -> dict:
+def run_summary(
+    case: config.Case,
+    comm: MPI.Comm,
+    rows: list[dict],
+    t0: float,
+    start: float,
+    retried: list[Step],
+    stepper: Stepper,
+    restart: checkpoint.Checkpoint | None,
+    saved: tuple[Path, int, float] | None,
+) -> dict:
     """``summary.json``'s content over every row of metrics.csv (a restart's kept rows too)."""
     newton_total = sum(r.get("newton_iterations", 0) for r in rows)
     steps_done = max(len(rows), 1)
     summary = {
-        "case": case.name, "structure_mode": case.structure.mode, "steps": len(rows),
+        "case": case.name,
+        "structure_mode": case.structure.mode,
+        "steps": len(rows),
         "end_time_s": rows[-1]["t"] if rows else t0,
         "wall_time_s": wallclock.perf_counter() - start,
         "mean_step_time_s": sum(r.get("wall_time_s", 0.0) for r in rows) / steps_done,
-        "newton_iterations": newton_total, "mean_newton_iterations": newton_total / steps_done,
-        "ranks": comm.size, **comm.bcast(provenance.describe() if comm.rank == 0 else None),
+        "newton_iterations": newton_total,
+        "mean_newton_iterations": newton_total / steps_done,
+        "ranks": comm.size,
+        **comm.bcast(provenance.describe() if comm.rank == 0 else None),
         "retried_steps": sorted({s.index for s in retried}),
         **stepper.summary(),
         "checkpoint": None if saved is None else str(saved[0]),
@@ -386,13 +497,15 @@ def run_summary(case: config.Case, comm: MPI.Comm, rows: list[dict], t0: float, 
     if period > 0:  # per heartbeat: the stepper's wall indices beside the rows' peaks
         summary["cycles"] = cycle_table(rows, period, summary.get("cycles", []))
     if restart is not None:
-        summary["restarted_from"] = {"checkpoint": str(restart.path), "step": restart.step,
-                                     "t": restart.t}
+        summary["restarted_from"] = {
+            "checkpoint": str(restart.path),
+            "step": restart.step,
+            "t": restart.t,
+        }
     return summary
 
 
-def advance(stepper: Stepper, step: Step, before: dict, retries: int,
-            retried: list[Step]) -> dict:
+def advance(stepper: Stepper, step: Step, before: dict, retries: int, retried: list[Step]) -> dict:
     """``stepper.step(step)``; if it fails with retries left, go back to ``before`` (the
     stepper's state at the start of the step) and take the step as two of half its size, each
     retried the same way with one retry fewer. Returns the row of the step's last (sub)step;
@@ -406,8 +519,13 @@ def advance(stepper: Stepper, step: Step, before: dict, retries: int,
     except StepFailed as e:
         if retries <= 0:
             raise
-        log.warning("step %d to t = %.6g s failed (%s); taking it as two steps of %.3g s",
-                    step.index, step.t, e, step.dt / 2)
+        log.warning(
+            "step %d to t = %.6g s failed (%s); taking it as two steps of %.3g s",
+            step.index,
+            step.t,
+            e,
+            step.dt / 2,
+        )
         retried.append(step)
         stepper.load_state(before)
         half = step.dt / 2
@@ -425,14 +543,20 @@ class _Snapshot:
     dt: float | None
     state: dict
 
-    def write(self, out: Path, comm: MPI.Comm, case: config.Case,
-              layouts: dict[str, checkpoint.Layout]) -> tuple[Path, int, float] | None:
+    def write(
+        self, out: Path, comm: MPI.Comm, case: config.Case, layouts: dict[str, checkpoint.Layout]
+    ) -> tuple[Path, int, float] | None:
         """Write it as ``out/checkpoint``, then the files derived from the state
         (``wall_indices.csv``); return (the folder, step, t), or if the checkpoint fails log why
         and return None (the previous checkpoint stays). Collective."""
         try:
-            folder = checkpoint.write(out, comm, self.state, layouts,
-                                      checkpoint.metadata(case, comm, self.step, self.t, self.dt))
+            folder = checkpoint.write(
+                out,
+                comm,
+                self.state,
+                layouts,
+                checkpoint.metadata(case, comm, self.step, self.t, self.dt),
+            )
         except checkpoint.CheckpointError as e:  # raised on every rank: said once
             if comm.rank == 0:
                 log.error("fsi: no checkpoint of step %d: %s", self.step, e)
@@ -450,8 +574,14 @@ class _Checkpoints:
     every ``output.checkpoint_every`` steps, after the last step and when the run stops early;
     ``latest``, this run's latest checkpoint written (folder, step, t) or None."""
 
-    def __init__(self, out: Path, comm: MPI.Comm, case: config.Case,
-                 layouts: dict[str, checkpoint.Layout], good: _Snapshot):
+    def __init__(
+        self,
+        out: Path,
+        comm: MPI.Comm,
+        case: config.Case,
+        layouts: dict[str, checkpoint.Layout],
+        good: _Snapshot,
+    ):
         self.out, self.comm, self.case, self.layouts = out, comm, case, layouts
         self.good = good
         self.latest: tuple[Path, int, float] | None = None
@@ -520,19 +650,27 @@ class FluidOutputs:
         self.flow_rates = {}
         self.pressures = {}  # column → mean of p over the boundary (metrics.BoundaryMean)
         if Boundary.INLET in boundaries and Boundary.OUTLET in boundaries:
-            for column, tag, sign in zip(FLOW_COLUMNS, (Boundary.INLET, Boundary.OUTLET),
-                                         (-1.0, 1.0)):
+            for column, tag, sign in zip(
+                FLOW_COLUMNS, (Boundary.INLET, Boundary.OUTLET), (-1.0, 1.0)
+            ):
                 form = metrics.flow_rate_form(solver.u, solver.facet_tags, [tag])
                 self.flow_rates[column] = (form, sign)
-            for column, tag in zip(PRESSURE_COLUMNS, (Boundary.INLET, Boundary.OUTLET),
-                                   strict=True):
+            for column, tag in zip(
+                PRESSURE_COLUMNS, (Boundary.INLET, Boundary.OUTLET), strict=True
+            ):
                 self.pressures[column] = metrics.BoundaryMean(solver.p, solver.facet_tags, [tag])
-        self.columns = ((WALL_COLUMNS if self.lumen else []) + list(self.flow_rates)
-                        + list(self.pressures) + list(solver.outlet_values()))
-        self.derived = metrics.FluidFields(solver.u, solver.p, solver.law, solver.facet_tags,
-                                           self.walls)
-        self.sampler = metrics.WallSampler(solver.u, solver.p, solver.law, solver.facet_tags,
-                                           self.walls)
+        self.columns = (
+            (WALL_COLUMNS if self.lumen else [])
+            + list(self.flow_rates)
+            + list(self.pressures)
+            + list(solver.outlet_values())
+        )
+        self.derived = metrics.FluidFields(
+            solver.u, solver.p, solver.law, solver.facet_tags, self.walls
+        )
+        self.sampler = metrics.WallSampler(
+            solver.u, solver.p, solver.law, solver.facet_tags, self.walls
+        )
         self.indices = metrics.WallIndices(self.sampler.size, time=solver.time)
         self.period = config.heartbeat_period(case)
         self.past: list[metrics.WallIndices] = []  # heartbeats 1, 2, ... before self.indices'
@@ -580,8 +718,9 @@ class FluidOutputs:
             self.past.append(self.indices)
             # From the boundary, or from where the accumulators stopped if that is later (a
             # checkpoint of an earlier version, whose indices ran over the whole run).
-            self.indices = metrics.WallIndices(self.sampler.size, start=boundary,
-                                               time=max(boundary, self.past[-1].time))
+            self.indices = metrics.WallIndices(
+                self.sampler.size, start=boundary, time=max(boundary, self.past[-1].time)
+            )
         self.indices.add(t, tau)
 
     def state(self) -> dict[str, np.ndarray]:
@@ -594,15 +733,18 @@ class FluidOutputs:
         ``wall_indices.past_windows`` (per finished heartbeat: its last step's time and T);
         the integrals and window above are then the current heartbeat's."""
         accumulators = self.indices.state()
-        state = {"wall_indices.integrals": accumulators["integrals"],
-                 "wall_indices.window": accumulators["window"],
-                 "wall_indices.points": self.sampler.reference.copy(),
-                 "wall_indices.walls": self.sampler.walls.copy(),
-                 "wall_indices.sides": self.sides.copy()}
+        state = {
+            "wall_indices.integrals": accumulators["integrals"],
+            "wall_indices.window": accumulators["window"],
+            "wall_indices.points": self.sampler.reference.copy(),
+            "wall_indices.walls": self.sampler.walls.copy(),
+            "wall_indices.sides": self.sides.copy(),
+        }
         if self.past:  # absent until a heartbeat is finished (a fresh stepper has none)
             finished = [indices.state() for indices in self.past]
-            state.update({f"wall_indices.past.{k}": a["integrals"]
-                          for k, a in enumerate(finished, start=1)})
+            state.update(
+                {f"wall_indices.past.{k}": a["integrals"] for k, a in enumerate(finished, start=1)}
+            )
             state["wall_indices.past_windows"] = np.array([a["window"] for a in finished])
         return state
 
@@ -616,20 +758,23 @@ class FluidOutputs:
         checkpoint written before they existed (fsi.checkpoint.ADDED) starts them at the
         restart's time, with a warning."""
         if "wall_indices.integrals" not in state:
-            self.indices = metrics.WallIndices(self.sampler.size, start=self.solver.time,
-                                               time=self.solver.time)
+            self.indices = metrics.WallIndices(
+                self.sampler.size, start=self.solver.time, time=self.solver.time
+            )
             if self.solver.comm.rank == 0:
-                log.warning("fsi: the checkpoint holds no wall shear stress indices (written by "
-                            "an earlier version): wall_indices.csv averages from t = %g s on",
-                            self.solver.time)
+                log.warning(
+                    "fsi: the checkpoint holds no wall shear stress indices (written by "
+                    "an earlier version): wall_indices.csv averages from t = %g s on",
+                    self.solver.time,
+                )
             return
-        self.indices.load_state({"integrals": state["wall_indices.integrals"],
-                                 "window": state["wall_indices.window"]})
+        self.indices.load_state(
+            {"integrals": state["wall_indices.integrals"], "window": state["wall_indices.window"]}
+        )
         self.past = []
         for k, window in enumerate(state.get("wall_indices.past_windows", []), start=1):
             finished = metrics.WallIndices(self.sampler.size)
-            finished.load_state({"integrals": state[f"wall_indices.past.{k}"],
-                                 "window": window})
+            finished.load_state({"integrals": state[f"wall_indices.past.{k}"], "window": window})
             self.past.append(finished)
 
     def summary(self) -> dict:
@@ -646,9 +791,11 @@ class FluidOutputs:
 
     def _extremes(self, indices: metrics.WallIndices) -> dict:
         """``min_tawss``, ``max_osi``, ``max_rrt`` of ``indices`` over every rank's samples."""
-        extremes = {"min_tawss": (indices.tawss, MPI.MIN),
-                    "max_osi": (indices.osi, MPI.MAX),
-                    "max_rrt": (indices.rrt, MPI.MAX)}
+        extremes = {
+            "min_tawss": (indices.tawss, MPI.MIN),
+            "max_osi": (indices.osi, MPI.MAX),
+            "max_rrt": (indices.rrt, MPI.MAX),
+        }
         result = {}
         for key, (values, op) in extremes.items():
             values = values[~np.isnan(values)]
@@ -661,8 +808,9 @@ class FluidOutputs:
         return result
 
     @classmethod
-    def write_indices(cls, out: Path, comm: MPI.Comm, state: dict[str, np.ndarray],
-                      period: float = 0.0) -> None:
+    def write_indices(
+        cls, out: Path, comm: MPI.Comm, state: dict[str, np.ndarray], period: float = 0.0
+    ) -> None:
         """``out/wall_indices.csv`` from a stepper state that holds ``wall_indices.*`` arrays
         (:meth:`state`; nothing for one without): a row per wall sample, :data:`INDEX_COLUMNS`,
         sorted by wall, side and x; x, y in the reference configuration; an empty cell where a
@@ -676,23 +824,32 @@ class FluidOutputs:
         windows = [*state.get("wall_indices.past_windows", []), state["wall_indices.window"]]
         beats = [state[f"wall_indices.past.{k}"] for k in range(1, len(windows))]
         beats.append(state["wall_indices.integrals"])
-        where = [np.asarray(state[f"wall_indices.{name}"]) for name in ("points", "walls",
-                                                                         "sides")]
+        where = [np.asarray(state[f"wall_indices.{name}"]) for name in ("points", "walls", "sides")]
         gathered = comm.gather((beats, where), root=0)
         rows = []
         if comm.rank == 0:
-            points, walls, sides = (np.concatenate([w[i] for _, w in gathered])
-                                    for i in range(3))
+            points, walls, sides = (np.concatenate([w[i] for _, w in gathered]) for i in range(3))
             for k, window in enumerate(windows):
                 indices = metrics.WallIndices(len(walls))
                 integrals = np.concatenate([np.reshape(b[k], (-1, 2)) for b, _ in gathered])
                 indices.load_state({"integrals": integrals, "window": window})
-                values = zip(walls, sides, points.reshape(-1, 2), indices.tawss, indices.osi,
-                             indices.rrt)
+                values = zip(
+                    walls, sides, points.reshape(-1, 2), indices.tawss, indices.osi, indices.rrt
+                )
                 cycle = [k + 1] if period > 0 else []
-                rows.extend(cycle + [Boundary(int(wall)).label, cls.SIDES[int(side)], float(x),
-                                     float(y), float(tawss), float(osi), float(rrt)]
-                            for wall, side, (x, y), tawss, osi, rrt in values)
+                rows.extend(
+                    cycle
+                    + [
+                        Boundary(int(wall)).label,
+                        cls.SIDES[int(side)],
+                        float(x),
+                        float(y),
+                        float(tawss),
+                        float(osi),
+                        float(rrt),
+                    ]
+                    for wall, side, (x, y), tawss, osi, rrt in values
+                )
             key_length = 4 if period > 0 else 3
             rows.sort(key=lambda r: tuple(r[:key_length]))
         columns = (["cycle"] if period > 0 else []) + cls.INDEX_COLUMNS
@@ -706,8 +863,9 @@ class FluidOutputs:
 def fluid_boundaries(case: config.Case) -> tuple:
     """Rigid structure: the configured inlet and outlet, no-slip on every wall
     (fluid.boundary_conditions)."""
-    return fluid.boundary_conditions(case.fluid, mesh.geometry_module(case).BOUNDARIES,
-                                     moving_interface=False)
+    return fluid.boundary_conditions(
+        case.fluid, mesh.geometry_module(case).BOUNDARIES, moving_interface=False
+    )
 
 
 class RigidStepper:
@@ -717,15 +875,24 @@ class RigidStepper:
         self.whole = mesh.build(case, comm)
         self.part = mesh.restrict(self.whole, Region.FLUID)
         self.cells = mesh.summary(self.whole, case)["cells"]
-        self.solver = fluid.FluidSolver(self.part.mesh, self.part.facet_tags, case.fluid,
-                                        fluid_boundaries(case), scheme=case.time.scheme)
-        self.obstacle = [b for b in (Boundary.OBSTACLE, Boundary.INTERFACE)
-                         if b in mesh.geometry_module(case).BOUNDARIES]
+        self.solver = fluid.FluidSolver(
+            self.part.mesh,
+            self.part.facet_tags,
+            case.fluid,
+            fluid_boundaries(case),
+            scheme=case.time.scheme,
+        )
+        self.obstacle = [
+            b
+            for b in (Boundary.OBSTACLE, Boundary.INTERFACE)
+            if b in mesh.geometry_module(case).BOUNDARIES
+        ]
         self.turek_hron = isinstance(case.geometry, config.TurekHronGeometry)
         self.outputs = FluidOutputs(case, self.solver)
         self._layouts = fluid_layouts(self.solver)
-        self.columns = COLUMNS + self.outputs.columns + (["drag", "lift"] if self.turek_hron
-                                                         else [])
+        self.columns = (
+            COLUMNS + self.outputs.columns + (["drag", "lift"] if self.turek_hron else [])
+        )
 
     def field_files(self) -> dict[str, tuple[object, list]]:
         return {"fields.xdmf": (self.part.mesh, self.outputs.fields)}
@@ -736,11 +903,15 @@ class RigidStepper:
         if not result.converged:
             raise StepFailed(result.reason)
         solver.advance()
-        row = {"peak_velocity": metrics.peak_velocity(solver.u),
-               "peak_pressure": metrics.peak_pressure(solver.p),
-               "peak_displacement": 0.0, "coupling_iterations": 0,
-               "newton_iterations": result.iterations, "newton_residual": result.residual,
-               **self.outputs.update()}
+        row = {
+            "peak_velocity": metrics.peak_velocity(solver.u),
+            "peak_pressure": metrics.peak_pressure(solver.p),
+            "peak_displacement": 0.0,
+            "coupling_iterations": 0,
+            "newton_iterations": result.iterations,
+            "newton_residual": result.residual,
+            **self.outputs.update(),
+        }
         if self.turek_hron:
             row["drag"], row["lift"] = solver.boundary_force(self.obstacle)
         return row
@@ -750,14 +921,15 @@ class RigidStepper:
 
     def summary(self) -> dict:
         W = self.solver.W
-        return {"mean_coupling_iterations": 0.0,
-                "fluid_dofs": global_dofs(W),
-                "cells": self.cells,
-                **self.outputs.summary()}
+        return {
+            "mean_coupling_iterations": 0.0,
+            "fluid_dofs": global_dofs(W),
+            "cells": self.cells,
+            **self.outputs.summary(),
+        }
 
     def state(self) -> dict[str, np.ndarray]:
-        return {**checkpoint.to_arrays("fluid.", self.solver.save_state()),
-                **self.outputs.state()}
+        return {**checkpoint.to_arrays("fluid.", self.solver.save_state()), **self.outputs.state()}
 
     def layouts(self) -> dict[str, checkpoint.Layout]:
         return {**self._layouts, **self.outputs.layouts()}
@@ -781,25 +953,40 @@ class CoupledStepper:
     def __init__(self, case: config.Case, comm: MPI.Comm):
         self.problem = partitioned.build_coupled(case, comm)
         self.cells = mesh.summary(self.problem.whole, case)["cells"]
-        self.point_a = (turek_hron.point_a(case.geometry)
-                        if isinstance(case.geometry, config.TurekHronGeometry) else None)
+        self.point_a = (
+            turek_hron.point_a(case.geometry)
+            if isinstance(case.geometry, config.TurekHronGeometry)
+            else None
+        )
         self.outputs = FluidOutputs(case, self.problem.fluid)
         # Before the mesh ever moves: the checkpoint keys are reference coordinates.
         p = self.problem
         interface = checkpoint.interface_layout("interface", p.solid.interface_points, 2)
-        self._layouts = {**fluid_layouts(p.fluid), **structure_layouts(p.solid),
-                         "coupling.iqn.V": interface, "coupling.iqn.W": interface,
-                         "predictor.values": interface}
-        self.columns = COUPLED_COLUMNS + stress_columns(p.solid) + self.outputs.columns + (
-            ["drag", "lift", "ux_A", "uy_A"] if self.point_a else [])
+        self._layouts = {
+            **fluid_layouts(p.fluid),
+            **structure_layouts(p.solid),
+            "coupling.iqn.V": interface,
+            "coupling.iqn.W": interface,
+            "predictor.values": interface,
+        }
+        self.columns = (
+            COUPLED_COLUMNS
+            + stress_columns(p.solid)
+            + self.outputs.columns
+            + (["drag", "lift", "ux_A", "uy_A"] if self.point_a else [])
+        )
         self.iterations: list[int] = []
         self.solid_newton = 0
 
     def field_files(self) -> dict[str, tuple[object, list]]:
         p = self.problem
-        return {"fields.xdmf": (p.fluid.mesh, [*self.outputs.fields, p.fluid.ale.d]),
-                "solid.xdmf": (p.solid.domain.mesh,
-                               [p.solid.eta, *p.solid.stress.cell_fields.values()])}
+        return {
+            "fields.xdmf": (p.fluid.mesh, [*self.outputs.fields, p.fluid.ale.d]),
+            "solid.xdmf": (
+                p.solid.domain.mesh,
+                [p.solid.eta, *p.solid.stress.cell_fields.values()],
+            ),
+        }
 
     def step(self, step: Step) -> dict:
         p = self.problem
@@ -808,27 +995,35 @@ class CoupledStepper:
         except coupling.CouplingNotConverged as e:
             raise StepFailed(f"{e} (t = {step.t:g} s, dt = {step.dt:g} s)") from e
         except (newton.SolveFailed, MeshQualityError) as e:
-            raise StepFailed(f"step {step.index} to t = {step.t:g} s (dt = {step.dt:g} s), "
-                              f"coupling iteration {p.fluid_side.solves}: {e}") from e
+            raise StepFailed(
+                f"step {step.index} to t = {step.t:g} s (dt = {step.dt:g} s), "
+                f"coupling iteration {p.fluid_side.solves}: {e}"
+            ) from e
         p.solid.stress.update()
         fluid_last = p.fluid_side.last
         self.iterations.append(result.iterations)
         self.solid_newton += p.solid_side.newton_iterations
         omega = p.relaxation
-        row = self.benchmark_values() if self.point_a else {
-            "peak_wall_displacement": p.solid.max_displacement([Region.WALL])}
-        return {**row, **self.outputs.update(),
-                "peak_velocity": metrics.peak_velocity(p.fluid.u),
-                "peak_pressure": metrics.peak_pressure(p.fluid.p),
-                "peak_displacement": p.solid.max_displacement(),
-                **stress_row(p.solid),
-                "coupling_iterations": result.iterations,
-                "coupling_residual": result.residuals[-1],
-                "newton_iterations": p.fluid_side.newton_iterations,
-                "newton_residual": fluid_last.residual if fluid_last else "",
-                "relaxation": "" if omega is None else omega,
-                "solid_newton_iterations": p.solid_side.newton_iterations,
-                "mesh_jacobian_ratio": p.fluid_side.mesh_quality}
+        row = (
+            self.benchmark_values()
+            if self.point_a
+            else {"peak_wall_displacement": p.solid.max_displacement([Region.WALL])}
+        )
+        return {
+            **row,
+            **self.outputs.update(),
+            "peak_velocity": metrics.peak_velocity(p.fluid.u),
+            "peak_pressure": metrics.peak_pressure(p.fluid.p),
+            "peak_displacement": p.solid.max_displacement(),
+            **stress_row(p.solid),
+            "coupling_iterations": result.iterations,
+            "coupling_residual": result.residuals[-1],
+            "newton_iterations": p.fluid_side.newton_iterations,
+            "newton_residual": fluid_last.residual if fluid_last else "",
+            "relaxation": "" if omega is None else omega,
+            "solid_newton_iterations": p.solid_side.newton_iterations,
+            "mesh_jacobian_ratio": p.fluid_side.mesh_quality,
+        }
 
     def benchmark_values(self) -> dict:
         """Turek–Hron: drag and lift on the cylinder + flag, the displacement of point A."""
@@ -839,23 +1034,27 @@ class CoupledStepper:
 
     def describe(self, row: dict) -> str:
         omega = row["relaxation"]
-        return (f"coupling {row['coupling_iterations']} (residual "
-                f"{row['coupling_residual']:.1e}{'' if omega == '' else f', ω = {omega:.3g}'})"
-                f"  Newton fluid {row['newton_iterations']}, solid "
-                f"{row['solid_newton_iterations']}  |η|max {row['peak_displacement']:.3g} m")
+        return (
+            f"coupling {row['coupling_iterations']} (residual "
+            f"{row['coupling_residual']:.1e}{'' if omega == '' else f', ω = {omega:.3g}'})"
+            f"  Newton fluid {row['newton_iterations']}, solid "
+            f"{row['solid_newton_iterations']}  |η|max {row['peak_displacement']:.3g} m"
+        )
 
     def summary(self) -> dict:
         p, n = self.problem, len(self.iterations)
         W, V = p.fluid.W, p.solid.V
-        return {"acceleration": p.settings.acceleration,
-                "coupling_iterations": sum(self.iterations),
-                "mean_coupling_iterations": sum(self.iterations) / max(n, 1),
-                "max_coupling_iterations": max(self.iterations, default=0),
-                "solid_newton_iterations": self.solid_newton,
-                "fluid_dofs": global_dofs(W),
-                "solid_dofs": global_dofs(V),
-                "cells": self.cells,
-                **self.outputs.summary()}
+        return {
+            "acceleration": p.settings.acceleration,
+            "coupling_iterations": sum(self.iterations),
+            "mean_coupling_iterations": sum(self.iterations) / max(n, 1),
+            "max_coupling_iterations": max(self.iterations, default=0),
+            "solid_newton_iterations": self.solid_newton,
+            "fluid_dofs": global_dofs(W),
+            "solid_dofs": global_dofs(V),
+            "cells": self.cells,
+            **self.outputs.summary(),
+        }
 
     def state(self) -> dict[str, np.ndarray]:
         """The fluid's (solution, BDF history, mesh displacement history, step counter) and the
@@ -863,13 +1062,15 @@ class CoupledStepper:
         (Aitken's ω, IQN-ILS's columns of past steps), the predictor's history, the counters,
         the wall indices' accumulators (:meth:`FluidOutputs.state`)."""
         p = self.problem
-        return {**checkpoint.to_arrays("fluid.", p.fluid.save_state()),
-                **self.outputs.state(),
-                **checkpoint.to_arrays("solid.", p.solid.save_state()),
-                **{f"coupling.{k}": v for k, v in p.acceleration.state().items()},
-                **{f"predictor.{k}": v for k, v in p.predictor.state().items()},
-                "counters.coupling_iterations": np.array(self.iterations, dtype=np.int64),
-                "counters.solid_newton_iterations": np.array(self.solid_newton)}
+        return {
+            **checkpoint.to_arrays("fluid.", p.fluid.save_state()),
+            **self.outputs.state(),
+            **checkpoint.to_arrays("solid.", p.solid.save_state()),
+            **{f"coupling.{k}": v for k, v in p.acceleration.state().items()},
+            **{f"predictor.{k}": v for k, v in p.predictor.state().items()},
+            "counters.coupling_iterations": np.array(self.iterations, dtype=np.int64),
+            "counters.solid_newton_iterations": np.array(self.solid_newton),
+        }
 
     def layouts(self) -> dict[str, checkpoint.Layout]:
         return {**self._layouts, **self.outputs.layouts()}
@@ -899,14 +1100,24 @@ class StructureStepper:
     def __init__(self, case: config.Case, comm: MPI.Comm):
         whole = mesh.build(case, comm)
         self.cells = mesh.summary(whole, case)["cells"]
-        self.pressure = (fluid.inlet_pressure(case.fluid.inlet)
-                         if case.structure.interface_load == "inlet_pressure" else None)
+        self.pressure = (
+            fluid.inlet_pressure(case.fluid.inlet)
+            if case.structure.interface_load == "inlet_pressure"
+            else None
+        )
         self.solver = solid.build(case, whole, comm, self.pressure)
         self.stenosis = isinstance(case.geometry, config.StenosisGeometry)
-        self.point_a = (turek_hron.point_a(case.geometry)
-                        if isinstance(case.geometry, config.TurekHronGeometry) else None)
-        self.columns = (COLUMNS + ["peak_wall_displacement"] + stress_columns(self.solver)
-                        + (["ux_A", "uy_A"] if self.point_a else []))
+        self.point_a = (
+            turek_hron.point_a(case.geometry)
+            if isinstance(case.geometry, config.TurekHronGeometry)
+            else None
+        )
+        self.columns = (
+            COLUMNS
+            + ["peak_wall_displacement"]
+            + stress_columns(self.solver)
+            + (["ux_A", "uy_A"] if self.point_a else [])
+        )
         self._layouts = structure_layouts(self.solver)
 
     def field_files(self) -> dict[str, tuple[object, list]]:
@@ -917,31 +1128,35 @@ class StructureStepper:
         s = self.solver
         result = s.step(step.t, step.dt)
         if not result.converged:
-            raise StepFailed(f"structure step {step.index} to t = {step.t:g} s failed: "
-                              f"{result.reason} (residual {result.residual:.3g})")
+            raise StepFailed(
+                f"structure step {step.index} to t = {step.t:g} s failed: "
+                f"{result.reason} (residual {result.residual:.3g})"
+            )
         s.advance()
         s.stress.update()
-        row = {"peak_velocity": "",
-               "peak_pressure": self.pressure(step.t) if self.pressure else "",
-               "peak_displacement": s.max_displacement(),
-               "peak_wall_displacement": (s.max_displacement([Region.WALL])
-                                          if self.stenosis else ""),
-               **stress_row(s),
-               "coupling_iterations": 0,
-               "newton_iterations": result.iterations, "newton_residual": result.residual}
+        row = {
+            "peak_velocity": "",
+            "peak_pressure": self.pressure(step.t) if self.pressure else "",
+            "peak_displacement": s.max_displacement(),
+            "peak_wall_displacement": (s.max_displacement([Region.WALL]) if self.stenosis else ""),
+            **stress_row(s),
+            "coupling_iterations": 0,
+            "newton_iterations": result.iterations,
+            "newton_residual": result.residual,
+        }
         if self.point_a:
             row["ux_A"], row["uy_A"] = metrics.nodal_value(s.eta, self.point_a)
         return row
 
     def describe(self, row: dict) -> str:
-        return (f"Newton {row['newton_iterations']} (residual {row['newton_residual']:.2e})  "
-                f"|η|max {row['peak_displacement']:.3g} m  SSS {row['max_sss']:.3g} Pa")
+        return (
+            f"Newton {row['newton_iterations']} (residual {row['newton_residual']:.2e})  "
+            f"|η|max {row['peak_displacement']:.3g} m  SSS {row['max_sss']:.3g} Pa"
+        )
 
     def summary(self) -> dict:
         V = self.solver.V
-        return {"mean_coupling_iterations": 0.0,
-                "solid_dofs": global_dofs(V),
-                "cells": self.cells}
+        return {"mean_coupling_iterations": 0.0, "solid_dofs": global_dofs(V), "cells": self.cells}
 
     def state(self) -> dict[str, np.ndarray]:
         return checkpoint.to_arrays("solid.", self.solver.save_state())
@@ -964,11 +1179,16 @@ def fluid_layouts(solver: fluid.FluidSolver) -> dict[str, checkpoint.Layout]:
     velocity = checkpoint.space_layout("fluid_velocity", solver.V)
     pressure = checkpoint.space_layout("fluid_pressure", solver.Q)
     V_to_W, Q_to_W = solver.mixed_dofs()
-    mixed = checkpoint.mixed_layout("fluid_mixed", solver.W, [(V_to_W, velocity),
-                                                             (Q_to_W, pressure)])
+    mixed = checkpoint.mixed_layout(
+        "fluid_mixed", solver.W, [(V_to_W, velocity), (Q_to_W, pressure)]
+    )
     vertices = checkpoint.space_layout("fluid_vertices", solver.ale.space)
-    return {"fluid.U": mixed, "fluid.u_n": velocity, "fluid.u_nm1": velocity,
-            **{f"fluid.{name}": vertices for name in ("d", "d_n", "d_nm1", "w")}}
+    return {
+        "fluid.U": mixed,
+        "fluid.u_n": velocity,
+        "fluid.u_nm1": velocity,
+        **{f"fluid.{name}": vertices for name in ("d", "d_n", "d_nm1", "w")},
+    }
 
 
 def fluid_state(solver: fluid.FluidSolver, state: dict[str, np.ndarray]) -> fluid.FluidState:
@@ -980,9 +1200,12 @@ def fluid_state(solver: fluid.FluidSolver, state: dict[str, np.ndarray]) -> flui
     stored = state.get("fluid.outlet_state")
     if stored is None or stored.shape != initial.shape:
         if initial.size and solver.comm.rank == 0:
-            log.warning("fsi: the checkpoint holds no state of this run's fluid.outlet (written "
-                        "with another kind of outlet): it starts from its initial_pressure at "
-                        "t = %g s", float(state["fluid.time"]))
+            log.warning(
+                "fsi: the checkpoint holds no state of this run's fluid.outlet (written "
+                "with another kind of outlet): it starts from its initial_pressure at "
+                "t = %g s",
+                float(state["fluid.time"]),
+            )
         state = {**state, "fluid.outlet_state": initial}
     return checkpoint.from_arrays(fluid.FluidState, "fluid.", state)
 
@@ -993,9 +1216,14 @@ def structure_layouts(solver: solid.SolidSolver) -> dict[str, checkpoint.Layout]
     interface nodes (one row each)."""
     nodes = checkpoint.space_layout("solid", solver.V)
     forces = checkpoint.interface_layout("interface_nodes", solver.interface_points, 1)
-    return {**{f"solid.{name}": nodes for name in ("eta", "eta_n", "v_n", "a_n", "traction",
-                                                   "traction_n")},
-            "solid.forces": forces, "solid.forces_n": forces}
+    return {
+        **{
+            f"solid.{name}": nodes
+            for name in ("eta", "eta_n", "v_n", "a_n", "traction", "traction_n")
+        },
+        "solid.forces": forces,
+        "solid.forces_n": forces,
+    }
 
 
 def _load_solid(solver: solid.SolidSolver, state: dict[str, np.ndarray]) -> None:

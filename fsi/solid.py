@@ -50,8 +50,8 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import Callable, Mapping, Optional, Sequence, Union
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -116,10 +116,10 @@ class PrescribedDisplacement:
     """η = ``value(x, t)`` on ``boundaries`` (``None``: the whole boundary of the structure)."""
 
     value: DisplacementValue
-    boundaries: Optional[tuple[Boundary, ...]] = None
+    boundaries: tuple[Boundary, ...] | None = None
 
 
-Dirichlet = Union[Clamp, HoldRegions, PrescribedDisplacement]
+Dirichlet = Clamp | HoldRegions | PrescribedDisplacement
 
 
 @dataclass(frozen=True)
@@ -154,13 +154,14 @@ class SolidBoundaryConditions:
     dirichlet: tuple[Dirichlet, ...] = (Clamp(),)
     interface: tuple[Boundary, ...] = (Boundary.INTERFACE,)
     body_force: tuple[float, float] = (0.0, 0.0)
-    pressure: Optional[Callable[[float], float]] = None
-    source: Optional[Callable[[ufl.SpatialCoordinate], ufl.core.expr.Expr]] = None
-    support: Optional[Support] = None
+    pressure: Callable[[float], float] | None = None
+    source: Callable[[ufl.SpatialCoordinate], ufl.core.expr.Expr] | None = None
+    support: Support | None = None
 
 
-def boundary_conditions(case: Case, pressure: Optional[Callable[[float], float]] = None
-                        ) -> SolidBoundaryConditions:
+def boundary_conditions(
+    case: Case, pressure: Callable[[float], float] | None = None
+) -> SolidBoundaryConditions:
     """The case's conditions: ``moving_wall`` clamps ΓD (the wall ends, or the flag's joint);
     ``fixed_wall`` also holds every dof of the vessel wall, so only the plaque moves.
 
@@ -179,10 +180,13 @@ def boundary_conditions(case: Case, pressure: Optional[Callable[[float], float]]
         if stenosis:
             support = Support(s.support.stiffness, s.support.damping, (Boundary.EXTERIOR,))
         else:
-            log.warning("structure.support is ignored: geometry.kind '%s' has no exterior "
-                        "boundary", case.geometry.kind)
-    return SolidBoundaryConditions(dirichlet=dirichlet, body_force=tuple(s.body_force),
-                                   pressure=pressure, support=support)
+            log.warning(
+                "structure.support is ignored: geometry.kind '%s' has no exterior boundary",
+                case.geometry.kind,
+            )
+    return SolidBoundaryConditions(
+        dirichlet=dirichlet, body_force=tuple(s.body_force), pressure=pressure, support=support
+    )
 
 
 def region_materials(case: Case) -> dict[Region, Material]:
@@ -254,6 +258,10 @@ class _Problem(dolfinx.fem.petsc.NonlinearProblem):
 # The solver
 
 
+DEFAULT_SOLVER = SolverSettings()
+"""The structure's Newton settings when none are given (the configuration's defaults)."""
+
+
 class SolidSolver:
     """Hyperelastodynamics on a tagged structure mesh (see the module docstring).
 
@@ -269,10 +277,18 @@ class SolidSolver:
         prefix: PETSc options prefix of the Newton's linear solver.
     """
 
-    def __init__(self, domain: TaggedMesh, materials: Mapping[Region, Material],
-                 bcs: SolidBoundaryConditions, scheme: NewmarkFamily, *, degree: int = 2,
-                 quadrature_degree: int = 4, solver: SolverSettings = SolverSettings(),
-                 prefix: str = "solid_"):
+    def __init__(
+        self,
+        domain: TaggedMesh,
+        materials: Mapping[Region, Material],
+        bcs: SolidBoundaryConditions,
+        scheme: NewmarkFamily,
+        *,
+        degree: int = 2,
+        quadrature_degree: int = 4,
+        solver: SolverSettings = DEFAULT_SOLVER,
+        prefix: str = "solid_",
+    ):
         mesh = domain.mesh
         self.domain, self.bcs_data, self.scheme, self.prefix = domain, bcs, scheme, prefix
         self.comm: MPI.Comm = mesh.comm
@@ -289,13 +305,13 @@ class SolidSolver:
             f.name = name
             return f
 
-        self.eta = function("eta")          # η_{n+1}, the unknown
+        self.eta = function("eta")  # η_{n+1}, the unknown
         self.eta_n = function("eta_n")
         self.v_n = function("v_n")
         self.a_n = function("a_n")
-        self.v = function("v")              # η̇_{n+1}, after a step
-        self.a = function("a")              # η̈_{n+1}, after a step
-        self.traction = function("traction")      # t₀ at t_{n+1} (first Piola, on the interface)
+        self.v = function("v")  # η̇_{n+1}, after a step
+        self.a = function("a")  # η̈_{n+1}, after a step
+        self.traction = function("traction")  # t₀ at t_{n+1} (first Piola, on the interface)
         self.traction_n = function("traction_n")
 
         self._build_materials(materials)
@@ -311,8 +327,9 @@ class SolidSolver:
 
     def _build_materials(self, materials: Mapping[Region, Material]) -> None:
         mesh, tags = self.domain.mesh, self.domain.cell_tags
-        present = [int(r) for r in np.unique(np.concatenate(self.comm.allgather(
-            np.unique(tags.values))))]
+        present = [
+            int(r) for r in np.unique(np.concatenate(self.comm.allgather(np.unique(tags.values))))
+        ]
         missing = [r for r in present if Region(r) not in materials]
         if missing:
             raise ValueError(f"no material for regions {[Region(r).label for r in missing]}")
@@ -337,21 +354,26 @@ class SolidSolver:
             self.law: HyperelasticLaw = make_law(laws[0], lmbda, mu)
         else:
             parts = tuple(
-                (dg0({r: 1.0 for r, m in mats.items() if m.law == name}, f"chi_{name}"),
-                 make_law(name, lmbda, mu)) for name in laws)
+                (
+                    dg0({r: 1.0 for r, m in mats.items() if m.law == name}, f"chi_{name}"),
+                    make_law(name, lmbda, mu),
+                )
+                for name in laws
+            )
             self.law = RegionwiseLaw(parts)
         # Kelvin–Voigt, stiffness-proportional per region: λ_v = τλ, μ_v = τμ (DG0). Left out
         # of the forms when every τ is 0, so the elastic residual is unchanged bit for bit.
         tau = {r: m.viscous_relaxation_time for r, m in mats.items()}
-        self.viscous: Optional[KelvinVoigt] = None
+        self.viscous: KelvinVoigt | None = None
         if any(value > 0 for value in tau.values()):
             self.viscous = KelvinVoigt.stiffness_proportional(
-                dg0(tau, "viscous_relaxation_time"), lmbda, mu)
+                dg0(tau, "viscous_relaxation_time"), lmbda, mu
+            )
         self.Q0 = Q
         self._cell_region = np.full(len(dofs), -1, dtype=np.int32)
         self._cell_region[tags.indices] = tags.values
 
-    def _facets(self, boundaries: Optional[Sequence[Boundary]]) -> np.ndarray:
+    def _facets(self, boundaries: Sequence[Boundary] | None) -> np.ndarray:
         mesh = self.domain.mesh
         if boundaries is None:
             return dolfinx.mesh.exterior_facet_indices(mesh.topology)
@@ -366,32 +388,38 @@ class SolidSolver:
         for item in self.bcs_data.dirichlet:
             if isinstance(item, HoldRegions):
                 dofs = dolfinx.fem.locate_dofs_topological(
-                    self.V, tdim, self.domain.cells(*item.regions))
+                    self.V, tdim, self.domain.cells(*item.regions)
+                )
                 self._bcs.append(dolfinx.fem.dirichletbc(zero, dofs, self.V))
             elif isinstance(item, Clamp):
                 dofs = dolfinx.fem.locate_dofs_topological(
-                    self.V, tdim - 1, self._facets(item.boundaries))
+                    self.V, tdim - 1, self._facets(item.boundaries)
+                )
                 self._bcs.append(dolfinx.fem.dirichletbc(zero, dofs, self.V))
             elif isinstance(item, PrescribedDisplacement):
                 dofs = dolfinx.fem.locate_dofs_topological(
-                    self.V, tdim - 1, self._facets(item.boundaries))
+                    self.V, tdim - 1, self._facets(item.boundaries)
+                )
                 g = dolfinx.fem.Function(self.V)
                 self._bcs.append(dolfinx.fem.dirichletbc(g, dofs))
                 self._prescribed.append((item.value, g))
             else:  # pragma: no cover
                 raise TypeError(f"unknown Dirichlet condition {item!r}")
             constrained.append(dofs)
-        self._constrained = np.unique(np.concatenate(constrained)) if constrained else \
-            np.zeros(0, dtype=np.int32)
-        self._homogeneous = [dolfinx.fem.dirichletbc(zero, bc_dofs, self.V)
-                             for bc_dofs in constrained]
+        self._constrained = (
+            np.unique(np.concatenate(constrained)) if constrained else np.zeros(0, dtype=np.int32)
+        )
+        self._homogeneous = [
+            dolfinx.fem.dirichletbc(zero, bc_dofs, self.V) for bc_dofs in constrained
+        ]
 
     def _build_interface(self) -> None:
         """The owned interface dofs (the order of every interface vector) and their points."""
         mesh = self.domain.mesh
         self.interface_facets = self.domain.facets(*self.bcs_data.interface)
-        dofs = dolfinx.fem.locate_dofs_topological(self.V, mesh.topology.dim - 1,
-                                                   self.interface_facets)
+        dofs = dolfinx.fem.locate_dofs_topological(
+            self.V, mesh.topology.dim - 1, self.interface_facets
+        )
         self.interface_dofs = dofs[dofs < self.V.dofmap.index_map.size_local]
         self.interface_points = self.V.tabulate_dof_coordinates()[self.interface_dofs, :2]
         free = ~np.isin(self.interface_dofs, self._constrained)
@@ -404,12 +432,16 @@ class SolidSolver:
     def _build_forms(self, quadrature_degree: int) -> None:
         mesh, s, law = self.domain.mesh, self.scheme, self.law
         metadata = {"quadrature_degree": quadrature_degree}
-        self.dx = ufl.Measure("dx", domain=mesh, subdomain_data=self.domain.cell_tags,
-                              metadata=metadata)
-        self.ds = ufl.Measure("ds", domain=mesh, subdomain_data=self.domain.facet_tags,
-                              metadata=metadata)
-        ds_interface = sum((self.ds(int(b)) for b in self.bcs_data.interface[1:]),
-                           self.ds(int(self.bcs_data.interface[0])))
+        self.dx = ufl.Measure(
+            "dx", domain=mesh, subdomain_data=self.domain.cell_tags, metadata=metadata
+        )
+        self.ds = ufl.Measure(
+            "ds", domain=mesh, subdomain_data=self.domain.facet_tags, metadata=metadata
+        )
+        ds_interface = sum(
+            (self.ds(int(b)) for b in self.bcs_data.interface[1:]),
+            self.ds(int(self.bcs_data.interface[0])),
+        )
         self._ds_interface = ds_interface
         d = mesh.geometry.dim
         I = ufl.Identity(d)
@@ -419,20 +451,21 @@ class SolidSolver:
         # Generalized energy-momentum stress: F at n+1-αf times the interpolated Σ.
         S_alpha = s.at(law.second_piola(F_new), law.second_piola(F_old), af)
         # η̇ at n+1-αf, with η̇_{n+1} the scheme's function of the unknown η_{n+1}.
-        v_alpha = s.at(s.velocity(self.eta, self.eta_n, self.v_n, self.a_n, self._dt),
-                       self.v_n, af)
+        v_alpha = s.at(s.velocity(self.eta, self.eta_n, self.v_n, self.a_n, self._dt), self.v_n, af)
         if self.viscous is not None:
             # The rate pulled back with the mid-step F̄: Ė = (E_{n+1} − E_n)/dt exactly when
             # η̇_{n+1-αf} = (η_{n+1} − η_n)/dt (trapezoidal, quasi-static): see the docstring.
-            S_alpha = S_alpha + self.viscous.second_piola(s.at(F_new, F_old, 0.5),
-                                                          ufl.grad(v_alpha))
+            S_alpha = S_alpha + self.viscous.second_piola(
+                s.at(F_new, F_old, 0.5), ufl.grad(v_alpha)
+            )
         P_alpha = s.at(F_new, F_old, af) * S_alpha
         residual = ufl.inner(P_alpha, ufl.grad(deta)) * self.dx
         if s.dynamic:
             a_new = s.acceleration(self.eta, self.eta_n, self.v_n, self.a_n, self._dt)
             residual += self.rho * ufl.inner(s.at(a_new, self.a_n, am), deta) * self.dx
-        self._gravity = dolfinx.fem.Constant(mesh, np.asarray(self.bcs_data.body_force,
-                                                              dtype=PETSc.ScalarType))
+        self._gravity = dolfinx.fem.Constant(
+            mesh, np.asarray(self.bcs_data.body_force, dtype=PETSc.ScalarType)
+        )
         residual -= self.rho * ufl.inner(self._gravity, deta) * self.dx
         if self.bcs_data.source is not None:
             residual -= ufl.inner(self.bcs_data.source(ufl.SpatialCoordinate(mesh)), deta) * self.dx
@@ -451,12 +484,17 @@ class SolidSolver:
             N = ufl.FacetNormal(mesh)
             k_s = dolfinx.fem.Constant(mesh, PETSc.ScalarType(support.stiffness))
             c_s = dolfinx.fem.Constant(mesh, PETSc.ScalarType(support.damping))
-            ds_support = sum((self.ds(int(b)) for b in support.boundaries[1:]),
-                             self.ds(int(support.boundaries[0])))
+            ds_support = sum(
+                (self.ds(int(b)) for b in support.boundaries[1:]),
+                self.ds(int(support.boundaries[0])),
+            )
             self._support = (k_s, c_s, N, ds_support)
             eta_alpha = s.at(self.eta, self.eta_n, af)
-            residual += ((k_s * ufl.dot(eta_alpha, N) + c_s * ufl.dot(v_alpha, N))
-                         * ufl.dot(deta, N) * ds_support)
+            residual += (
+                (k_s * ufl.dot(eta_alpha, N) + c_s * ufl.dot(v_alpha, N))
+                * ufl.dot(deta, N)
+                * ds_support
+            )
         self.residual_form = residual
         self.jacobian_form = ufl.derivative(residual, self.eta, ufl.TrialFunction(self.V))
 
@@ -465,8 +503,9 @@ class SolidSolver:
         return self._force_rows, f[self._force_free].ravel()
 
     def _build_newton(self, settings: SolverSettings) -> None:
-        self.problem = _Problem(self.residual_form, self.eta, self._bcs, self.jacobian_form,
-                                self._nodal)
+        self.problem = _Problem(
+            self.residual_form, self.eta, self._bcs, self.jacobian_form, self._nodal
+        )
         # dolfinx's "residual" test divides by the first increment's norm (mixed units), so test
         # the increments: converged when |δη_k| < atol (m) or |δη_k| < rtol |δη_1|.
         self.newton = Newton(self.comm, self.problem, settings, self.prefix, "incremental")
@@ -479,7 +518,7 @@ class SolidSolver:
         forces = np.asarray(forces, dtype=float).reshape(self.forces.shape)
         self.forces[:] = forces
 
-    def set_interface_traction(self, traction: Union[np.ndarray, dolfinx.fem.Function]) -> None:
+    def set_interface_traction(self, traction: np.ndarray | dolfinx.fem.Function) -> None:
         """The first Piola traction t₀ at t_{n+1}: a Function on the displacement space, or an
         interface vector (n, 2) of its values at the owned interface dofs (Pa)."""
         if isinstance(traction, dolfinx.fem.Function):
@@ -514,8 +553,9 @@ class SolidSolver:
             j_min = self.min_jacobian()
             if j_min <= 0:
                 self.eta.x.array[:] = guess
-                result = replace(result, converged=False,
-                                 reason=f"inverted element (min det F = {j_min:.3g})")
+                result = replace(
+                    result, converged=False, reason=f"inverted element (min det F = {j_min:.3g})"
+                )
         if not result.converged:
             log.warning("solid step to t = %g failed: %s", t, result.reason)
         self._update_rates(dt)
@@ -530,28 +570,44 @@ class SolidSolver:
 
     def advance(self) -> None:
         """Commit the last step: state n ← n+1 (η, η̇, η̈, the interface loads, the time)."""
-        for new, old in ((self.eta, self.eta_n), (self.v, self.v_n), (self.a, self.a_n),
-                         (self.traction, self.traction_n)):
+        for new, old in (
+            (self.eta, self.eta_n),
+            (self.v, self.v_n),
+            (self.a, self.a_n),
+            (self.traction, self.traction_n),
+        ):
             old.x.array[:] = new.x.array
         self.forces_n[:] = self.forces
         self.t = self._t_new
 
     def save_state(self) -> SolidState:
-        return SolidState(self.t, *(f.x.array.copy() for f in (
-            self.eta, self.eta_n, self.v_n, self.a_n, self.traction, self.traction_n)),
-            self.forces.copy(), self.forces_n.copy())
+        return SolidState(
+            self.t,
+            *(
+                f.x.array.copy()
+                for f in (self.eta, self.eta_n, self.v_n, self.a_n, self.traction, self.traction_n)
+            ),
+            self.forces.copy(),
+            self.forces_n.copy(),
+        )
 
     def restore_state(self, state: SolidState) -> None:
         self.t = state.t
-        for f, values in ((self.eta, state.eta), (self.eta_n, state.eta_n), (self.v_n, state.v_n),
-                          (self.a_n, state.a_n), (self.traction, state.traction),
-                          (self.traction_n, state.traction_n)):
+        for f, values in (
+            (self.eta, state.eta),
+            (self.eta_n, state.eta_n),
+            (self.v_n, state.v_n),
+            (self.a_n, state.a_n),
+            (self.traction, state.traction),
+            (self.traction_n, state.traction_n),
+        ):
             f.x.array[:] = values
         self.forces[:] = state.forces
         self.forces_n[:] = state.forces_n
 
-    def set_initial_conditions(self, eta0: Optional[Callable] = None,
-                               v0: Optional[Callable] = None) -> None:
+    def set_initial_conditions(
+        self, eta0: Callable | None = None, v0: Callable | None = None
+    ) -> None:
         """Initial displacement and velocity (callables of x (3, n) → (2, n)); the initial
         acceleration is then made consistent with the loads: :meth:`initialize_acceleration`."""
         for f, value in ((self.eta_n, eta0), (self.v_n, v0)):
@@ -575,8 +631,11 @@ class SolidSolver:
         rhs = -ufl.inner(F * S, ufl.grad(deta)) * self.dx
         if self._support is not None:
             k_s, c_s, N, ds_support = self._support
-            rhs -= ((k_s * ufl.dot(self.eta_n, N) + c_s * ufl.dot(self.v_n, N))
-                    * ufl.dot(deta, N) * ds_support)
+            rhs -= (
+                (k_s * ufl.dot(self.eta_n, N) + c_s * ufl.dot(self.v_n, N))
+                * ufl.dot(deta, N)
+                * ds_support
+            )
         rhs += self.rho * ufl.inner(self._gravity, deta) * self.dx
         rhs += ufl.inner(self.traction_n, deta) * self._ds_interface
         if self.bcs_data.source is not None:
@@ -584,8 +643,11 @@ class SolidSolver:
         if self.bcs_data.pressure is not None:
             N = ufl.FacetNormal(mesh)
             self._pressure_n.value = self.bcs_data.pressure(self.t)
-            rhs -= self._pressure_n * ufl.inner(ufl.det(F) * ufl.inv(F).T * N,
-                                                deta) * self._ds_interface
+            rhs -= (
+                self._pressure_n
+                * ufl.inner(ufl.det(F) * ufl.inv(F).T * N, deta)
+                * self._ds_interface
+            )
         mass = self.rho * ufl.inner(da, deta) * self.dx
         a_form, L_form = dolfinx.fem.form(mass), dolfinx.fem.form(rhs)
         M = dolfinx.fem.petsc.assemble_matrix(a_form, bcs=self._homogeneous)
@@ -621,12 +683,13 @@ class SolidSolver:
         n = self.V.dofmap.index_map.size_local
         return f.x.array.reshape(-1, 2)[:n]
 
-    def max_displacement(self, regions: Optional[Sequence[Region]] = None) -> float:
+    def max_displacement(self, regions: Sequence[Region] | None = None) -> float:
         """max |η| over the dofs (of the cells of ``regions``), over all ranks."""
         values = self._owned_block_values(self.eta)
         if regions is not None:
             dofs = dolfinx.fem.locate_dofs_topological(
-                self.V, self.domain.mesh.topology.dim, self.domain.cells(*regions))
+                self.V, self.domain.mesh.topology.dim, self.domain.cells(*regions)
+            )
             values = values[dofs[dofs < len(values)]]
         local = float(np.sqrt((values**2).sum(axis=1)).max(initial=0.0))
         return float(self.comm.allreduce(local, op=MPI.MAX))
@@ -635,8 +698,10 @@ class SolidSolver:
         """min det F at the cell midpoints (DG0 interpolation), over all ranks."""
         if self._jacobian is None:
             F = ufl.Identity(2) + ufl.grad(self.eta)
-            self._jacobian = (dolfinx.fem.Function(self.Q0), dolfinx.fem.Expression(
-                ufl.det(F), compat.interpolation_points(self.Q0)))
+            self._jacobian = (
+                dolfinx.fem.Function(self.Q0),
+                dolfinx.fem.Expression(ufl.det(F), compat.interpolation_points(self.Q0)),
+            )
         J, expression = self._jacobian
         J.interpolate(expression)
         n = self.Q0.dofmap.index_map.size_local
@@ -648,9 +713,12 @@ class SolidSolver:
             F = ufl.Identity(2) + ufl.grad(self.eta_n)
             self._energy_forms = [
                 dolfinx.fem.form(0.5 * self.rho * ufl.inner(self.v_n, self.v_n) * self.dx),
-                dolfinx.fem.form(self.law.strain_energy(F) * self.dx)]
-        kinetic, stored = (float(self.comm.allreduce(dolfinx.fem.assemble_scalar(form), op=MPI.SUM))
-                           for form in self._energy_forms)
+                dolfinx.fem.form(self.law.strain_energy(F) * self.dx),
+            ]
+        kinetic, stored = (
+            float(self.comm.allreduce(dolfinx.fem.assemble_scalar(form), op=MPI.SUM))
+            for form in self._energy_forms
+        )
         return kinetic, stored
 
 
@@ -669,8 +737,8 @@ class CoupledSolid:
             raise ValueError(f"load must be 'forces' or 'traction', got {load!r}")
         self.solver, self.load, self.warm_start = solver, load, warm_start
         self.t, self.dt = math.nan, math.nan
-        self.last: Optional[SolveResult] = None
-        self._checkpoint: Optional[SolidState] = None
+        self.last: SolveResult | None = None
+        self._checkpoint: SolidState | None = None
 
     def begin_step(self, t: float, dt: float) -> None:
         self.t, self.dt = t, dt
@@ -696,8 +764,10 @@ class CoupledSolid:
             self.solver.set_interface_traction(values)
         self.last = self.solver.step(self.t, self.dt)
         if not self.last.converged:
-            raise SolveFailed(f"structure step to t = {self.t:g} s failed: {self.last.reason}"
-                              f" (residual {self.last.residual:.3g})")
+            raise SolveFailed(
+                f"structure step to t = {self.t:g} s failed: {self.last.reason}"
+                f" (residual {self.last.residual:.3g})"
+            )
         return self.solver.interface_displacement().ravel()
 
     def velocity(self) -> np.ndarray:
@@ -746,21 +816,24 @@ class StressFields:
         sigma = cauchy(law, F)
         s33 = cauchy_zz(law, F)
         s11, s22, s12 = sigma[0, 0], sigma[1, 1], sigma[0, 1]
-        von_mises = ufl.sqrt(((s11 - s22) ** 2 + (s22 - s33) ** 2 + (s33 - s11) ** 2) / 2
-                             + 3 * s12**2)
+        von_mises = ufl.sqrt(
+            ((s11 - s22) ** 2 + (s22 - s33) ** 2 + (s33 - s11) ** 2) / 2 + 3 * s12**2
+        )
         in_plane = (s11 + s22) / 2 + ufl.sqrt(((s11 - s22) / 2) ** 2 + s12**2)
         principal = ufl.max_value(in_plane, s33)
         self.sigma = dolfinx.fem.Function(self.T)
         self.sigma.name = "sigma"
         self.fields = {}
-        self._expressions = [(self.sigma, dolfinx.fem.Expression(
-            sigma, compat.interpolation_points(self.T)))]
+        self._expressions = [
+            (self.sigma, dolfinx.fem.Expression(sigma, compat.interpolation_points(self.T)))
+        ]
         for name, expr in (("sss", s12), ("von_mises", von_mises), ("max_principal", principal)):
             f = dolfinx.fem.Function(self.S)
             f.name = name
             self.fields[name] = f
-            self._expressions.append((f, dolfinx.fem.Expression(
-                expr, compat.interpolation_points(self.S))))
+            self._expressions.append(
+                (f, dolfinx.fem.Expression(expr, compat.interpolation_points(self.S)))
+            )
         dofs = compat.cell_dofs(self.S)
         self._dof_points = self.S.tabulate_dof_coordinates()[:, :2].copy()  # reference config.
         n_owned = mesh.topology.index_map(mesh.topology.dim).size_local
@@ -785,7 +858,8 @@ class StressFields:
             values = f.x.array[self._all_cell_dofs]  # (cells, dofs per cell)
             if name == "sss":  # signed: the value of largest magnitude
                 extreme = np.take_along_axis(
-                    values, np.abs(values).argmax(axis=1)[:, None], axis=1)[:, 0]
+                    values, np.abs(values).argmax(axis=1)[:, None], axis=1
+                )[:, 0]
             else:
                 extreme = values.max(axis=1)
             self.cell_fields[name].x.array[self._cell_value] = extreme
@@ -835,15 +909,24 @@ class StressFields:
 # Building from a case
 
 
-def build(case: Case, tagged: Optional[TaggedMesh] = None, comm: MPI.Comm = MPI.COMM_WORLD,
-          pressure: Optional[Callable[[float], float]] = None,
-          scheme: Optional[NewmarkFamily] = None) -> SolidSolver:
+def build(
+    case: Case,
+    tagged: TaggedMesh | None = None,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    pressure: Callable[[float], float] | None = None,
+    scheme: NewmarkFamily | None = None,
+) -> SolidSolver:
     """The case's structure solver (mesh from ``tagged`` or built; materials, mode, scheme)."""
     if tagged is None:
         tagged = fsi_mesh.build(case, comm)
     domain = structure_mesh(tagged, structure_regions(case))
     s = case.structure
-    return SolidSolver(domain, region_materials(case), boundary_conditions(case, pressure),
-                       scheme or structural_scheme(s.time_integration), degree=s.degree,
-                       quadrature_degree=s.quadrature_degree, solver=s.solver)
-
+    return SolidSolver(
+        domain,
+        region_materials(case),
+        boundary_conditions(case, pressure),
+        scheme or structural_scheme(s.time_integration),
+        degree=s.degree,
+        quadrature_degree=s.quadrature_degree,
+        solver=s.solver,
+    )

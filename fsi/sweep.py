@@ -120,8 +120,9 @@ def parse_vary(items: Sequence[str]) -> list[Variation]:
             raise SweepError(f"--vary {key}: no values (expected {key}=value1,value2,...)")
         values = split_values(text)
         if "" in values:
-            raise SweepError(f"--vary {key}: an empty value in {text!r} (expected "
-                             f"{key}=value1,value2,...)")
+            raise SweepError(
+                f"--vary {key}: an empty value in {text!r} (expected {key}=value1,value2,...)"
+            )
         twice = next((v for i, v in enumerate(values) if v in values[:i]), None)
         if twice is not None:
             raise SweepError(f"--vary {key}: the value {twice!r} is given twice")
@@ -134,8 +135,9 @@ def _overlaps(a: str, b: str) -> bool:
     return a == b or a.startswith((b + ".", b + "[")) or b.startswith((a + ".", a + "["))
 
 
-def plan(case_file: Path, variations: Sequence[Variation], sets: Sequence[str],
-         out: Path) -> list[SweepRun]:
+def plan(
+    case_file: Path, variations: Sequence[Variation], sets: Sequence[str], out: Path
+) -> list[SweepRun]:
     """Every combination of the varied values (``itertools.product`` in ``--vary`` order: the
     last key changes fastest), each validated as ``fsi run`` would validate it, before any run.
 
@@ -150,8 +152,9 @@ def plan(case_file: Path, variations: Sequence[Variation], sets: Sequence[str],
         clash = next((k for k in set_keys if _overlaps(k, variation.key)), None)
         if clash is not None:
             also = "" if clash == variation.key else f" (as part of {clash})"
-            raise SweepError(f"--vary {variation.key}: also given with --set{also}: vary it or "
-                             "set it, not both")
+            raise SweepError(
+                f"--vary {variation.key}: also given with --set{also}: vary it or set it, not both"
+            )
     count = math.prod(len(v.values) for v in variations)
     if count > MAX_RUNS:
         sizes = " x ".join(str(len(v.values)) for v in variations)
@@ -177,16 +180,22 @@ def plan(case_file: Path, variations: Sequence[Variation], sets: Sequence[str],
         run = SweepRun(index, choice, case, overrides, out / folder_name(choice))
         resolved = config.to_yaml(case)
         if resolved in seen:
-            raise SweepError(f"--vary: {seen[resolved].label} and {run.label} are the same "
-                             "case (values that mean the same, e.g. 0.5 and 0.50): give each "
-                             "value once")
+            raise SweepError(
+                f"--vary: {seen[resolved].label} and {run.label} are the same "
+                "case (values that mean the same, e.g. 0.5 and 0.50): give each "
+                "value once"
+            )
         if run.folder.name in folders:
-            raise SweepError(f"--vary: {folders[run.folder.name].label} and {run.label} would "
-                             f"share the folder {run.folder}: values that differ only in "
-                             "characters other than letters, digits and . _ + -")
+            raise SweepError(
+                f"--vary: {folders[run.folder.name].label} and {run.label} would "
+                f"share the folder {run.folder}: values that differ only in "
+                "characters other than letters, digits and . _ + -"
+            )
         if len(run.folder.name.encode()) > 255:
-            raise SweepError(f"--vary: the folder name of {run.label} would be longer than 255 "
-                             "bytes: vary fewer keys, or with shorter values")
+            raise SweepError(
+                f"--vary: the folder name of {run.label} would be longer than 255 "
+                "bytes: vary fewer keys, or with shorter values"
+            )
         seen[resolved] = folders[run.folder.name] = run
         runs.append(run)
     return runs
@@ -212,6 +221,7 @@ def _culprit(choice: Sequence[tuple[str, str]], key: str) -> str:
 def folder_name(choice: Sequence[tuple[str, str]]) -> str:
     """``key=value,key=value`` with every run of characters other than letters, digits and
     ``. _ + -`` in keys and values replaced by ``_`` (none at either end of a value)."""
+
     def clean(text: str) -> str:
         return re.sub(r"[^A-Za-z0-9._+-]+", "_", text).strip("_") or "_"
 
@@ -261,8 +271,9 @@ def folder_state(run: SweepRun) -> FolderState:
         return FolderState("skip", "done earlier, skipped")
     other = [key for key in different if not _overlaps(key, "time")]
     if other:
-        return FolderState("start", f"started afresh (its folder holds a run with another "
-                                    f"{other[0]})")
+        return FolderState(
+            "start", f"started afresh (its folder holds a run with another {other[0]})"
+        )
     t = checkpoint_time(folder)
     at_end = t is not None and abs(t - end) <= 1e-9 * end
     if t is not None and ((t < end and not at_end) or (at_end and not different)):
@@ -318,9 +329,15 @@ RunOne = Callable[[SweepRun, bool, bool], tuple[int, str]]
 ``overwrite``: ``--overwrite``); returns the exit status and, unless 0, why in one line."""
 
 
-def execute(runs: Sequence[SweepRun], variations: Sequence[Variation], out: Path,
-            run_one: RunOne, stop_requested: Callable[[], int | None], resume: Sequence[str],
-            comm: MPI.Comm = MPI.COMM_WORLD) -> int:
+def execute(
+    runs: Sequence[SweepRun],
+    variations: Sequence[Variation],
+    out: Path,
+    run_one: RunOne,
+    stop_requested: Callable[[], int | None],
+    resume: Sequence[str],
+    comm: MPI.Comm = MPI.COMM_WORLD,
+) -> int:
     """Run ``runs`` one after the other (:func:`folder_state` says which to skip, resume or
     start afresh), with a progress line before and after each, then write the table and the
     plots (:func:`write_results`, also after a stop). A failed run (any exit status other than
@@ -370,12 +387,20 @@ def execute(runs: Sequence[SweepRun], variations: Sequence[Variation], out: Path
         if comm.rank == 0:
             log.error("fsi: cannot write the sweep's table: %s", e)
         return EXIT_OUTPUT_FAILED
-    log.info("sweep: %d of %d runs done; wrote %s", statuses.count("done"), len(runs),
-             ", ".join(str(p) for p in written))
+    log.info(
+        "sweep: %d of %d runs done; wrote %s",
+        statuses.count("done"),
+        len(runs),
+        ", ".join(str(p) for p in written),
+    )
     if stopped_by:
         if comm.rank == 0:  # the other ranks log errors too
-            log.error("fsi: sweep stopped by signal %d (%s). To resume it, run\n  %s",
-                      stopped_by, signal.Signals(stopped_by).name, shlex.join(resume))
+            log.error(
+                "fsi: sweep stopped by signal %d (%s). To resume it, run\n  %s",
+                stopped_by,
+                signal.Signals(stopped_by).name,
+                shlex.join(resume),
+            )
         return 128 + stopped_by
     return EXIT_SOLVE_FAILED if any(s.startswith("failed") for s in statuses) else EXIT_OK
 
@@ -385,8 +410,11 @@ def describe_plan(runs: Sequence[SweepRun]) -> list[str]:
     lines = []
     for run in runs:
         state = folder_state(run)
-        what = {"skip": "done, would be skipped", "resume": "would be " + state.why,
-                "start": "would be " + state.why}[state.action]
+        what = {
+            "skip": "done, would be skipped",
+            "resume": "would be " + state.why,
+            "start": "would be " + state.why,
+        }[state.action]
         lines.append(f"sweep {run.index}/{len(runs)}: {run.label}: {what} ({run.folder})")
     return lines
 
@@ -410,24 +438,68 @@ class Headline:
 
 
 HEADLINES = (
-    Headline("max_principal_cap", "stress", "peak cap stress: the fibrous cap's largest "
-             "principal Cauchy stress, max over the run", "max_principal_cap", "max", True),
-    Headline("max_sss", "stress", "the structure's largest |σ₁₂| (structural shear stress), "
-             "max over the run", "max_sss", "max", True),
-    Headline("min_wss", "stress", "the smallest signed wall shear stress over the run "
-             "(negative: reversed flow)", "min_wss", "min"),
-    Headline("max_wss", "stress", "the largest signed wall shear stress over the run",
-             "max_wss", "max"),
-    Headline("min_tawss", "stress", "the smallest time-averaged wall shear stress along the "
-             "lumen's walls (summary.json)", "min_tawss", "summary"),
-    Headline("max_osi", "count", "the largest oscillatory shear index along the lumen's walls "
-             "(summary.json)", "max_osi", "summary"),
-    Headline("max_recirculation_length", "length", "the longest reversed-flow zone along "
-             "either wall, max over the run", "recirculation_length", "max"),
-    Headline("peak_displacement", "displacement", "the structure's largest |η|, max over the "
-             "run", "peak_displacement", "max", True),
-    Headline("peak_inlet_flow_rate", "flow_rate", "the largest inlet flow rate per unit depth "
-             "over the run (positive downstream)", "inlet_flow_rate", "max"),
+    Headline(
+        "max_principal_cap",
+        "stress",
+        "peak cap stress: the fibrous cap's largest principal Cauchy stress, max over the run",
+        "max_principal_cap",
+        "max",
+        True,
+    ),
+    Headline(
+        "max_sss",
+        "stress",
+        "the structure's largest |σ₁₂| (structural shear stress), max over the run",
+        "max_sss",
+        "max",
+        True,
+    ),
+    Headline(
+        "min_wss",
+        "stress",
+        "the smallest signed wall shear stress over the run (negative: reversed flow)",
+        "min_wss",
+        "min",
+    ),
+    Headline(
+        "max_wss", "stress", "the largest signed wall shear stress over the run", "max_wss", "max"
+    ),
+    Headline(
+        "min_tawss",
+        "stress",
+        "the smallest time-averaged wall shear stress along the lumen's walls (summary.json)",
+        "min_tawss",
+        "summary",
+    ),
+    Headline(
+        "max_osi",
+        "count",
+        "the largest oscillatory shear index along the lumen's walls (summary.json)",
+        "max_osi",
+        "summary",
+    ),
+    Headline(
+        "max_recirculation_length",
+        "length",
+        "the longest reversed-flow zone along either wall, max over the run",
+        "recirculation_length",
+        "max",
+    ),
+    Headline(
+        "peak_displacement",
+        "displacement",
+        "the structure's largest |η|, max over the run",
+        "peak_displacement",
+        "max",
+        True,
+    ),
+    Headline(
+        "peak_inlet_flow_rate",
+        "flow_rate",
+        "the largest inlet flow rate per unit depth over the run (positive downstream)",
+        "inlet_flow_rate",
+        "max",
+    ),
 )
 
 
@@ -459,9 +531,13 @@ def headline_values(folder: Path) -> dict[str, float | None]:
     return values
 
 
-def write_results(runs: Sequence[SweepRun], variations: Sequence[Variation],
-                  statuses: Sequence[str], out: Path,
-                  comm: MPI.Comm) -> tuple[list[Path], list[str]]:
+def write_results(
+    runs: Sequence[SweepRun],
+    variations: Sequence[Variation],
+    statuses: Sequence[str],
+    out: Path,
+    comm: MPI.Comm,
+) -> tuple[list[Path], list[str]]:
     """``out/sweep.csv`` (SI units, the :data:`HEADLINES` in their columns, an empty cell where
     there is no value), ``out/sweep.md`` (the same table in readable units, ``–`` where there is
     no value, and what each column is) and :func:`write_plots`. Only runs whose status is
@@ -480,22 +556,32 @@ def write_results(runs: Sequence[SweepRun], variations: Sequence[Variation],
                 except ResultError as e:
                     statuses[i] = f"failed: cannot read its results: {e}"
             table.append(values)
-    csv_rows = [[value for _, value in run.choice]
-                + [math.nan if row[h.name] is None else row[h.name] for h in HEADLINES]
-                + [status] for run, row, status in zip(runs, table, statuses, strict=False)]
+    csv_rows = [
+        [value for _, value in run.choice]
+        + [math.nan if row[h.name] is None else row[h.name] for h in HEADLINES]
+        + [status]
+        for run, row, status in zip(runs, table, statuses, strict=False)
+    ]
     columns = keys + [h.name for h in HEADLINES] + ["status"]
     io.on_rank0(comm, lambda: out.mkdir(parents=True, exist_ok=True), out)
     io.write_table(comm, out / "sweep.csv", columns, csv_rows)
     written = [out / "sweep.csv", out / "sweep.md"]
-    io.on_rank0(comm, lambda: (out / "sweep.md").write_text(
-        markdown(runs, variations, table, statuses)), out / "sweep.md")
+    io.on_rank0(
+        comm,
+        lambda: (out / "sweep.md").write_text(markdown(runs, variations, table, statuses)),
+        out / "sweep.md",
+    )
     plots: list[Path] = []
     io.on_rank0(comm, lambda: plots.extend(write_plots(runs, variations, table, out)), out)
     return written + comm.bcast(plots, root=0), comm.bcast(statuses, root=0)
 
 
-def markdown(runs: Sequence[SweepRun], variations: Sequence[Variation],
-             table: Sequence[dict[str, float | None]], statuses: Sequence[str]) -> str:
+def markdown(
+    runs: Sequence[SweepRun],
+    variations: Sequence[Variation],
+    table: Sequence[dict[str, float | None]],
+    statuses: Sequence[str],
+) -> str:
     """The table as markdown: one row per run, each headline in the unit that suits its values
     (:func:`fsi.units.choose_unit`), 4 significant digits, ``–`` where there is no value."""
     shown = {}
@@ -514,14 +600,25 @@ def markdown(runs: Sequence[SweepRun], variations: Sequence[Variation],
         return text.replace("|", "\\|").replace("\n", " ")
 
     columns = [v.key for v in variations] + [header(h) for h in HEADLINES] + ["status"]
-    lines = [f"# Sweep of {runs[0].case.name}" if runs else "# Sweep", "",
-             "| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    lines = [
+        f"# Sweep of {runs[0].case.name}" if runs else "# Sweep",
+        "",
+        "| " + " | ".join(columns) + " |",
+        "|" + "---|" * len(columns),
+    ]
     for run, row, status in zip(runs, table, statuses, strict=False):
-        cells = ([escape(value) for _, value in run.choice]
-                 + [cell(h, row[h.name]) for h in HEADLINES] + [escape(status)])
+        cells = (
+            [escape(value) for _, value in run.choice]
+            + [cell(h, row[h.name]) for h in HEADLINES]
+            + [escape(status)]
+        )
         lines.append("| " + " | ".join(cells) + " |")
-    lines += ["", "Each run's folder is named by its varied values (e.g. "
-              f"`{runs[0].folder.name if runs else ''}`); the columns:", ""]
+    lines += [
+        "",
+        "Each run's folder is named by its varied values (e.g. "
+        f"`{runs[0].folder.name if runs else ''}`); the columns:",
+        "",
+    ]
     lines += [f"- `{h.name}`: {h.meaning}." for h in HEADLINES]
     return "\n".join(lines) + "\n"
 
@@ -542,8 +639,12 @@ def _numeric(case: config.Case, key: str) -> float | None:
     return float(node)
 
 
-def write_plots(runs: Sequence[SweepRun], variations: Sequence[Variation],
-                table: Sequence[dict[str, float | None]], out: Path) -> list[Path]:
+def write_plots(
+    runs: Sequence[SweepRun],
+    variations: Sequence[Variation],
+    table: Sequence[dict[str, float | None]],
+    out: Path,
+) -> list[Path]:
     """``out/sweep_<headline>.png`` for each headline that some run has: one panel per varied
     key with more than one value (the first key if none has), its values along x (on a number
     axis, ticked at the values, when every value is a number, else in ``--vary`` order), one
@@ -564,8 +665,7 @@ def write_plots(runs: Sequence[SweepRun], variations: Sequence[Variation],
             continue
         unit = units.choose_unit(h.quantity, values)
         panels = [i for i, v in enumerate(variations) if len(v.values) > 1] or [0]
-        figure, axes = plt.subplots(1, len(panels), figsize=(5.0 * len(panels), 3.8),
-                                    squeeze=False)
+        figure, axes = plt.subplots(1, len(panels), figsize=(5.0 * len(panels), 3.8), squeeze=False)
         for axis, panel in zip(axes[0], panels, strict=True):
             _panel(axis, panel, runs, variations, table, h.name, unit.scale)
             axis.set_xlabel(variations[panel].key)
@@ -579,8 +679,15 @@ def write_plots(runs: Sequence[SweepRun], variations: Sequence[Variation],
     return written
 
 
-def _panel(axis, panel: int, runs: Sequence[SweepRun], variations: Sequence[Variation],
-           table: Sequence[dict[str, float | None]], name: str, scale: float) -> None:
+def _panel(
+    axis,
+    panel: int,
+    runs: Sequence[SweepRun],
+    variations: Sequence[Variation],
+    table: Sequence[dict[str, float | None]],
+    name: str,
+    scale: float,
+) -> None:
     """Headline ``name`` against varied key number ``panel``: one line per combination of the
     other keys' values."""
     key = variations[panel].key

@@ -7,8 +7,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from typing import Iterator, Protocol, Sequence
+from typing import Protocol
 
 
 class Segment(Protocol):
@@ -165,8 +166,7 @@ class NewmarkFamily:
 
 STRUCTURAL_SCHEMES = {
     "newmark": lambda settings: NewmarkFamily.newmark(),
-    "generalized_alpha": lambda settings: NewmarkFamily.generalized_alpha(
-        settings.spectral_radius),
+    "generalized_alpha": lambda settings: NewmarkFamily.generalized_alpha(settings.spectral_radius),
     "quasi_static": lambda settings: NewmarkFamily.quasi_static(),
 }
 """The structural schemes by the ``structure.time_integration.scheme`` tag."""

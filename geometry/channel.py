@@ -34,9 +34,11 @@ def build(p: ChannelParameters, size: float) -> None:
     bottom, outlet, top, inlet = (geo.addLine(corners[i], corners[(i + 1) % 4]) for i in range(4))
     fluid = geo.addPlaneSurface([geo.addCurveLoop([bottom, outlet, top, inlet])])
     geo.synchronize()
-    add_physical_groups({
-        Region.FLUID: [fluid],
-        Boundary.INLET: [inlet],
-        Boundary.OUTLET: [outlet],
-        Boundary.RIGID_WALL: [bottom, top],
-    })
+    add_physical_groups(
+        {
+            Region.FLUID: [fluid],
+            Boundary.INLET: [inlet],
+            Boundary.OUTLET: [outlet],
+            Boundary.RIGID_WALL: [bottom, top],
+        }
+    )

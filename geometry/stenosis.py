@@ -16,7 +16,8 @@ carries no structure.
 
 from __future__ import annotations
 
-from typing import Protocol, Sequence
+from collections.abc import Sequence
+from typing import Protocol
 
 import numpy as np
 
@@ -24,8 +25,16 @@ from geometry.tags import Boundary, Region
 
 # The tags this builder writes (mesh.json reports these).
 REGIONS = (Region.FLUID, Region.WALL, Region.CAP, Region.LIPID)
-BOUNDARIES = (Boundary.INLET, Boundary.OUTLET, Boundary.INTERFACE, Boundary.RIGID_WALL,
-              Boundary.CLAMPED, Boundary.EXTERIOR, Boundary.CAP_LIPID, Boundary.PLAQUE_BASE)
+BOUNDARIES = (
+    Boundary.INLET,
+    Boundary.OUTLET,
+    Boundary.INTERFACE,
+    Boundary.RIGID_WALL,
+    Boundary.CLAMPED,
+    Boundary.EXTERIOR,
+    Boundary.CAP_LIPID,
+    Boundary.PLAQUE_BASE,
+)
 
 SIDES = ("bottom", "top")
 
@@ -53,7 +62,9 @@ def _cosine_bump(x: np.ndarray, amplitude: float, centre: float, length: float) 
 
 def plaque_profile(p: StenosisParameters, x: np.ndarray) -> np.ndarray:
     """Height of the fibrous-cap surface (the lumen boundary) above the wall at ``x``."""
-    return _cosine_bump(np.asarray(x, dtype=float), plaque_height(p), p.length / 2, p.stenosis_length)
+    return _cosine_bump(
+        np.asarray(x, dtype=float), plaque_height(p), p.length / 2, p.stenosis_length
+    )
 
 
 def lipid_profile(p: StenosisParameters, x: np.ndarray) -> np.ndarray:
@@ -63,7 +74,7 @@ def lipid_profile(p: StenosisParameters, x: np.ndarray) -> np.ndarray:
 
 
 def analytic_areas(p: StenosisParameters) -> dict[str, float]:
-    """Exact region areas (m²): a cosine bump of amplitude ``A`` and length ``l`` has area A l / 2."""
+    """Exact region areas (m²): a cosine bump of amplitude ``A``, length ``l`` has area A l / 2."""
     n = len(p.plaque_sides)
     plaque = plaque_height(p) * p.stenosis_length / 2
     lipid = (plaque_height(p) - p.cap_thickness) * p.lipid_length / 2
@@ -146,8 +157,16 @@ def build(p: StenosisParameters, size: float, local_size: float, spline_points: 
             groups[Boundary.RIGID_WALL].extend(lumen_chain[side])
             continue
         hs = local_size
-        p_x0, p_top, p_x3 = point(side, xc - l / 2, 0, hs), point(side, xc, A, hs), point(side, xc + l / 2, 0, hs)
-        p_x1, p_lip, p_x2 = point(side, xc - l_lip / 2, 0, hs), point(side, xc, a, hs), point(side, xc + l_lip / 2, 0, hs)
+        p_x0, p_top, p_x3 = (
+            point(side, xc - l / 2, 0, hs),
+            point(side, xc, A, hs),
+            point(side, xc + l / 2, 0, hs),
+        )
+        p_x1, p_lip, p_x2 = (
+            point(side, xc - l_lip / 2, 0, hs),
+            point(side, xc, a, hs),
+            point(side, xc + l_lip / 2, 0, hs),
+        )
 
         def cap_profile(x):
             return plaque_profile(p, x)
@@ -161,7 +180,9 @@ def build(p: StenosisParameters, size: float, local_size: float, spline_points: 
         lip_left = spline(side, p_x1, p_lip, xc - l_lip / 2, xc, lipid_prof)
         lip_right = spline(side, p_lip, p_x2, xc, xc + l_lip / 2, lipid_prof)
         base_left, base_mid, base_right = (
-            geo.addLine(p_x0, p_x1), geo.addLine(p_x1, p_x2), geo.addLine(p_x2, p_x3)
+            geo.addLine(p_x0, p_x1),
+            geo.addLine(p_x1, p_x2),
+            geo.addLine(p_x2, p_x3),
         )
         lumen_chain[side] = [healthy_left, cap_left, cap_right, healthy_right]
 

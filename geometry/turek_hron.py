@@ -17,15 +17,22 @@ interface curves, so their meshes are conforming.
 from __future__ import annotations
 
 import math
-from typing import Protocol, Sequence
+from collections.abc import Sequence
+from typing import Protocol
 
 from geometry.stenosis import add_physical_groups
 from geometry.tags import Boundary, Region
 
 # The tags this builder writes (mesh.json reports these).
 REGIONS = (Region.FLUID, Region.FLAG)
-BOUNDARIES = (Boundary.INLET, Boundary.OUTLET, Boundary.RIGID_WALL, Boundary.OBSTACLE,
-              Boundary.INTERFACE, Boundary.CLAMPED)
+BOUNDARIES = (
+    Boundary.INLET,
+    Boundary.OUTLET,
+    Boundary.RIGID_WALL,
+    Boundary.OBSTACLE,
+    Boundary.INTERFACE,
+    Boundary.CLAMPED,
+)
 
 
 class TurekHronParameters(Protocol):
@@ -73,8 +80,7 @@ GRADING = 0.15
 default of :func:`build` (fsi.config's cell-count estimate uses it too)."""
 
 
-def build(p: TurekHronParameters, size: float, local_size: float,
-          grading: float = GRADING) -> None:
+def build(p: TurekHronParameters, size: float, local_size: float, grading: float = GRADING) -> None:
     """Add the benchmark to the current gmsh model (built-in kernel) with physical groups.
 
     The element size is ``local_size`` on the cylinder and the flag and grows linearly with the
@@ -128,13 +134,15 @@ def build(p: TurekHronParameters, size: float, local_size: float,
     field.setNumber(threshold, "DistMax", (size - fine) / grading)
     field.setAsBackgroundMesh(threshold)
 
-    add_physical_groups({
-        Region.FLUID: [fluid],
-        Region.FLAG: [flag],
-        Boundary.INLET: [inlet],
-        Boundary.OUTLET: [outlet],
-        Boundary.RIGID_WALL: [bottom, top],
-        Boundary.OBSTACLE: obstacle,
-        Boundary.INTERFACE: interface,
-        Boundary.CLAMPED: [clamped],
-    })
+    add_physical_groups(
+        {
+            Region.FLUID: [fluid],
+            Region.FLAG: [flag],
+            Boundary.INLET: [inlet],
+            Boundary.OUTLET: [outlet],
+            Boundary.RIGID_WALL: [bottom, top],
+            Boundary.OBSTACLE: obstacle,
+            Boundary.INTERFACE: interface,
+            Boundary.CLAMPED: [clamped],
+        }
+    )

@@ -57,9 +57,16 @@ PETSC_EVENTS = ("PCSetUp", "PCApply")
 
 def load_case(level: str, model: str, n_steps: int, dt: float) -> config.Case:
     end = n_steps * dt
-    return config.load(CASE, [
-        "structure.mode=rigid", f"mesh.level={level}", f"fluid.rheology={RHEOLOGY[model]}",
-        f"time.end={end!r}", f"time.schedule=[{{until: {end!r}, dt: {dt!r}}}]"])
+    return config.load(
+        CASE,
+        [
+            "structure.mode=rigid",
+            f"mesh.level={level}",
+            f"fluid.rheology={RHEOLOGY[model]}",
+            f"time.end={end!r}",
+            f"time.schedule=[{{until: {end!r}, dt: {dt!r}}}]",
+        ],
+    )
 
 
 def wall(comm: MPI.Comm, f, repeats: int) -> np.ndarray:
@@ -89,8 +96,10 @@ def assembly_times(solver: fluid.FluidSolver, repeats: int) -> tuple[np.ndarray,
     A, b = solver.newton.solver.A, solver.newton.solver.b
     problem.J(x, A)  # warm-up: first touch of the matrix and of the kernels' caches
     problem.F(x, b)
-    return (wall(solver.comm, lambda: problem.J(x, A), repeats),
-            wall(solver.comm, lambda: problem.F(x, b), repeats))
+    return (
+        wall(solver.comm, lambda: problem.J(x, A), repeats),
+        wall(solver.comm, lambda: problem.F(x, b), repeats),
+    )
 
 
 class Timed:
@@ -135,13 +144,19 @@ def run_steps(solver: fluid.FluidSolver, case: config.Case) -> dict:
         return (after[name][1] - before[name][1]) / max(n_solves, 1)
 
     n = len(step_times)
-    return {"iterations": float(np.mean(iterations)), "steps": n, "failed": failed,
-            "solves": n_solves, "factor_s": per_solve("PCSetUp"),
-            "lu_solve_s": per_solve("PCApply"),
-            "linear_s": per_solve("PCSetUp") + per_solve("PCApply"),
-            "J_step_s": comm.allreduce(J.seconds, op=MPI.MAX) / n,
-            "F_step_s": comm.allreduce(F.seconds, op=MPI.MAX) / n,
-            "step_s": float(np.mean(step_times)), "first_step_s": step_times[0]}
+    return {
+        "iterations": float(np.mean(iterations)),
+        "steps": n,
+        "failed": failed,
+        "solves": n_solves,
+        "factor_s": per_solve("PCSetUp"),
+        "lu_solve_s": per_solve("PCApply"),
+        "linear_s": per_solve("PCSetUp") + per_solve("PCApply"),
+        "J_step_s": comm.allreduce(J.seconds, op=MPI.MAX) / n,
+        "F_step_s": comm.allreduce(F.seconds, op=MPI.MAX) / n,
+        "step_s": float(np.mean(step_times)),
+        "first_step_s": step_times[0],
+    }
 
 
 # --------------------------------------------------------------------------------------------
@@ -163,9 +178,14 @@ def with_degree(form: ufl.Form, degree: int | None) -> ufl.Form:
 def estimated_degrees(form: ufl.Form) -> dict[str, int]:
     """UFL's estimated polynomial degree per integral type (what FFCx uses with no degree set)."""
     data = ufl.algorithms.compute_form_data(
-        form, do_apply_function_pullbacks=True, do_apply_integral_scaling=True,
-        do_apply_geometry_lowering=True, preserve_geometry_types=(ufl.classes.Jacobian,),
-        do_apply_restrictions=True, do_append_everywhere_integrals=False)
+        form,
+        do_apply_function_pullbacks=True,
+        do_apply_integral_scaling=True,
+        do_apply_geometry_lowering=True,
+        preserve_geometry_types=(ufl.classes.Jacobian,),
+        do_apply_restrictions=True,
+        do_append_everywhere_integrals=False,
+    )
     degrees: dict[str, int] = {}
     for integral_data in data.integral_data:
         for itg in integral_data.integrals:
@@ -179,14 +199,20 @@ def quadrature_points(degree: int, cell: basix.CellType) -> int:
     return len(basix.make_quadrature(cell, degree)[1])
 
 
-def degree_study(part: mesh.TaggedMesh, case: config.Case, degrees: list[int],
-                 repeats: int) -> list[dict]:
+def degree_study(
+    part: mesh.TaggedMesh, case: config.Case, degrees: list[int], repeats: int
+) -> list[dict]:
     """Carreau Jacobian assembly time for each quadrature degree and for UFL's estimate."""
     comm = part.comm
     # A throwaway solver for its residual form. The state (rest, zero BDF weights) does not
     # change the cost: the kernel is the same code.
-    solver = fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid,
-                               simulation.fluid_boundaries(case), scheme=case.time.scheme)
+    solver = fluid.FluidSolver(
+        part.mesh,
+        part.facet_tags,
+        case.fluid,
+        simulation.fluid_boundaries(case),
+        scheme=case.time.scheme,
+    )
     bcs = list(solver.problem.bcs)
     F = solver.residual_form
     J = ufl.derivative(F, solver.U, ufl.TrialFunction(solver.W))
@@ -199,7 +225,7 @@ def degree_study(part: mesh.TaggedMesh, case: config.Case, degrees: list[int],
         jit = comm.allreduce(time.perf_counter() - tic, op=MPI.MAX)
         A = dolfinx.fem.petsc.create_matrix(a)
 
-        def assemble():
+        def assemble(A=A, a=a):  # this iteration's matrix and form
             A.zeroEntries()
             dolfinx.fem.petsc.assemble_matrix(A, a, bcs=bcs)
             A.assemble()
@@ -208,10 +234,17 @@ def degree_study(part: mesh.TaggedMesh, case: config.Case, degrees: list[int],
         times = wall(comm, assemble, repeats)
         A.destroy()
         cell_degree = degree if degree is not None else auto["cell"]
-        rows.append({"degree": f"{degree}" if degree is not None
-                     else f"auto ({', '.join(f'{k} {v}' for k, v in auto.items())})",
-                     "points": quadrature_points(cell_degree, basix.CellType.triangle),
-                     "jit_s": jit, "best": times.min(), "mean": times.mean()})
+        rows.append(
+            {
+                "degree": f"{degree}"
+                if degree is not None
+                else f"auto ({', '.join(f'{k} {v}' for k, v in auto.items())})",
+                "points": quadrature_points(cell_degree, basix.CellType.triangle),
+                "jit_s": jit,
+                "best": times.min(),
+                "mean": times.mean(),
+            }
+        )
     return rows
 
 
@@ -220,16 +253,23 @@ def degree_study(part: mesh.TaggedMesh, case: config.Case, degrees: list[int],
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--levels", nargs="+", default=["coarse", "fine"],
-                        choices=list(config.MESH_LEVELS))
-    parser.add_argument("--models", nargs="+", default=["newtonian", "carreau"],
-                        choices=list(RHEOLOGY))
+    parser.add_argument(
+        "--levels", nargs="+", default=["coarse", "fine"], choices=list(config.MESH_LEVELS)
+    )
+    parser.add_argument(
+        "--models", nargs="+", default=["newtonian", "carreau"], choices=list(RHEOLOGY)
+    )
     parser.add_argument("--steps", type=int, default=10)
     parser.add_argument("--dt", type=float, default=1e-4, help="step (s)")
     parser.add_argument("--repeats", type=int, default=10, help="assemblies timed per form")
-    parser.add_argument("--degrees", type=int, nargs="*", default=[2, 4, 6],
-                        help="quadrature degrees of the Carreau Jacobian study (UFL's estimate"
-                             " is added); none: skip the study")
+    parser.add_argument(
+        "--degrees",
+        type=int,
+        nargs="*",
+        default=[2, 4, 6],
+        help="quadrature degrees of the Carreau Jacobian study (UFL's estimate"
+        " is added); none: skip the study",
+    )
     args = parser.parse_args(argv)
     comm = MPI.COMM_WORLD
     logging.disable(logging.INFO)  # no JIT (distutils) chatter; warnings still show
@@ -240,10 +280,12 @@ def main(argv: list[str] | None = None) -> int:
             print(*text, flush=True)
 
     load_start = os.getloadavg()
-    say(f"fluid benchmark: {comm.size} rank(s), dolfinx {dolfinx.__version__}, PETSc "
+    say(
+        f"fluid benchmark: {comm.size} rank(s), dolfinx {dolfinx.__version__}, PETSc "
         f"{'.'.join(map(str, PETSc.Sys.getVersion()))}, Python {platform.python_version()}, "
         f"{os.cpu_count()} CPUs, load average {load_start[0]:.2f} {load_start[1]:.2f} "
-        f"{load_start[2]:.2f}")
+        f"{load_start[2]:.2f}"
+    )
     rows, studies = [], {}
     for level in args.levels:
         base = load_case(level, args.models[0], args.steps, args.dt)
@@ -254,72 +296,107 @@ def main(argv: list[str] | None = None) -> int:
         for model in args.models:
             case = load_case(level, model, args.steps, args.dt)
             tic = time.perf_counter()
-            solver = fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid,
-                                       simulation.fluid_boundaries(case),
-                                       scheme=case.time.scheme)
+            solver = fluid.FluidSolver(
+                part.mesh,
+                part.facet_tags,
+                case.fluid,
+                simulation.fluid_boundaries(case),
+                scheme=case.time.scheme,
+            )
             setup = comm.allreduce(time.perf_counter() - tic, op=MPI.MAX)
             dofs = simulation.global_dofs(solver.W)
-            say(f"[{level}/{model}] {dofs} dofs, solver set-up {setup:.1f} s (JIT if not cached);"
-                f" {args.steps} steps of {args.dt:g} s")
+            say(
+                f"[{level}/{model}] {dofs} dofs, solver set-up {setup:.1f} s (JIT if not cached);"
+                f" {args.steps} steps of {args.dt:g} s"
+            )
             run = run_steps(solver, case)
             J, F = assembly_times(solver, args.repeats)
-            rows.append({"level": level, "model": model, "dofs": dofs, "cells": cells,
-                         "degree": case.fluid.quadrature_degree,
-                         "J_best": J.min() / dofs * 1e6, "J_mean": J.mean() / dofs * 1e6,
-                         "F_best": F.min() / dofs * 1e6, **run})
-            say(f"[{level}/{model}] done: {run['steps']} steps, Newton {run['iterations']:.2f}"
-                f"/step, step {run['step_s']:.3f} s")
+            rows.append(
+                {
+                    "level": level,
+                    "model": model,
+                    "dofs": dofs,
+                    "cells": cells,
+                    "degree": case.fluid.quadrature_degree,
+                    "J_best": J.min() / dofs * 1e6,
+                    "J_mean": J.mean() / dofs * 1e6,
+                    "F_best": F.min() / dofs * 1e6,
+                    **run,
+                }
+            )
+            say(
+                f"[{level}/{model}] done: {run['steps']} steps, Newton {run['iterations']:.2f}"
+                f"/step, step {run['step_s']:.3f} s"
+            )
             del solver
         if "carreau" in args.models and args.degrees:
             case = load_case(level, "carreau", args.steps, args.dt)
-            studies[level] = (simulation.global_dofs(compat.mixed_space(
-                part.mesh, [("Lagrange", 2, (2,)), ("Lagrange", 1, ())])),
-                degree_study(part, case, args.degrees, args.repeats))
+            studies[level] = (
+                simulation.global_dofs(
+                    compat.mixed_space(part.mesh, [("Lagrange", 2, (2,)), ("Lagrange", 1, ())])
+                ),
+                degree_study(part, case, args.degrees, args.repeats),
+            )
 
     load_end = os.getloadavg()
     say()
     linear = "/".join(str(v) for v in config.load(CASE).fluid.solver.petsc_options.values())
     degree = rows[0]["degree"] if rows else "-"
-    say(f"Fluid solver benchmark — {comm.size} rank(s), dolfinx {dolfinx.__version__}, "
+    say(
+        f"Fluid solver benchmark — {comm.size} rank(s), dolfinx {dolfinx.__version__}, "
         f"quadrature degree {degree} (fluid.quadrature_degree), Taylor–Hood P2/P1, "
-        f"Newton + {linear}")
-    say(f"case: {CASE.name} + structure.mode=rigid, {args.steps} steps of {args.dt:g} s "
-        f"from rest ({config.load(CASE).time.scheme}), assembly best of {args.repeats}")
-    say(f"load average at start {load_start[0]:.2f}, at end {load_end[0]:.2f} "
-        f"({os.cpu_count()} CPUs)")
-    header = (f"{'level':<7}{'model':<10}{'dofs':>8}{'J µs/dof':>9}{'(mean)':>7}{'core':>6}"
-              f"{'F µs/dof':>9}{'Newton':>7}{'lin s/it':>9}{'(LU)':>7}{'step s':>8}{'(1st)':>7}"
-              f"{'J+F s':>7}")
+        f"Newton + {linear}"
+    )
+    say(
+        f"case: {CASE.name} + structure.mode=rigid, {args.steps} steps of {args.dt:g} s "
+        f"from rest ({config.load(CASE).time.scheme}), assembly best of {args.repeats}"
+    )
+    say(
+        f"load average at start {load_start[0]:.2f}, at end {load_end[0]:.2f} "
+        f"({os.cpu_count()} CPUs)"
+    )
+    header = (
+        f"{'level':<7}{'model':<10}{'dofs':>8}{'J µs/dof':>9}{'(mean)':>7}{'core':>6}"
+        f"{'F µs/dof':>9}{'Newton':>7}{'lin s/it':>9}{'(LU)':>7}{'step s':>8}{'(1st)':>7}"
+        f"{'J+F s':>7}"
+    )
     say(header)
     say("-" * len(header))
     for r in rows:
         newton = f"{r['iterations']:.2f}" + ("!" if r["failed"] else "")
-        say(f"{r['level']:<7}{r['model']:<10}{r['dofs']:>8}{r['J_best']:>9.3f}"
+        say(
+            f"{r['level']:<7}{r['model']:<10}{r['dofs']:>8}{r['J_best']:>9.3f}"
             f"{r['J_mean']:>7.3f}{r['J_best'] * comm.size:>6.2f}{r['F_best']:>9.3f}"
             f"{newton:>7}{r['linear_s']:>9.4f}{r['factor_s']:>7.4f}{r['step_s']:>8.3f}"
-            f"{r['first_step_s']:>7.3f}{r['J_step_s'] + r['F_step_s']:>7.3f}")
-    say("J, F µs/dof: one Jacobian / residual evaluation (NonlinearProblem.J/F: assembly, "
+            f"{r['first_step_s']:>7.3f}{r['J_step_s'] + r['F_step_s']:>7.3f}"
+        )
+    say(
+        "J, F µs/dof: one Jacobian / residual evaluation (NonlinearProblem.J/F: assembly, "
         "Dirichlet rows, PETSc finalisation) per global dof, best (and mean) of the repeats; "
         "core: J µs/dof × ranks. Newton: iterations (linear solves) per step. lin s/it: MUMPS "
         "per Newton iteration, PETSc events PCSetUp + PCApply; (LU): of which the "
         "factorisation. step s: wall time per step, mean (1st: the first step, with the "
         "symbolic factorisation); J+F s: per step, the Jacobian and residual evaluations inside "
-        "Newton." + ("  !: a step failed." if any(r["failed"] for r in rows) else ""))
+        "Newton." + ("  !: a step failed." if any(r["failed"] for r in rows) else "")
+    )
     for level, (dofs, study) in studies.items():
         say()
         say(f"Carreau Jacobian vs quadrature degree — {level}, {dofs} dofs, {comm.size} rank(s)")
-        head = (f"{'degree':<30}{'points':>7}{'J µs/dof':>10}{'(mean)':>8}{'× deg 4':>9}"
-                f"{'JIT s':>8}")
+        head = f"{'degree':<30}{'points':>7}{'J µs/dof':>10}{'(mean)':>8}{'× deg 4':>9}{'JIT s':>8}"
         say(head)
         say("-" * len(head))
         ref = next((s["best"] for s in study if s["degree"] == "4"), None)
         for s in study:
             ratio = f"{s['best'] / ref:.2f}" if ref else "-"
-            say(f"{s['degree']:<30}{s['points']:>7}{s['best'] / dofs * 1e6:>10.3f}"
-                f"{s['mean'] / dofs * 1e6:>8.3f}{ratio:>9}{s['jit_s']:>8.1f}")
-        say("auto: no quadrature_degree in the form's metadata; FFCx then uses UFL's estimated"
+            say(
+                f"{s['degree']:<30}{s['points']:>7}{s['best'] / dofs * 1e6:>10.3f}"
+                f"{s['mean'] / dofs * 1e6:>8.3f}{ratio:>9}{s['jit_s']:>8.1f}"
+            )
+        say(
+            "auto: no quadrature_degree in the form's metadata; FFCx then uses UFL's estimated"
             " polynomial degree (shown per integral type). JIT s: form compilation (cached"
-            " after the first run).")
+            " after the first run)."
+        )
     return 0
 
 

@@ -79,16 +79,32 @@ REFERENCES: dict[str, dict[str, dict[str, str]]] = {
     # source) and the 2006 paper's table (checked against the copy in pyfsi/coconut's Turek
     # example, which cites the paper).
     "fsi2": {
-        "featflow": {"ux_A": "-14.85 ± 12.70 [3.86]", "uy_A": "1.30 ± 81.7 [1.93]",
-                     "drag": "215.06 ± 77.65 [3.86]", "lift": "0.61 ± 237.8 [1.93]"},
-        "paper": {"ux_A": "-14.58 ± 12.44 [3.8]", "uy_A": "1.23 ± 80.6 [2.0]",
-                  "drag": "208.83 ± 73.75 [3.8]", "lift": "0.88 ± 234.2 [2.0]"},
+        "featflow": {
+            "ux_A": "-14.85 ± 12.70 [3.86]",
+            "uy_A": "1.30 ± 81.7 [1.93]",
+            "drag": "215.06 ± 77.65 [3.86]",
+            "lift": "0.61 ± 237.8 [1.93]",
+        },
+        "paper": {
+            "ux_A": "-14.58 ± 12.44 [3.8]",
+            "uy_A": "1.23 ± 80.6 [2.0]",
+            "drag": "208.83 ± 73.75 [3.8]",
+            "lift": "0.88 ± 234.2 [2.0]",
+        },
     },
     "fsi3": {
-        "featflow": {"ux_A": "-2.88 ± 2.72 [10.93]", "uy_A": "1.47 ± 34.99 [5.46]",
-                     "drag": "460.5 ± 27.74 [10.93]", "lift": "2.50 ± 153.91 [5.46]"},
-        "paper": {"ux_A": "-2.69 ± 2.53 [10.9]", "uy_A": "1.48 ± 34.38 [5.3]",
-                  "drag": "457.3 ± 22.66 [10.9]", "lift": "2.22 ± 149.78 [5.3]"},
+        "featflow": {
+            "ux_A": "-2.88 ± 2.72 [10.93]",
+            "uy_A": "1.47 ± 34.99 [5.46]",
+            "drag": "460.5 ± 27.74 [10.93]",
+            "lift": "2.50 ± 153.91 [5.46]",
+        },
+        "paper": {
+            "ux_A": "-2.69 ± 2.53 [10.9]",
+            "uy_A": "1.48 ± 34.38 [5.3]",
+            "drag": "457.3 ± 22.66 [10.9]",
+            "lift": "2.22 ± 149.78 [5.3]",
+        },
     },
 }
 REFERENCE_NAMES = {
@@ -117,8 +133,11 @@ def reference_set(case: str, name: str | None) -> str:
     if name is None:
         return "featflow" if "featflow" in sets else ""
     if name not in sets:
-        raise SystemExit(f"--reference {name}: case {case} has {sorted(k for k in sets if k)}"
-                         if len(sets) > 1 else f"--reference: case {case} has one reference set")
+        raise SystemExit(
+            f"--reference {name}: case {case} has {sorted(k for k in sets if k)}"
+            if len(sets) > 1
+            else f"--reference: case {case} has one reference set"
+        )
     return name
 
 
@@ -142,8 +161,9 @@ def resolved_config(run: Path) -> dict:
     return yaml.safe_load((run / "config.yaml").read_text()) or {}
 
 
-def analyse_run(run: Path, case_name: str, ref_set: str, window: int,
-                start: float | None) -> tuple[list[str], list[Row], dict]:
+def analyse_run(
+    run: Path, case_name: str, ref_set: str, window: int, start: float | None
+) -> tuple[list[str], list[Row], dict]:
     """Lines describing each column's signal, the comparison rows, and the run's facts."""
     rows_csv = io.read_metrics(run / "metrics.csv")
     if not rows_csv:
@@ -152,8 +172,9 @@ def analyse_run(run: Path, case_name: str, ref_set: str, window: int,
     t = np.array([r["t"] for r in rows_csv])
     if start is None:  # after the inflow ramp (Turek–Hron: 2 s), if the case has a fluid
         structure = case.get("structure", {})
-        has_fluid = (structure.get("mode") == "rigid"
-                     or structure.get("interface_load", "fluid") == "fluid")
+        has_fluid = (
+            structure.get("mode") == "rigid" or structure.get("interface_load", "fluid") == "fluid"
+        )
         inlet = case.get("fluid", {}).get("inlet", {})
         start = float(inlet.get("ramp_time", 0.0)) if has_fluid else 0.0
     references = REFERENCES[case_name][ref_set]
@@ -174,22 +195,32 @@ def analyse_run(run: Path, case_name: str, ref_set: str, window: int,
             except OscillationError as e:
                 lines.append(f"{column}: not analysed: {e}")
                 continue
-            lines.append(f"{column:<5} = {osc.mean:.5g} ± {osc.amplitude:.5g} {unit} "
-                         f"[{osc.frequency:.5g} Hz] over t = [{osc.start:.4f}, {osc.end:.4f}] s "
-                         f"({window} period{'s' if window > 1 else ''}); {osc.periods} periods "
-                         f"after t = {start:g} s, last two differ by "
-                         f"{osc.period_change * 100:+.3f} %")
+            lines.append(
+                f"{column:<5} = {osc.mean:.5g} ± {osc.amplitude:.5g} {unit} "
+                f"[{osc.frequency:.5g} Hz] over t = [{osc.start:.4f}, {osc.end:.4f}] s "
+                f"({window} period{'s' if window > 1 else ''}); {osc.periods} periods "
+                f"after t = {start:g} s, last two differ by "
+                f"{osc.period_change * 100:+.3f} %"
+            )
             for stat, diff in compare(osc, ref, tol).items():
                 table.append(Row(column, stat, "Hz" if stat == "frequency" else unit, diff))
         else:
             tail = tc >= tc[-1] * (1 - STEADY_TAIL)
             value = y[-1]
             drift = (y[tail].max() - y[tail].min()) / abs(value) if value else np.inf
-            lines.append(f"{column:<5} = {value:.6g} {unit} at t = {tc[-1]:g} s; over the last "
-                         f"{STEADY_TAIL:.0%} of the run (t ≥ {tc[-1] * (1 - STEADY_TAIL):g} s) it "
-                         f"moved by {drift:.2e} of its value")
-            table.append(Row(column, "value", unit, Difference(
-                value, ref.mean, relative_difference(value, ref.mean), tol.mean)))
+            lines.append(
+                f"{column:<5} = {value:.6g} {unit} at t = {tc[-1]:g} s; over the last "
+                f"{STEADY_TAIL:.0%} of the run (t ≥ {tc[-1] * (1 - STEADY_TAIL):g} s) it "
+                f"moved by {drift:.2e} of its value"
+            )
+            table.append(
+                Row(
+                    column,
+                    "value",
+                    unit,
+                    Difference(value, ref.mean, relative_difference(value, ref.mean), tol.mean),
+                )
+            )
     summary_path = run / "summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
     bench_path = run / "benchmark.json"
@@ -197,17 +228,22 @@ def analyse_run(run: Path, case_name: str, ref_set: str, window: int,
     dts = sorted({r["dt"] for r in rows_csv})
     step_times = [r["wall_time_s"] for r in rows_csv if "wall_time_s" in r]
     facts = {
-        "level": case.get("mesh", {}).get("level", "?"), "dt": dts, "end": t[-1],
+        "level": case.get("mesh", {}).get("level", "?"),
+        "dt": dts,
+        "end": t[-1],
         "steps": summary.get("steps", len(rows_csv)),
         "wall_time_s": summary.get("wall_time_s", bench.get("wall_time_s")),
-        "mean_step_time_s": summary.get("mean_step_time_s",
-                                        float(np.mean(step_times)) if step_times else None),
+        "mean_step_time_s": summary.get(
+            "mean_step_time_s", float(np.mean(step_times)) if step_times else None
+        ),
         "ranks": summary.get("ranks", bench.get("ranks")),
         "cells": (summary.get("cells") or {}).get("total"),
-        "fluid_dofs": summary.get("fluid_dofs"), "solid_dofs": summary.get("solid_dofs"),
+        "fluid_dofs": summary.get("fluid_dofs"),
+        "solid_dofs": summary.get("solid_dofs"),
         "mean_coupling_iterations": summary.get("mean_coupling_iterations"),
         "mean_newton_iterations": summary.get("mean_newton_iterations"),
-        "load": bench.get("load"), "complete": bool(summary),
+        "load": bench.get("load"),
+        "complete": bool(summary),
     }
     return lines, table, facts
 
@@ -216,47 +252,75 @@ def _averages(values) -> str:
     return " ".join(f"{v:.2f}" for v in values)
 
 
-def format_report(case_name: str, ref_set: str, run: Path, lines: list[str], table: list[Row],
-                  facts: dict) -> str:
-    source = ("the literature: Turek & Hron 2006, Turek et al. 2010" if case_name == "fsi2"
-              else "../shared/reference/turek_hron.md")
-    out = [f"Turek–Hron {case_name.upper()} — {run}",
-           f"reference: {REFERENCE_NAMES[ref_set]} ({source}); "
-           "tolerances: solids4foam's acceptance"]
+def format_report(
+    case_name: str, ref_set: str, run: Path, lines: list[str], table: list[Row], facts: dict
+) -> str:
+    source = (
+        "the literature: Turek & Hron 2006, Turek et al. 2010"
+        if case_name == "fsi2"
+        else "../shared/reference/turek_hron.md"
+    )
+    out = [
+        f"Turek–Hron {case_name.upper()} — {run}",
+        f"reference: {REFERENCE_NAMES[ref_set]} ({source}); tolerances: solids4foam's acceptance",
+    ]
     out += lines
-    header = (f"{'column':<7}{'statistic':<11}{'unit':<5}{'measured':>12}{'reference':>12}"
-              f"{'rel. diff':>11}{'tolerance':>11}{'pass':>6}")
+    header = (
+        f"{'column':<7}{'statistic':<11}{'unit':<5}{'measured':>12}{'reference':>12}"
+        f"{'rel. diff':>11}{'tolerance':>11}{'pass':>6}"
+    )
     out += ["", header, "-" * len(header)]
     for r in table:
         d = r.difference
         tol = "–" if d.tolerance is None else f"{d.tolerance:.0%}"
         verdict = {None: "–", True: "yes", False: "NO"}[d.passed]
-        out.append(f"{r.column:<7}{r.stat:<11}{r.unit:<5}{d.measured:>12.5g}{d.reference:>12.5g}"
-                   f"{d.relative * 100:>10.2f}%{tol:>11}{verdict:>6}")
+        out.append(
+            f"{r.column:<7}{r.stat:<11}{r.unit:<5}{d.measured:>12.5g}{d.reference:>12.5g}"
+            f"{d.relative * 100:>10.2f}%{tol:>11}{verdict:>6}"
+        )
     checked = [r.difference.passed for r in table if r.difference.passed is not None]
-    out.append(f"{sum(checked)}/{len(checked)} checked quantities within tolerance"
-               + ("" if table else " (nothing analysed: see above)"))
+    out.append(
+        f"{sum(checked)}/{len(checked)} checked quantities within tolerance"
+        + ("" if table else " (nothing analysed: see above)")
+    )
     out.append("")
     dt = ", ".join(f"{v:g}" for v in facts["dt"])
     wall, per_step = facts["wall_time_s"], facts["mean_step_time_s"]
-    sizes = ", ".join(f"{k.replace('_', ' ')} {facts[k]}" for k in ("cells", "fluid_dofs",
-                                                                     "solid_dofs") if facts[k])
-    out.append(f"mesh level {facts['level']}{f' ({sizes})' if sizes else ''}; dt {dt} s; "
-               f"t = 0 → {facts['end']:g} s, {facts['steps']} steps"
-               + ("" if facts["complete"] else " (INCOMPLETE: no summary.json)"))
+    sizes = ", ".join(
+        f"{k.replace('_', ' ')} {facts[k]}"
+        for k in ("cells", "fluid_dofs", "solid_dofs")
+        if facts[k]
+    )
+    out.append(
+        f"mesh level {facts['level']}{f' ({sizes})' if sizes else ''}; dt {dt} s; "
+        f"t = 0 → {facts['end']:g} s, {facts['steps']} steps"
+        + ("" if facts["complete"] else " (INCOMPLETE: no summary.json)")
+    )
     timing = (f"wall time {wall:.1f} s" if wall is not None else "wall time unknown") + (
-        f", mean {per_step:.3f} s/step" if per_step is not None else "")
+        f", mean {per_step:.3f} s/step" if per_step is not None else ""
+    )
     iterations = ", ".join(
-        f"{label} {facts[k]:.2f}/step" for k, label in
-        (("mean_newton_iterations", "Newton"), ("mean_coupling_iterations", "coupling"))
-        if facts[k])
-    out.append(f"{timing}{'; ' + iterations if iterations else ''}; "
-               f"ranks {facts['ranks'] or 'unknown'}")
+        f"{label} {facts[k]:.2f}/step"
+        for k, label in (
+            ("mean_newton_iterations", "Newton"),
+            ("mean_coupling_iterations", "coupling"),
+        )
+        if facts[k]
+    )
+    out.append(
+        f"{timing}{'; ' + iterations if iterations else ''}; ranks {facts['ranks'] or 'unknown'}"
+    )
     load = facts["load"]
-    out.append("load average (1, 5, 15 min) " + (
-        f"at start {_averages(load['start'])}, at end {_averages(load['end'])} "
-        f"({os.cpu_count()} CPUs)" if load else
-        f"now {_averages(os.getloadavg())} (not recorded with the run; {os.cpu_count()} CPUs)"))
+    out.append(
+        "load average (1, 5, 15 min) "
+        + (
+            f"at start {_averages(load['start'])}, at end {_averages(load['end'])} "
+            f"({os.cpu_count()} CPUs)"
+            if load
+            else f"now {_averages(os.getloadavg())} (not recorded with the run; "
+            f"{os.cpu_count()} CPUs)"
+        )
+    )
     return "\n".join(out)
 
 
@@ -265,24 +329,48 @@ def format_report(case_name: str, ref_set: str, run: Path, lines: list[str], tab
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--case", choices=sorted(REFERENCES),
-                        help="the case (with --analyse-only: default from DIR/config.yaml)")
-    parser.add_argument("--level", choices=list(config.MESH_LEVELS),
-                        help="mesh level (default: the config's)")
-    parser.add_argument("--set", dest="overrides", action="append", default=[],
-                        metavar="KEY.PATH=VALUE", help="forwarded to fsi run (repeatable)")
+    parser.add_argument(
+        "--case",
+        choices=sorted(REFERENCES),
+        help="the case (with --analyse-only: default from DIR/config.yaml)",
+    )
+    parser.add_argument(
+        "--level", choices=list(config.MESH_LEVELS), help="mesh level (default: the config's)"
+    )
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY.PATH=VALUE",
+        help="forwarded to fsi run (repeatable)",
+    )
     where = parser.add_mutually_exclusive_group(required=True)
     where.add_argument("--out", type=Path, metavar="DIR", help="run the case into DIR")
-    where.add_argument("--analyse-only", type=Path, metavar="DIR",
-                       help="analyse the existing run folder DIR (no run)")
-    parser.add_argument("--window", type=int, default=1, metavar="N",
-                        help="periodic cases: analyse the last N periods (default 1, the "
-                             "benchmark's definition)")
-    parser.add_argument("--start", type=float, metavar="T",
-                        help="periodic cases: ignore t < T s (default: the end of the inflow "
-                             "ramp, 2 s)")
-    parser.add_argument("--reference", choices=["featflow", "paper"],
-                        help="FSI2's and FSI3's reference set (default featflow)")
+    where.add_argument(
+        "--analyse-only",
+        type=Path,
+        metavar="DIR",
+        help="analyse the existing run folder DIR (no run)",
+    )
+    parser.add_argument(
+        "--window",
+        type=int,
+        default=1,
+        metavar="N",
+        help="periodic cases: analyse the last N periods (default 1, the benchmark's definition)",
+    )
+    parser.add_argument(
+        "--start",
+        type=float,
+        metavar="T",
+        help="periodic cases: ignore t < T s (default: the end of the inflow ramp, 2 s)",
+    )
+    parser.add_argument(
+        "--reference",
+        choices=["featflow", "paper"],
+        help="FSI2's and FSI3's reference set (default featflow)",
+    )
     args = parser.parse_args(argv)
     comm = MPI.COMM_WORLD
     if args.out is not None and args.case is None:
@@ -294,11 +382,14 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--analyse-only: {e}")
         name = name.removeprefix("turek_hron_")
         if args.case is None and name not in REFERENCES:
-            parser.error(f"{args.analyse_only}: case '{name}' is not a Turek–Hron case; "
-                         "give --case")
+            parser.error(
+                f"{args.analyse_only}: case '{name}' is not a Turek–Hron case; give --case"
+            )
         if args.case not in (None, name) and comm.rank == 0:
-            print(f"warning: {args.analyse_only} holds case '{name}', analysed as "
-                  f"'{args.case}'", file=sys.stderr)
+            print(
+                f"warning: {args.analyse_only} holds case '{name}', analysed as '{args.case}'",
+                file=sys.stderr,
+            )
         args.case = args.case or name
     ref_set = reference_set(args.case, args.reference)
     status = 0
@@ -317,10 +408,19 @@ def main(argv: list[str] | None = None) -> int:
             return status
         if comm.rank == 0:
             run.mkdir(parents=True, exist_ok=True)
-            (run / "benchmark.json").write_text(json.dumps({
-                "command": ["fsi", *argv_run], "wall_time_s": wall, "ranks": comm.size,
-                "load": {"start": load_start, "end": os.getloadavg()}, "status": status},
-                indent=2) + "\n")
+            (run / "benchmark.json").write_text(
+                json.dumps(
+                    {
+                        "command": ["fsi", *argv_run],
+                        "wall_time_s": wall,
+                        "ranks": comm.size,
+                        "load": {"start": load_start, "end": os.getloadavg()},
+                        "status": status,
+                    },
+                    indent=2,
+                )
+                + "\n"
+            )
     else:
         run = args.analyse_only
     failed = None

@@ -26,11 +26,18 @@ from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-CASES = ["stenosis_fixed_newtonian", "stenosis_fixed_carreau", "stenosis_moving_newtonian",
-         "stenosis_moving_carreau"]
+CASES = [
+    "stenosis_fixed_newtonian",
+    "stenosis_fixed_carreau",
+    "stenosis_moving_newtonian",
+    "stenosis_moving_carreau",
+]
 PRINTED_SCHEDULE = "time.schedule=[{until: 0.4, dt: 0.005}, {until: 0.8, dt: 0.01}]"
-MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
-           "OMPI_MCA_btl_vader_single_copy_mechanism": "none"}
+MPI_ENV = {
+    "OMPI_ALLOW_RUN_AS_ROOT": "1",
+    "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+    "OMPI_MCA_btl_vader_single_copy_mechanism": "none",
+}
 
 
 @dataclass(frozen=True)
@@ -58,9 +65,11 @@ class StudyRun:
         return ROOT / "configs" / f"{self.case}.yaml"
 
 
-RUNS = ([StudyRun(c, "coarse", "resolved") for c in CASES]
-        + [StudyRun(c, "coarse", "printed") for c in CASES]
-        + [StudyRun(c, "fine", "resolved") for c in reversed(CASES)])  # the moving wall first
+RUNS = (
+    [StudyRun(c, "coarse", "resolved") for c in CASES]
+    + [StudyRun(c, "coarse", "printed") for c in CASES]
+    + [StudyRun(c, "fine", "resolved") for c in reversed(CASES)]
+)  # the moving wall first
 
 
 def state(out: Path) -> str:
@@ -101,20 +110,34 @@ def run_all(runs: list[StudyRun], folder: Path, ranks: int) -> None:
         log = folder / f"{run.name}.log"
         folder.mkdir(parents=True, exist_ok=True)
         with log.open("a") as f:
-            code = subprocess.call(fsi_command(run, out, ranks), stdout=f, stderr=subprocess.STDOUT,
-                                   cwd=ROOT, env={**os.environ, **MPI_ENV})
-        print(f"{run.name}: exit {code} after {time.perf_counter() - tic:.0f} s (log {log})",
-              flush=True)
+            code = subprocess.call(
+                fsi_command(run, out, ranks),
+                stdout=f,
+                stderr=subprocess.STDOUT,
+                cwd=ROOT,
+                env={**os.environ, **MPI_ENV},
+            )
+        print(
+            f"{run.name}: exit {code} after {time.perf_counter() - tic:.0f} s (log {log})",
+            flush=True,
+        )
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=Path, default=ROOT / "results" / "study",
-                        help="folder of the run folders (default results/study)")
+    parser.add_argument(
+        "--runs",
+        type=Path,
+        default=ROOT / "results" / "study",
+        help="folder of the run folders (default results/study)",
+    )
     parser.add_argument("--ranks", type=int, default=2)
     parser.add_argument("--only", choices=["coarse", "fine"], help="run one mesh level only")
-    parser.add_argument("--document-only", action="store_true",
-                        help="write docs/study.md from the runs there are; run nothing")
+    parser.add_argument(
+        "--document-only",
+        action="store_true",
+        help="write docs/study.md from the runs there are; run nothing",
+    )
     parser.add_argument("--docs", type=Path, default=ROOT / "docs")
     args = parser.parse_args(argv)
     runs = [r for r in RUNS if args.only is None or r.level == args.only]

@@ -9,19 +9,25 @@ numbers, with the thresholds stated next to them. A run that is missing or unfin
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
 from fsi import report
 
 TIMES = (0.01, 0.02, 0.05, 0.1, 0.8)
-QUANTITIES = [("peak_velocity", "Table 1: peak velocity", "m/s", 1.0),
-              ("peak_pressure", "Table 2: peak pressure", "Pa", 1.0),
-              ("peak_displacement", "Table 3: peak displacement", "µm", 1.0e6)]
-LABELS = {"fixed_newtonian": "fixed wall, Newtonian", "fixed_carreau": "fixed wall, Carreau",
-          "moving_newtonian": "moving wall, Newtonian", "moving_carreau": "moving wall, Carreau"}
+QUANTITIES = [
+    ("peak_velocity", "Table 1: peak velocity", "m/s", 1.0),
+    ("peak_pressure", "Table 2: peak pressure", "Pa", 1.0),
+    ("peak_displacement", "Table 3: peak displacement", "µm", 1.0e6),
+]
+LABELS = {
+    "fixed_newtonian": "fixed wall, Newtonian",
+    "fixed_carreau": "fixed wall, Carreau",
+    "moving_newtonian": "moving wall, Newtonian",
+    "moving_carreau": "moving wall, Carreau",
+}
 CONFIGS = list(LABELS)
 
 
@@ -81,30 +87,39 @@ def peak_table(runs: dict, column: str, unit: str, scale: float) -> str:
         for c in CONFIGS:
             coarse = value(runs.get(f"{c}_coarse"), t, column)
             fine = value(runs.get(f"{c}_fine"), t, column)
-            cells += [fmt(None if coarse is None else scale * coarse),
-                      fmt(None if fine is None else scale * fine), change(coarse, fine)]
+            cells += [
+                fmt(None if coarse is None else scale * coarse),
+                fmt(None if fine is None else scale * fine),
+                change(coarse, fine),
+            ]
         lines.append(f"| {t:g} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
 def printed_table(runs: dict) -> str:
-    lines = ["| t (s) | " + " | ".join(f"{LABELS[c]}: |u| (m/s), p (Pa), |η| (µm)"
-                                         for c in CONFIGS) + " |",
-             "|---" * (1 + len(CONFIGS)) + "|"]
+    lines = [
+        "| t (s) | "
+        + " | ".join(f"{LABELS[c]}: |u| (m/s), p (Pa), |η| (µm)" for c in CONFIGS)
+        + " |",
+        "|---" * (1 + len(CONFIGS)) + "|",
+    ]
     for t in TIMES:
         cells = []
         for c in CONFIGS:
             run = runs.get(f"{c}_coarse_printed")
-            u, p, d = (value(run, t, k) for k in ("peak_velocity", "peak_pressure",
-                                                  "peak_displacement"))
+            u, p, d = (
+                value(run, t, k) for k in ("peak_velocity", "peak_pressure", "peak_displacement")
+            )
             cells.append(f"{fmt(u)}, {fmt(p)}, {fmt(None if d is None else 1e6 * d)}")
         lines.append(f"| {t:g} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
 def effort_table(runs: dict, order: Sequence[str]) -> str:
-    lines = ["| run | steps | simulated (s) | ranks | coupling its/step | wall time (s) |",
-             "|---|---|---|---|---|---|"]
+    lines = [
+        "| run | steps | simulated (s) | ranks | coupling its/step | wall time (s) |",
+        "|---|---|---|---|---|---|",
+    ]
     for name in order:
         run = runs.get(name)
         if run is None:
@@ -113,9 +128,11 @@ def effort_table(runs: dict, order: Sequence[str]) -> str:
         its = [r["coupling_iterations"] for r in run.rows if "coupling_iterations" in r]
         wall = sum(r.get("wall_time_s", 0.0) for r in run.rows)
         state = "" if finished(run) else " (unfinished)"
-        lines.append(f"| {name} | {len(run.rows)}{state} | {fmt(run.rows[-1]['t'] if run.rows else None)}"
-                     f" | {run.summary.get('ranks', '–')} | {fmt(sum(its) / len(its) if its else None, 3)}"
-                     f" | {wall:.0f} |")
+        lines.append(
+            f"| {name} | {len(run.rows)}{state} | {fmt(run.rows[-1]['t'] if run.rows else None)}"
+            f" | {run.summary.get('ranks', '–')} | {fmt(sum(its) / len(its) if its else None, 3)}"
+            f" | {wall:.0f} |"
+        )
     return "\n".join(lines)
 
 
@@ -138,8 +155,10 @@ def figure_sss(runs: dict, path: Path) -> Path:
     ones); coarse solid, fine dashed."""
     plt = _pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True, layout="constrained")
-    for ax, (title, get) in zip(axes, [("plaque (cap + lipid)", plaque_max),
-                                       ("whole structure", lambda r: r.get("max_sss"))]):
+    for ax, (title, get) in zip(
+        axes,
+        [("plaque (cap + lipid)", plaque_max), ("whole structure", lambda r: r.get("max_sss"))],
+    ):
         for k, c in enumerate(CONFIGS):
             for level, style in (("coarse", "-"), ("fine", "--")):
                 run = runs.get(f"{c}_{level}")
@@ -147,8 +166,7 @@ def figure_sss(runs: dict, path: Path) -> Path:
                     continue
                 pts = [(r["t"], get(r)) for r in run.rows if get(r) is not None and get(r) > 0]
                 if pts:
-                    ax.plot(*zip(*pts), style, color=f"C{k}", lw=1.2,
-                            label=f"{LABELS[c]}, {level}")
+                    ax.plot(*zip(*pts), style, color=f"C{k}", lw=1.2, label=f"{LABELS[c]}, {level}")
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("t (s)")
@@ -215,23 +233,38 @@ def field_figures(runs: dict, figures: Path) -> list[tuple[str, Path]]:
         path = figures / f"study_sss_{c}.png"
         plot.field_snapshot(run.path, "sss", peak[1], path, warp=warp)
         x, y, region = largest_at(run, "sss", peak[1])
-        out.append((f"Figure {7 if c.startswith('fixed') else 8}: σ₁₂ on the structure, "
-                    f"displacement ×{warp:g}, {LABELS[c]} ({run.path.name}), t = {peak[1]:.4g} s "
-                    f"(its largest SSS, {peak[0]:.4g} Pa, in the {region} at x = {1e3 * x:.2f} "
-                    f"mm, y = {1e3 * y:.2f} mm)", path))
+        out.append(
+            (
+                f"Figure {7 if c.startswith('fixed') else 8}: σ₁₂ on the structure, "
+                f"displacement ×{warp:g}, {LABELS[c]} ({run.path.name}), t = {peak[1]:.4g} s "
+                f"(its largest SSS, {peak[0]:.4g} Pa, in the {region} at x = {1e3 * x:.2f} "
+                f"mm, y = {1e3 * y:.2f} mm)",
+                path,
+            )
+        )
     for c in ("fixed_newtonian", "moving_newtonian"):
         run = best(runs, c)
         if run is None or run.rows[-1]["t"] < RECIRCULATION_TIME:
             continue
         path = figures / f"study_streamlines_{c}.png"
         plot.field_snapshot(run.path, "velocity", RECIRCULATION_TIME, path, streamlines=True)
-        out.append((f"Figure 9: velocity and streamlines, {LABELS[c]} ({run.path.name}), "
-                    f"t = {RECIRCULATION_TIME:g} s", path))
+        out.append(
+            (
+                f"Figure 9: velocity and streamlines, {LABELS[c]} ({run.path.name}), "
+                f"t = {RECIRCULATION_TIME:g} s",
+                path,
+            )
+        )
     wss = figure_wall_shear(runs, figures / "study_figure9_wss.png")
     if wss is not None:
-        out.append((f"Figure 9: wall shear stress along the diseased (lower) wall at t = "
-                    f"{RECIRCULATION_TIME:g} s; negative where the flow next to the wall "
-                    "reverses (the recirculation zone)", wss))
+        out.append(
+            (
+                f"Figure 9: wall shear stress along the diseased (lower) wall at t = "
+                f"{RECIRCULATION_TIME:g} s; negative where the flow next to the wall "
+                "reverses (the recirculation zone)",
+                wss,
+            )
+        )
     return out
 
 
@@ -251,8 +284,9 @@ def largest_at(run: report.Run, field: str, t: float) -> tuple[float, float, str
 def boundary_nodes(triangles: np.ndarray) -> np.ndarray:
     """The nodes on the boundary of a triangulation: those of edges that belong to one
     triangle only."""
-    edges = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]],
-                                    triangles[:, [2, 0]]]), axis=1)
+    edges = np.sort(
+        np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1
+    )
     unique, count = np.unique(edges, axis=0, return_counts=True)
     return np.unique(unique[count == 1])
 
@@ -272,11 +306,17 @@ def figure_wall_shear(runs: dict, path: Path) -> Path | None:
         snap = plot.read_field(run.path, "wall_shear_stress", RECIRCULATION_TIME)
         x, y = snap.coordinates[:, 0], snap.coordinates[:, 1]
         nodes = boundary_nodes(snap.triangles)
-        lower = nodes[(y[nodes] < 0.5 * (y.min() + y.max())) & (x[nodes] > x.min())
-                      & (x[nodes] < x.max())]  # not the inlet's and outlet's corners
+        lower = nodes[
+            (y[nodes] < 0.5 * (y.min() + y.max())) & (x[nodes] > x.min()) & (x[nodes] < x.max())
+        ]  # not the inlet's and outlet's corners
         order = np.argsort(x[lower])
-        ax.plot(1e3 * x[lower][order], snap.values[lower][order], color=f"C{k}", lw=1.2,
-                label=f"{LABELS[c]} ({run.path.name})")
+        ax.plot(
+            1e3 * x[lower][order],
+            snap.values[lower][order],
+            color=f"C{k}",
+            lw=1.2,
+            label=f"{LABELS[c]} ({run.path.name})",
+        )
         drawn = True
     if not drawn:
         plt.close(fig)
@@ -301,9 +341,13 @@ PULSE_AMPLITUDE = 1200.0  # Pa, the shipped configs' peak inlet pressure (MODEL.
 def load_reason(newtonian: report.Run | None, carreau: report.Run | None) -> str:
     """Why the rheology barely changes the structure's load: the wall shear stresses during
     the pulse against the inlet pressure."""
+
     def pulse_wss(run):
-        values = [max(abs(r["min_wss"]), abs(r["max_wss"])) for r in run.rows
-                  if r["t"] <= 0.01 and "max_wss" in r]
+        values = [
+            max(abs(r["min_wss"]), abs(r["max_wss"]))
+            for r in run.rows
+            if r["t"] <= 0.01 and "max_wss" in r
+        ]
         return max(values) if values else None
 
     if newtonian is None or carreau is None:
@@ -311,16 +355,18 @@ def load_reason(newtonian: report.Run | None, carreau: report.Run | None) -> str
     wn, wc = pulse_wss(newtonian), pulse_wss(carreau)
     if wn is None or wc is None:
         return ""
-    return (f" Why we differ: the structure is loaded by the blood's pressure and its "
-            f"viscous traction; the pressure, up to {PULSE_AMPLITUDE:g} Pa during the 5 ms pulse, "
-            "is set by the inlet and the same for both rheologies, while the largest wall shear "
-            f"stress in the first 10 ms is {wn:.3g} Pa (Newtonian) and {wc:.3g} Pa (Carreau): "
-            f"the viscous part differs by {abs(wn - wc):.2g} Pa, "
-            f"{100 * abs(wn - wc) / PULSE_AMPLITUDE:.2g} % of the pressure. At the shear rates "
-            "of the pulse (hundreds per second) Carreau's viscosity is within about 10 % of the "
-            "Newtonian 3.5 mPa·s, so the two runs load the wall alike. A study that finds a "
-            "large difference must have loaded the wall differently (e.g. by a flow rate "
-            "instead of a pressure, or with a Carreau viscosity near μ0).")
+    return (
+        f" Why we differ: the structure is loaded by the blood's pressure and its "
+        f"viscous traction; the pressure, up to {PULSE_AMPLITUDE:g} Pa during the 5 ms pulse, "
+        "is set by the inlet and the same for both rheologies, while the largest wall shear "
+        f"stress in the first 10 ms is {wn:.3g} Pa (Newtonian) and {wc:.3g} Pa (Carreau): "
+        f"the viscous part differs by {abs(wn - wc):.2g} Pa, "
+        f"{100 * abs(wn - wc) / PULSE_AMPLITUDE:.2g} % of the pressure. At the shear rates "
+        "of the pulse (hundreds per second) Carreau's viscosity is within about 10 % of the "
+        "Newtonian 3.5 mPa·s, so the two runs load the wall alike. A study that finds a "
+        "large difference must have loaded the wall differently (e.g. by a flow rate "
+        "instead of a pressure, or with a Carreau viscosity near μ0)."
+    )
 
 
 def convergence_of_maxima(runs: dict) -> str:
@@ -332,17 +378,20 @@ def convergence_of_maxima(runs: dict) -> str:
         if not (finished(coarse) and finished(fine)):
             continue
         values = {}
-        for label, get in (("whole structure", lambda r: r.get("max_sss")),
-                           ("plaque", plaque_max),
-                           ("cap's largest principal stress", lambda r: r.get("max_principal_cap"))):
+        for label, get in (
+            ("whole structure", lambda r: r.get("max_sss")),
+            ("plaque", plaque_max),
+            ("cap's largest principal stress", lambda r: r.get("max_principal_cap")),
+        ):
             pair = [max((get(r) or 0.0) for r in run.rows) for run in (coarse, fine)]
-            values[label] = (f"{label} {pair[0]:.4g} → {pair[1]:.4g} Pa "
-                             f"({change(pair[0], pair[1])})")
+            values[label] = f"{label} {pair[0]:.4g} → {pair[1]:.4g} Pa ({change(pair[0], pair[1])})"
         parts.append(f"{LABELS[c]}, coarse → fine: " + "; ".join(values.values()))
     if not parts:
         return ""
-    return (" Measured: " + ". ".join(parts) + ". The plaque's maxima converge; the whole "
-            "structure's, set at the clamped corner, does not.")
+    return (
+        " Measured: " + ". ".join(parts) + ". The plaque's maxima converge; the whole "
+        "structure's, set at the clamped corner, does not."
+    )
 
 
 def findings(runs: dict) -> list[str]:
@@ -370,53 +419,67 @@ def findings(runs: dict) -> list[str]:
     fn, fc = peak("fixed_newtonian", "max_sss"), peak("fixed_carreau", "max_sss")
     if fn and fc:
         ratio = fn / fc
-        verdict = ("confirmed" if 1.0 <= ratio <= 1.1 else
-                   "partly: nearly the same, but Carreau is higher" if 0.9 <= ratio < 1.0 else
-                   "refuted")
-        out.append(f"**Fixed wall: Newtonian and Carreau give nearly the same SSS, Newtonian "
-                   f"slightly higher.** Largest SSS over the heartbeat: Newtonian {fn:.4g} Pa "
-                   f"({mesh('fixed_newtonian')}), Carreau {fc:.4g} Pa ({mesh('fixed_carreau')}); "
-                   f"ratio {ratio:.4f} — {verdict} (confirmed if 1 ≤ ratio ≤ 1.1).")
+        verdict = (
+            "confirmed"
+            if 1.0 <= ratio <= 1.1
+            else "partly: nearly the same, but Carreau is higher"
+            if 0.9 <= ratio < 1.0
+            else "refuted"
+        )
+        out.append(
+            f"**Fixed wall: Newtonian and Carreau give nearly the same SSS, Newtonian "
+            f"slightly higher.** Largest SSS over the heartbeat: Newtonian {fn:.4g} Pa "
+            f"({mesh('fixed_newtonian')}), Carreau {fc:.4g} Pa ({mesh('fixed_carreau')}); "
+            f"ratio {ratio:.4f} — {verdict} (confirmed if 1 ≤ ratio ≤ 1.1)."
+        )
     mn, mc = peak("moving_newtonian", "max_sss"), peak("moving_carreau", "max_sss")
-    dn, dc = (peak("moving_newtonian", "peak_displacement"),
-              peak("moving_carreau", "peak_displacement"))
+    dn, dc = (
+        peak("moving_newtonian", "peak_displacement"),
+        peak("moving_carreau", "peak_displacement"),
+    )
     if mn and mc and dn and dc:
         ratio, dratio = mn / mc, dn / dc
         verdict = "confirmed" if ratio > 1.5 and dratio > 1.0 else "refuted"
-        out.append(f"**Moving wall: the Newtonian SSS maximum greatly exceeds the Carreau one, "
-                   f"and the Newtonian displacements are larger.** Largest SSS: Newtonian "
-                   f"{mn:.4g} Pa, Carreau {mc:.4g} Pa (ratio {ratio:.4f}); largest displacement: "
-                   f"Newtonian {1e6 * dn:.4g} µm, Carreau {1e6 * dc:.4g} µm (ratio {dratio:.4f}) "
-                   f"— {verdict} (confirmed if the SSS ratio > 1.5 and the displacement ratio "
-                   f"> 1). In the plaque alone: {plaque_peak('moving_newtonian'):.4g} Pa vs "
-                   f"{plaque_peak('moving_carreau'):.4g} Pa ({mesh('moving_newtonian')}, "
-                   f"{mesh('moving_carreau')})."
-                   + load_reason(pick("moving_newtonian"), pick("moving_carreau")))
+        out.append(
+            f"**Moving wall: the Newtonian SSS maximum greatly exceeds the Carreau one, "
+            f"and the Newtonian displacements are larger.** Largest SSS: Newtonian "
+            f"{mn:.4g} Pa, Carreau {mc:.4g} Pa (ratio {ratio:.4f}); largest displacement: "
+            f"Newtonian {1e6 * dn:.4g} µm, Carreau {1e6 * dc:.4g} µm (ratio {dratio:.4f}) "
+            f"— {verdict} (confirmed if the SSS ratio > 1.5 and the displacement ratio "
+            f"> 1). In the plaque alone: {plaque_peak('moving_newtonian'):.4g} Pa vs "
+            f"{plaque_peak('moving_carreau'):.4g} Pa ({mesh('moving_newtonian')}, "
+            f"{mesh('moving_carreau')})."
+            + load_reason(pick("moving_newtonian"), pick("moving_carreau"))
+        )
     run = pick("moving_newtonian")
     found = series_max(run, "max_sss")
     if found is not None and (run.path / "solid.xdmf").is_file():
         x, y, region = largest_at(run, "sss", found[1])
         plaque = max((plaque_max(r) or 0.0) for r in run.rows)
         if region == "wall":
-            out.append(f"*Not a finding of the study, but needed to read Figure 6:* the moving "
-                       f"wall's largest SSS ({found[0]:.4g} Pa at t = {found[1]:.4g} s, "
-                       f"{run.path.name}) is in the vessel wall next to its clamped upstream "
-                       f"end (x = {1e3 * x:.2f} mm, y = {1e3 * y:.2f} mm), where the held edge "
-                       "meets the loaded lumen side. The elastic stress is singular at that "
-                       "corner of the boundary conditions, so this maximum grows as the mesh is "
-                       "refined and says nothing about the plaque; the plaque's largest SSS, "
-                       f"{plaque:.4g} Pa, is the one to compare (Figure 6, left)."
-                       + convergence_of_maxima(runs))
+            out.append(
+                f"*Not a finding of the study, but needed to read Figure 6:* the moving "
+                f"wall's largest SSS ({found[0]:.4g} Pa at t = {found[1]:.4g} s, "
+                f"{run.path.name}) is in the vessel wall next to its clamped upstream "
+                f"end (x = {1e3 * x:.2f} mm, y = {1e3 * y:.2f} mm), where the held edge "
+                "meets the loaded lumen side. The elastic stress is singular at that "
+                "corner of the boundary conditions, so this maximum grows as the mesh is "
+                "refined and says nothing about the plaque; the plaque's largest SSS, "
+                f"{plaque:.4g} Pa, is the one to compare (Figure 6, left)."
+                + convergence_of_maxima(runs)
+            )
     rf = [peak(c, "recirculation_length") for c in ("fixed_newtonian", "fixed_carreau")]
     rm = [peak(c, "recirculation_length") for c in ("moving_newtonian", "moving_carreau")]
     if all(rf + rm):
         spread = (max(rf + rm) - min(rf + rm)) / max(rf + rm)
         verdict = "confirmed" if spread < 0.1 else "refuted"
-        out.append(f"**The recirculation downstream is the same for fixed and moving walls.** "
-                   f"Longest reversed-flow zone over the heartbeat: fixed {1e3 * rf[0]:.3g} / "
-                   f"{1e3 * rf[1]:.3g} mm (Newtonian / Carreau), moving {1e3 * rm[0]:.3g} / "
-                   f"{1e3 * rm[1]:.3g} mm; spread {100 * spread:.1f} % — {verdict} (confirmed "
-                   "if within 10 %).")
+        out.append(
+            f"**The recirculation downstream is the same for fixed and moving walls.** "
+            f"Longest reversed-flow zone over the heartbeat: fixed {1e3 * rf[0]:.3g} / "
+            f"{1e3 * rf[1]:.3g} mm (Newtonian / Carreau), moving {1e3 * rm[0]:.3g} / "
+            f"{1e3 * rm[1]:.3g} mm; spread {100 * spread:.1f} % — {verdict} (confirmed "
+            "if within 10 %)."
+        )
     return out
 
 
@@ -438,45 +501,58 @@ def write(folder: Path, study_runs, docs: Path) -> Path:
     runs = load(folder, study_runs)
     names = [r.name for r in study_runs]
     missing = [n for n in names if not finished(runs.get(n))]
-    parts = ["# The study reproduced\n",
-             "Generated by `scripts/reproduce_study.py` from the runs in "
-             f"`{_shown(folder)}/` (every number below is read from them). The four "
-             "configurations of MODEL.md §4 on the coarse and the fine mesh, the whole heartbeat "
-             "(0.8 s), with the shipped configs' resolved schedule (0.25 ms steps to 50 ms, 1 ms "
-             "to 0.1 s, 5 ms to 0.8 s: docs/wall-damping.md), on 2 MPI ranks; and the study's "
-             "printed schedule (5 ms to 0.4 s, 10 ms to 0.8 s) on the coarse mesh.\n"]
+    parts = [
+        "# The study reproduced\n",
+        "Generated by `scripts/reproduce_study.py` from the runs in "
+        f"`{_shown(folder)}/` (every number below is read from them). The four "
+        "configurations of MODEL.md §4 on the coarse and the fine mesh, the whole heartbeat "
+        "(0.8 s), with the shipped configs' resolved schedule (0.25 ms steps to 50 ms, 1 ms "
+        "to 0.1 s, 5 ms to 0.8 s: docs/wall-damping.md), on 2 MPI ranks; and the study's "
+        "printed schedule (5 ms to 0.4 s, 10 ms to 0.8 s) on the coarse mesh.\n",
+    ]
     if missing:
         parts.append("**Not finished yet** (shown as '–'): " + ", ".join(missing) + ".\n")
     for column, title, unit, scale in QUANTITIES:
         parts.append(f"## {title} ({unit})\n\n{peak_table(runs, column, unit, scale)}\n")
     conv = figure_convergence(runs, figures / "study_mesh_convergence.png")
-    parts.append(f"Mesh convergence: the coarse → fine change of each peak.\n\n"
-                 f"![mesh convergence](figures/{conv.name})\n")
-    parts.append("## The study's printed schedule (coarse mesh)\n\n"
-                 "Its first step, 5 ms, is the whole inlet pulse, which is back to 0 at t = "
-                 "5 ms: the fluid's backward-Euler/BDF step sees P(5 ms) = 0 and the runs stay "
-                 "at rest (MODEL.md §4).\n\n" + printed_table(runs) + "\n")
+    parts.append(
+        f"Mesh convergence: the coarse → fine change of each peak.\n\n"
+        f"![mesh convergence](figures/{conv.name})\n"
+    )
+    parts.append(
+        "## The study's printed schedule (coarse mesh)\n\n"
+        "Its first step, 5 ms, is the whole inlet pulse, which is back to 0 at t = "
+        "5 ms: the fluid's backward-Euler/BDF step sees P(5 ms) = 0 and the runs stay "
+        "at rest (MODEL.md §4).\n\n" + printed_table(runs) + "\n"
+    )
     fig6 = figure_sss(runs, figures / "study_figure6_sss.png")
-    parts.append("## Figure 6: the maximum structural shear stress over time\n\n"
-                 f"![Figure 6](figures/{fig6.name})\n\nLog scales: the fixed-wall curves are "
-                 "far below the moving-wall ones. Left, the plaque (cap and lipid), as the "
-                 "study plots it; right, the whole structure, whose moving-wall maximum sits at "
-                 "the wall's clamped end (see the findings).\n")
+    parts.append(
+        "## Figure 6: the maximum structural shear stress over time\n\n"
+        f"![Figure 6](figures/{fig6.name})\n\nLog scales: the fixed-wall curves are "
+        "far below the moving-wall ones. Left, the plaque (cap and lipid), as the "
+        "study plots it; right, the whole structure, whose moving-wall maximum sits at "
+        "the wall's clamped end (see the findings).\n"
+    )
     fields = field_figures(runs, figures)
     if fields:
         parts.append("## Figures 7–9: fields\n")
         for caption, path in fields:
             parts.append(f"{caption}\n\n![{path.stem}](figures/{path.name})\n")
-    parts.append("## The study's findings, checked\n\n"
-                 "All on one mesh, as they compare configurations: the fine one once its four "
-                 "runs have finished, else the coarse one (the run is named beside its "
-                 "numbers).\n\n"
-                 + "\n".join(f"- {f}" for f in findings(runs)) + "\n")
-    parts.append("## Wall time on this machine (2 cores)\n\n"
-                 "Sum of the steps' wall times (metrics.csv), without start-up (mesh, "
-                 "compilation), as measured: the 2 cores were at times shared with other jobs "
-                 "(tests, the other runs' start-up), which can slow a run several-fold, so "
-                 "these are upper bounds; #11's benchmarks time unloaded runs.\n\n" + effort_table(runs, names) + "\n")
+    parts.append(
+        "## The study's findings, checked\n\n"
+        "All on one mesh, as they compare configurations: the fine one once its four "
+        "runs have finished, else the coarse one (the run is named beside its "
+        "numbers).\n\n" + "\n".join(f"- {f}" for f in findings(runs)) + "\n"
+    )
+    parts.append(
+        "## Wall time on this machine (2 cores)\n\n"
+        "Sum of the steps' wall times (metrics.csv), without start-up (mesh, "
+        "compilation), as measured: the 2 cores were at times shared with other jobs "
+        "(tests, the other runs' start-up), which can slow a run several-fold, so "
+        "these are upper bounds; #11's benchmarks time unloaded runs.\n\n"
+        + effort_table(runs, names)
+        + "\n"
+    )
     path = docs / "study.md"
     path.write_text("\n".join(parts))
     return path

@@ -31,15 +31,27 @@ def test_carreau_case_reads_its_parameters():
     case = config.load(Path(__file__).parents[1] / "configs/stenosis_moving_carreau.yaml")
     r = case.fluid.rheology
     assert (r.model, r.mu_0, r.mu_inf, r.relaxation_time, r.power_index) == (
-        "carreau", 0.0456, 0.0032, 10.03, 0.344)
+        "carreau",
+        0.0456,
+        0.0032,
+        10.03,
+        0.344,
+    )
     assert case.structure.mode == "moving_wall"
 
 
 def test_overrides_take_precedence_and_parse_yaml(tmp_path):
     path = tmp_path / "case.yaml"
     path.write_text("mesh: {level: coarse}\ntime: {end: 0.8}\n")
-    case = config.load(path, ["mesh.level=fine", "time.end=0.1", "geometry.plaque_sides=[bottom, top]",
-                              "fluid.rheology.model=carreau"])
+    case = config.load(
+        path,
+        [
+            "mesh.level=fine",
+            "time.end=0.1",
+            "geometry.plaque_sides=[bottom, top]",
+            "fluid.rheology.model=carreau",
+        ],
+    )
     assert case.mesh.level == "fine" and case.mesh.refinements == 2
     assert case.time.end == 0.1
     assert case.geometry.plaque_sides == ("bottom", "top")
@@ -69,16 +81,22 @@ BAD = [
     ("structure: {mode: flexible}", "structure.mode", "'moving_wall'"),
     ("fluid: {density: '1060'}", "fluid.density", "a number"),
     ("fluid: {rheology: {model: bingham}}", "fluid.rheology.model", "'carreau'"),
-    ("fluid: {rheology: {model: carreau, viscosity: 0.0035}}", "fluid.rheology.viscosity",
-     "one of the keys"),
+    (
+        "fluid: {rheology: {model: carreau, viscosity: 0.0035}}",
+        "fluid.rheology.viscosity",
+        "one of the keys",
+    ),
     ("fluid: {quadrature_degree: 4.5}", "fluid.quadrature_degree", "an integer"),
     ("fluid: {solver: {rtol: 1.0e-3}}", "fluid.solver.rtol", "coupling.tolerance / 10"),
     ("output: {fields_every: true}", "output.fields_every", "an integer"),
     ("coupling: {acceleration: anderson}", "coupling.acceleration", "'iqn-ils'"),
     ("coupling: {initial_relaxation: 1.5}", "coupling.initial_relaxation", "(0, 1]"),
     ("time: {end: 1.0}", "time.schedule[1].until", "at least time.end"),
-    ("time: {schedule: [{until: 0.4, dt: 0.01}, {until: 0.3, dt: 0.01}]}", "time.schedule[1].until",
-     "greater than"),
+    (
+        "time: {schedule: [{until: 0.4, dt: 0.01}, {until: 0.3, dt: 0.01}]}",
+        "time.schedule[1].until",
+        "greater than",
+    ),
     ("time: {schedule: [{until: 0.8, dt: -0.01}]}", "time.schedule[0].dt", "positive"),
     ("mesh: {level: ultra}", "mesh.level", "'fine'"),
     ("geometry: {kind: channel}", "structure.mode", "'rigid'"),
@@ -142,7 +160,6 @@ def test_scientific_notation_without_a_dot_is_a_number():
 def test_vtx_output_is_refused_by_check(capsys):
     """No VTX writer exists (Debian 12's dolfinx lacks ADIOS2): ``fsi check`` says so on both
     releases instead of a run failing, or silently writing XDMF, later."""
-    assert cli.main(["check", "configs/channel_poiseuille.yaml", "--set",
-                     "output.fields=vtx"]) == 2
+    assert cli.main(["check", "configs/channel_poiseuille.yaml", "--set", "output.fields=vtx"]) == 2
     if MPI.COMM_WORLD.rank == 0:  # the message comes from rank 0
         assert "output.fields: expected one of 'xdmf'" in capsys.readouterr().err

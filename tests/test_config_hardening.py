@@ -57,94 +57,194 @@ def assert_refused(status: int, err: str, source: str, key: str, *words: str) ->
 
 BAD = [
     # (YAML, key, words) -- every number finite and in range
-    ("time: {schedule: [{until: 0.8, dt: .inf}]}", "time.schedule[0].dt",
-     "expected a finite positive number (s), got inf"),
+    (
+        "time: {schedule: [{until: 0.8, dt: .inf}]}",
+        "time.schedule[0].dt",
+        "expected a finite positive number (s), got inf",
+    ),
     ("time: {end: .nan}", "time.end", "a finite positive number (s), got nan"),
     ("geometry: {length: .inf}", "geometry.length", "a finite positive number (m), got inf"),
     ("fluid: {rheology: {viscosity: .inf}}", "fluid.rheology.viscosity", "finite"),
     ("fluid: {rheology: {model: carreau, mu_0: .nan}}", "fluid.rheology.mu_0", "finite"),
     ("fluid: {density: -.inf}", "fluid.density", "got -inf"),
     ("structure: {body_force: [.inf, 0]}", "structure.body_force[0]", "a finite number, got inf"),
-    ("structure: {wall: {poisson_ratio: .nan}}", "structure.wall.poisson_ratio",
-     "a finite number in (-1.0, 0.5)"),
-    ("structure: {time_integration: {spectral_radius: .nan}}",
-     "structure.time_integration.spectral_radius", "a finite number in [0, 1]"),
+    (
+        "structure: {wall: {poisson_ratio: .nan}}",
+        "structure.wall.poisson_ratio",
+        "a finite number in (-1.0, 0.5)",
+    ),
+    (
+        "structure: {time_integration: {spectral_radius: .nan}}",
+        "structure.time_integration.spectral_radius",
+        "a finite number in [0, 1]",
+    ),
     ("output: {report_times: [-1, .nan]}", "output.report_times[1]", "a finite number, got nan"),
     ("output: {report_times: [-1, 0.1]}", "output.report_times", "times >= 0"),
     ("coupling: {tolerance: .inf}", "coupling.tolerance", "finite"),
-    ("geometry: {kind: turek_hron, cylinder_centre: [.nan, 0.2]}", "geometry.cylinder_centre[0]",
-     "a finite number"),
-    ("fluid: {inlet: {kind: pressure_table, table: [[0, 0], [1, .inf]]}}",
-     "fluid.inlet.table[1][1]", "a finite number"),
+    (
+        "geometry: {kind: turek_hron, cylinder_centre: [.nan, 0.2]}",
+        "geometry.cylinder_centre[0]",
+        "a finite number",
+    ),
+    (
+        "fluid: {inlet: {kind: pressure_table, table: [[0, 0], [1, .inf]]}}",
+        "fluid.inlet.table[1][1]",
+        "a finite number",
+    ),
     ("mesh: {size: " + "9" * 400 + "}", "mesh.size", "finite"),
     # quadrature ceiling
     ("fluid: {quadrature_degree: 100000}", "fluid.quadrature_degree", "an integer in [1, 20]"),
     ("structure: {quadrature_degree: 21}", "structure.quadrature_degree", "an integer in [1, 20]"),
     # PETSc options: viewers, monitors, Python, options files, paths
-    ("fluid: {solver: {petsc_options: {ksp_view: 'ascii:/tmp/owned'}}}",
-     "fluid.solver.petsc_options.ksp_view", "viewers write"),
-    ("fluid: {solver: {petsc_options: {KSP_VIEW: ''}}}", "fluid.solver.petsc_options.KSP_VIEW",
-     "viewers"),
-    ("structure: {solver: {petsc_options: {pc_type: python}}}",
-     "structure.solver.petsc_options.pc_type", "Python"),
-    ("structure: {solver: {petsc_options: {pc_python_type: 'os.system'}}}",
-     "structure.solver.petsc_options.pc_python_type", "Python"),
-    ("mesh_motion: {petsc_options: {options_file: /etc/passwd}}",
-     "mesh_motion.petsc_options.options_file", "options files"),
-    ("mesh_motion: {petsc_options: {ksp_monitor: 'ascii:/tmp/m'}}",
-     "mesh_motion.petsc_options.ksp_monitor", "monitors"),
-    ("mesh_motion: {petsc_options: {fieldsplit_0_ksp_view: ''}}",
-     "mesh_motion.petsc_options.fieldsplit_0_ksp_view", "viewers"),
-    ("fluid: {solver: {petsc_options: {ksp_converged_reason: ''}}}",
-     "fluid.solver.petsc_options.ksp_converged_reason", "not an allowed PETSc option"),
-    ("fluid: {solver: {petsc_options: {mat_type: aij}}}",
-     "fluid.solver.petsc_options.mat_type", "not an allowed PETSc option"),
-    ("fluid: {solver: {petsc_options: {mat_mumps_icntl_1: 6}}}",
-     "fluid.solver.petsc_options.mat_mumps_icntl_1", "output streams"),
-    ("fluid: {solver: {petsc_options: {mat_mumps_icntl_22: 1}}}",
-     "fluid.solver.petsc_options.mat_mumps_icntl_22", "out-of-core"),
-    ("fluid: {solver: {petsc_options: {pc_mg_log: ''}}}",
-     "fluid.solver.petsc_options.pc_mg_log", "logging"),
-    ("fluid: {solver: {petsc_options: {'-ksp_type': cg}}}",
-     "fluid.solver.petsc_options.-ksp_type", "without the leading '-'"),
-    ("fluid: {solver: {petsc_options: {'ksp_type -ksp_view': cg}}}",
-     "fluid.solver.petsc_options.ksp_type -ksp_view", "not a PETSc option name"),
-    ("fluid: {solver: {petsc_options: {pc_factor_mat_solver_type: 'ascii:/tmp/x'}}}",
-     "fluid.solver.petsc_options.pc_factor_mat_solver_type", "no file paths"),
-    ("fluid: {solver: {petsc_options: {pc_type: '../lu'}}}",
-     "fluid.solver.petsc_options.pc_type", "no file paths"),
-    ("fluid: {solver: {petsc_options: {ksp_type: 'gmres -ksp_view'}}}",
-     "fluid.solver.petsc_options.ksp_type", "a type name"),
-    ("fluid: {solver: {petsc_options: {ksp_type: PyThOn}}}",
-     "fluid.solver.petsc_options.ksp_type", "Python"),
-    ("fluid: {solver: {petsc_options: {ksp_rtol: .nan}}}",
-     "fluid.solver.petsc_options.ksp_rtol", "a finite number"),
+    (
+        "fluid: {solver: {petsc_options: {ksp_view: 'ascii:/tmp/owned'}}}",
+        "fluid.solver.petsc_options.ksp_view",
+        "viewers write",
+    ),
+    (
+        "fluid: {solver: {petsc_options: {KSP_VIEW: ''}}}",
+        "fluid.solver.petsc_options.KSP_VIEW",
+        "viewers",
+    ),
+    (
+        "structure: {solver: {petsc_options: {pc_type: python}}}",
+        "structure.solver.petsc_options.pc_type",
+        "Python",
+    ),
+    (
+        "structure: {solver: {petsc_options: {pc_python_type: 'os.system'}}}",
+        "structure.solver.petsc_options.pc_python_type",
+        "Python",
+    ),
+    (
+        "mesh_motion: {petsc_options: {options_file: /etc/passwd}}",
+        "mesh_motion.petsc_options.options_file",
+        "options files",
+    ),
+    (
+        "mesh_motion: {petsc_options: {ksp_monitor: 'ascii:/tmp/m'}}",
+        "mesh_motion.petsc_options.ksp_monitor",
+        "monitors",
+    ),
+    (
+        "mesh_motion: {petsc_options: {fieldsplit_0_ksp_view: ''}}",
+        "mesh_motion.petsc_options.fieldsplit_0_ksp_view",
+        "viewers",
+    ),
+    (
+        "fluid: {solver: {petsc_options: {ksp_converged_reason: ''}}}",
+        "fluid.solver.petsc_options.ksp_converged_reason",
+        "not an allowed PETSc option",
+    ),
+    (
+        "fluid: {solver: {petsc_options: {mat_type: aij}}}",
+        "fluid.solver.petsc_options.mat_type",
+        "not an allowed PETSc option",
+    ),
+    (
+        "fluid: {solver: {petsc_options: {mat_mumps_icntl_1: 6}}}",
+        "fluid.solver.petsc_options.mat_mumps_icntl_1",
+        "output streams",
+    ),
+    (
+        "fluid: {solver: {petsc_options: {mat_mumps_icntl_22: 1}}}",
+        "fluid.solver.petsc_options.mat_mumps_icntl_22",
+        "out-of-core",
+    ),
+    (
+        "fluid: {solver: {petsc_options: {pc_mg_log: ''}}}",
+        "fluid.solver.petsc_options.pc_mg_log",
+        "logging",
+    ),
+    (
+        "fluid: {solver: {petsc_options: {'-ksp_type': cg}}}",
+        "fluid.solver.petsc_options.-ksp_type",
+        "without the leading '-'",
+    ),
+    (
+        "fluid: {solver: {petsc_options: {'ksp_type -ksp_view': cg}}}",
+        "fluid.solver.petsc_options.ksp_type -ksp_view",
+        "not a PETSc option name",
+    ),
+    (
+        "fluid: {solver: {petsc_options: {pc_factor_mat_solver_type: 'ascii:/tmp/x'}}}",
+        "fluid.solver.petsc_options.pc_factor_mat_solver_type",
+        "no file paths",
+    ),
+    (
+        "fluid: {solver: {petsc_options: {pc_type: '../lu'}}}",
+        "fluid.solver.petsc_options.pc_type",
+        "no file paths",
+    ),
+    (
+        "fluid: {solver: {petsc_options: {ksp_type: 'gmres -ksp_view'}}}",
+        "fluid.solver.petsc_options.ksp_type",
+        "a type name",
+    ),
+    (
+        "fluid: {solver: {petsc_options: {ksp_type: PyThOn}}}",
+        "fluid.solver.petsc_options.ksp_type",
+        "Python",
+    ),
+    (
+        "fluid: {solver: {petsc_options: {ksp_rtol: .nan}}}",
+        "fluid.solver.petsc_options.ksp_rtol",
+        "a finite number",
+    ),
     # inlet formulas: too long, too deep, failing at a step time
-    ("fluid: {inlet: {kind: pressure, formula: '" + "(" * 10000 + "t" + ")" * 10000 + "'}}",
-     "fluid.inlet.formula", "longer than 2000 characters"),
-    ("fluid: {inlet: {kind: pressure, formula: '" + "-" * 1500 + "t'}}",  # the reason varies
-     "fluid.inlet.formula", "expected an expression in t"),  # with the Python version
-    ("fluid: {inlet: {kind: pressure, formula: '" + "(" * 300 + "t" + ")" * 300 + "'}}",
-     "fluid.inlet.formula", "too many nested parentheses"),
-    ("fluid: {inlet: {kind: pressure, formula: '" + "1" * 400 + "*t'}}",
-     "fluid.inlet.formula", "too large"),
-    ("fluid: {inlet: {kind: pressure, formula: '1/(t-0.001)'}}\n"
-     "time: {schedule: [{until: 0.8, dt: 0.001}]}",
-     "fluid.inlet.formula", "evaluation fails at t = 0.001 s (division by zero)"),
-    ("fluid: {inlet: {kind: pressure, formula: 'log(0)'}}", "fluid.inlet.formula",
-     "evaluation fails at t = 0 s (math domain error)"),
-    ("fluid: {inlet: {kind: pressure, formula: 'sqrt(-1-t)'}}", "fluid.inlet.formula",
-     "at t = 0 s (math domain error)"),
-    ("fluid: {inlet: {kind: pressure, formula: '9**9**9'}}", "fluid.inlet.formula",
-     "(overflow)"),
-    ("fluid: {inlet: {kind: pressure, formula: 'exp(1e6*t)'}}", "fluid.inlet.formula",
-     "at t = 0.005 s (overflow)"),
-    ("fluid: {inlet: {kind: pressure, formula: '(-1)**0.5'}}", "fluid.inlet.formula",
-     "complex result"),
-    ("fluid: {inlet: {kind: pressure, formula: '1e308*10**(t > 0.312)'}}", "fluid.inlet.formula",
-     "at t = 0.315 s (the result is inf)"),
-    ("fluid: {inlet: {kind: pressure, formula: 'min(t)'}}", "fluid.inlet.formula",
-     "not iterable"),
+    (
+        "fluid: {inlet: {kind: pressure, formula: '" + "(" * 10000 + "t" + ")" * 10000 + "'}}",
+        "fluid.inlet.formula",
+        "longer than 2000 characters",
+    ),
+    (
+        "fluid: {inlet: {kind: pressure, formula: '" + "-" * 1500 + "t'}}",  # the reason varies
+        "fluid.inlet.formula",
+        "expected an expression in t",
+    ),  # with the Python version
+    (
+        "fluid: {inlet: {kind: pressure, formula: '" + "(" * 300 + "t" + ")" * 300 + "'}}",
+        "fluid.inlet.formula",
+        "too many nested parentheses",
+    ),
+    (
+        "fluid: {inlet: {kind: pressure, formula: '" + "1" * 400 + "*t'}}",
+        "fluid.inlet.formula",
+        "too large",
+    ),
+    (
+        "fluid: {inlet: {kind: pressure, formula: '1/(t-0.001)'}}\n"
+        "time: {schedule: [{until: 0.8, dt: 0.001}]}",
+        "fluid.inlet.formula",
+        "evaluation fails at t = 0.001 s (division by zero)",
+    ),
+    (
+        "fluid: {inlet: {kind: pressure, formula: 'log(0)'}}",
+        "fluid.inlet.formula",
+        "evaluation fails at t = 0 s (math domain error)",
+    ),
+    (
+        "fluid: {inlet: {kind: pressure, formula: 'sqrt(-1-t)'}}",
+        "fluid.inlet.formula",
+        "at t = 0 s (math domain error)",
+    ),
+    ("fluid: {inlet: {kind: pressure, formula: '9**9**9'}}", "fluid.inlet.formula", "(overflow)"),
+    (
+        "fluid: {inlet: {kind: pressure, formula: 'exp(1e6*t)'}}",
+        "fluid.inlet.formula",
+        "at t = 0.005 s (overflow)",
+    ),
+    (
+        "fluid: {inlet: {kind: pressure, formula: '(-1)**0.5'}}",
+        "fluid.inlet.formula",
+        "complex result",
+    ),
+    (
+        "fluid: {inlet: {kind: pressure, formula: '1e308*10**(t > 0.312)'}}",
+        "fluid.inlet.formula",
+        "at t = 0.315 s (the result is inf)",
+    ),
+    ("fluid: {inlet: {kind: pressure, formula: 'min(t)'}}", "fluid.inlet.formula", "not iterable"),
 ]
 
 
@@ -162,8 +262,10 @@ def test_bad_values_exit_2_naming_file_and_key(shared_tmp, capsys, text, key, wo
 
 
 def test_binary_and_non_utf8_files_exit_2_naming_the_file(shared_tmp, capsys):
-    for name, content in [("binary.yaml", bytes(range(256)) * 8),
-                          ("latin1.yaml", "name: caf\xe9\n".encode("latin-1"))]:
+    for name, content in [
+        ("binary.yaml", bytes(range(256)) * 8),
+        ("latin1.yaml", "name: caf\xe9\n".encode("latin-1")),
+    ]:
         path = write(shared_tmp / name, content)
         assert_refused(*cli_error(capsys, "check", str(path)), str(path), "", "not UTF-8 text")
 
@@ -173,28 +275,51 @@ def test_a_file_over_1_mib_is_refused_unread(shared_tmp, capsys):
     assert_refused(*cli_error(capsys, "check", str(path)), str(path), "", "larger than 1048576")
 
 
-@pytest.mark.parametrize("text", ["[" * 100000, "[" * 100000 + "]" * 100000,
-                                  "fluid: " + "{a: " * 5000 + "1" + "}" * 5000,
-                                  "- " * 2000 + "x"],
-                         ids=["open flow lists", "flow lists", "flow mappings", "block lists"])
+@pytest.mark.parametrize(
+    "text",
+    [
+        "[" * 100000,
+        "[" * 100000 + "]" * 100000,
+        "fluid: " + "{a: " * 5000 + "1" + "}" * 5000,
+        "- " * 2000 + "x",
+    ],
+    ids=["open flow lists", "flow lists", "flow mappings", "block lists"],
+)
 def test_deeply_nested_yaml_exits_2_without_recursion_error(shared_tmp, capsys, text):
     path = write(shared_tmp / "deep.yaml", text)
-    assert_refused(*cli_error(capsys, "check", str(path)), str(path), "",
-                   "YAML nested more than 32 levels deep (line 1")
+    assert_refused(
+        *cli_error(capsys, "check", str(path)),
+        str(path),
+        "",
+        "YAML nested more than 32 levels deep (line 1",
+    )
 
 
 def test_duplicate_keys_are_refused_naming_key_and_both_lines(shared_tmp, capsys):
-    path = write(shared_tmp / "case.yaml", "name: twice\nfluid:\n  density: 1000\n  supg: false\n"
-                                           "  rheology: {model: newtonian}\n\n  density: 1060\n")
-    assert_refused(*cli_error(capsys, "check", str(path)), str(path), "fluid.density",
-                   "duplicate key (lines 3 and 7)")
-    path = write(shared_tmp / "case.yaml", "time:\n  schedule:\n    - {until: 0.8, dt: 0.01, "
-                                           "dt: 0.02}\n")
-    assert_refused(*cli_error(capsys, "check", str(path)), str(path), "time.schedule[0].dt",
-                   "duplicate key (line 3, columns")
+    path = write(
+        shared_tmp / "case.yaml",
+        "name: twice\nfluid:\n  density: 1000\n  supg: false\n"
+        "  rheology: {model: newtonian}\n\n  density: 1060\n",
+    )
+    assert_refused(
+        *cli_error(capsys, "check", str(path)),
+        str(path),
+        "fluid.density",
+        "duplicate key (lines 3 and 7)",
+    )
+    path = write(
+        shared_tmp / "case.yaml", "time:\n  schedule:\n    - {until: 0.8, dt: 0.01, dt: 0.02}\n"
+    )
+    assert_refused(
+        *cli_error(capsys, "check", str(path)),
+        str(path),
+        "time.schedule[0].dt",
+        "duplicate key (line 3, columns",
+    )
     path = write(shared_tmp / "case.yaml", "name: a\nname: b\n")
-    assert_refused(*cli_error(capsys, "check", str(path)), str(path), "name",
-                   "duplicate key (lines 1 and 2)")
+    assert_refused(
+        *cli_error(capsys, "check", str(path)), str(path), "name", "duplicate key (lines 1 and 2)"
+    )
 
 
 @pytest.mark.parametrize("key", ["name", "output.report_times", "fluid.solver.petsc_options"])
@@ -217,8 +342,9 @@ def test_unreadable_yaml_values_exit_2(shared_tmp, capsys):
     """PyYAML raises ValueError, not a YAML error, for these: still one line, exit 2."""
     for text in ["name: " + "1" * 5000, "name: 2024-13-45"]:
         path = write(shared_tmp / "case.yaml", text)
-        assert_refused(*cli_error(capsys, "check", str(path)), str(path), "<file>",
-                       "a value cannot be read")
+        assert_refused(
+            *cli_error(capsys, "check", str(path)), str(path), "<file>", "a value cannot be read"
+        )
 
 
 # --------------------------------------------------------------------------------------------
@@ -226,31 +352,64 @@ def test_unreadable_yaml_values_exit_2(shared_tmp, capsys):
 
 
 def test_set_errors_name_set_for_list_elements_and_new_sections(capsys):
-    status, err = cli_error(capsys, "check", str(CHANNEL), "--set",
-                            "time.schedule=[{until: 1, dt: -1}]")
+    status, err = cli_error(
+        capsys, "check", str(CHANNEL), "--set", "time.schedule=[{until: 1, dt: -1}]"
+    )
     assert_refused(status, err, "--set", "time.schedule[0].dt", "positive")
-    assert_refused(*cli_error(capsys, "check", str(CHANNEL), "--set", "nosuch.key=1"), "--set",
-                   "nosuch", "one of the keys")
-    assert_refused(*cli_error(capsys, "check", str(CHANNEL), "--set", "fluid.nosuch.key=1"),
-                   "--set", "fluid.nosuch", "one of the keys")
+    assert_refused(
+        *cli_error(capsys, "check", str(CHANNEL), "--set", "nosuch.key=1"),
+        "--set",
+        "nosuch",
+        "one of the keys",
+    )
+    assert_refused(
+        *cli_error(capsys, "check", str(CHANNEL), "--set", "fluid.nosuch.key=1"),
+        "--set",
+        "fluid.nosuch",
+        "one of the keys",
+    )
     # An error in the file is still the file's, beside an unrelated --set.
-    assert_refused(*cli_error(capsys, "check", str(CHANNEL), "--set", "time.end=0.2"),
-                   str(CHANNEL), "time.schedule[0].until", "at least time.end")
+    assert_refused(
+        *cli_error(capsys, "check", str(CHANNEL), "--set", "time.end=0.2"),
+        str(CHANNEL),
+        "time.schedule[0].until",
+        "at least time.end",
+    )
 
 
 def test_set_values_have_the_file_limits(capsys):
     formula = "t+" * 500000 + "t"  # 1 MB
-    assert_refused(*cli_error(capsys, "check", str(CHANNEL), "--set",
-                              f"fluid.inlet={{kind: pressure, formula: '{formula}'}}"),
-                   "--set", "fluid.inlet.formula", "longer than 2000 characters",
-                   "(1000003 characters)")
-    assert_refused(*cli_error(capsys, "check", str(CHANNEL), "--set",
-                              "fluid={density: 1, density: 2}"),
-                   "--set", "fluid.density", "duplicate key")
-    assert_refused(*cli_error(capsys, "check", str(CHANNEL), "--set", "fluid=" + "[" * 1000),
-                   "--set", "fluid", "nested more than 32 levels")
-    assert_refused(*cli_error(capsys, "check", str(CHANNEL), "--set", "mesh.size=.inf"),
-                   "--set", "mesh.size", "a finite positive number")
+    assert_refused(
+        *cli_error(
+            capsys,
+            "check",
+            str(CHANNEL),
+            "--set",
+            f"fluid.inlet={{kind: pressure, formula: '{formula}'}}",
+        ),
+        "--set",
+        "fluid.inlet.formula",
+        "longer than 2000 characters",
+        "(1000003 characters)",
+    )
+    assert_refused(
+        *cli_error(capsys, "check", str(CHANNEL), "--set", "fluid={density: 1, density: 2}"),
+        "--set",
+        "fluid.density",
+        "duplicate key",
+    )
+    assert_refused(
+        *cli_error(capsys, "check", str(CHANNEL), "--set", "fluid=" + "[" * 1000),
+        "--set",
+        "fluid",
+        "nested more than 32 levels",
+    )
+    assert_refused(
+        *cli_error(capsys, "check", str(CHANNEL), "--set", "mesh.size=.inf"),
+        "--set",
+        "mesh.size",
+        "a finite positive number",
+    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -263,32 +422,56 @@ def test_step_count_is_that_of_the_schedule(path):
     assert run_size.count_steps(time_) == sum(1 for _ in steps(time_))
 
 
-@pytest.mark.parametrize("end,schedule", [
-    (0.8, [(0.4, 5e-3), (0.8, 1e-2)]),
-    (0.8, [(0.1, 1 / 30), (0.45, 0.007), (0.8, 0.1)]),
-    (0.25, [(0.1, 0.03), (0.3, 0.007)]),
-    (0.3, [(0.1, 0.1), (0.3, 0.3)]),  # the second segment's dt is longer than the segment
-    (1 / 3, [(1 / 3, 1 / 30)]),  # a leftover of round-off is merged, not a step of its own
-])
+@pytest.mark.parametrize(
+    "end,schedule",
+    [
+        (0.8, [(0.4, 5e-3), (0.8, 1e-2)]),
+        (0.8, [(0.1, 1 / 30), (0.45, 0.007), (0.8, 0.1)]),
+        (0.25, [(0.1, 0.03), (0.3, 0.007)]),
+        (0.3, [(0.1, 0.1), (0.3, 0.3)]),  # the second segment's dt is longer than the segment
+        (1 / 3, [(1 / 3, 1 / 30)]),  # a leftover of round-off is merged, not a step of its own
+    ],
+)
 def test_step_count_matches_odd_schedules(end, schedule):
-    time_ = config.from_dict({"time": {"end": end, "schedule": [
-        {"until": until, "dt": dt} for until, dt in schedule]}}).time
+    time_ = config.from_dict(
+        {"time": {"end": end, "schedule": [{"until": until, "dt": dt} for until, dt in schedule]}}
+    ).time
     assert run_size.count_steps(time_) == sum(1 for _ in steps(time_))
 
 
 def test_too_many_steps_fail_at_once_with_the_count_and_how_to_raise_the_limit(capsys):
     start = time.perf_counter()
-    status, err = cli_error(capsys, "check", str(CHANNEL), "--set",
-                            "time.schedule=[{until: 0.1, dt: 1.0e-12}]")
+    status, err = cli_error(
+        capsys, "check", str(CHANNEL), "--set", "time.schedule=[{until: 0.1, dt: 1.0e-12}]"
+    )
     assert time.perf_counter() - start < 1
-    assert_refused(status, err, "--set", "time.schedule", "100,000,000,000 steps",
-                   "time.max_steps = 1,000,000", "--set time.max_steps=100000000000")
-    status, err = cli_error(capsys, "check", str(CHANNEL), "--set",
-                            "time.schedule=[{until: 0.1, dt: 5.0e-324}]")
+    assert_refused(
+        status,
+        err,
+        "--set",
+        "time.schedule",
+        "100,000,000,000 steps",
+        "time.max_steps = 1,000,000",
+        "--set time.max_steps=100000000000",
+    )
+    status, err = cli_error(
+        capsys, "check", str(CHANNEL), "--set", "time.schedule=[{until: 0.1, dt: 5.0e-324}]"
+    )
     assert_refused(status, err, "--set", "time.schedule", "over 1e308 steps")
     # The limit is the user's: raised, the same schedule is valid (checked, never listed).
-    assert cli.main(["check", str(CHANNEL), "--set", "time.schedule=[{until: 0.1, dt: 1.0e-12}]",
-                     "--set", "time.max_steps=100000000000"]) == 0
+    assert (
+        cli.main(
+            [
+                "check",
+                str(CHANNEL),
+                "--set",
+                "time.schedule=[{until: 0.1, dt: 1.0e-12}]",
+                "--set",
+                "time.max_steps=100000000000",
+            ]
+        )
+        == 0
+    )
     # Exactly at the limit is allowed, one more is not.
     assert cli.main(["check", str(CHANNEL), "--set", "time.max_steps=100"]) == 0
     assert cli.main(["check", str(CHANNEL), "--set", "time.max_steps=99"]) == 2
@@ -304,14 +487,18 @@ def test_cell_estimate_is_within_a_factor_3_of_gmsh(path):
 
     case = config.load(path)
     built = mesh.build(case, MPI.COMM_WORLD).mesh.topology.index_map(2).size_global
-    assert built / 3 < run_size.estimated_cells(case) < 3 * built, (run_size.estimated_cells(case),
-                                                                  built)
+    assert built / 3 < run_size.estimated_cells(case) < 3 * built, (
+        run_size.estimated_cells(case),
+        built,
+    )
 
 
 @pytest.mark.parametrize("path", [STENOSIS, TUREK_HRON, CHANNEL], ids=lambda p: p.stem)
 def test_cell_estimate_grows_4_times_per_refinement(path):
-    coarse, medium, fine = (run_size.estimated_cells(config.load(path, [f"mesh.level={level}"]))
-                            for level in ("coarse", "medium", "fine"))
+    coarse, medium, fine = (
+        run_size.estimated_cells(config.load(path, [f"mesh.level={level}"]))
+        for level in ("coarse", "medium", "fine")
+    )
     assert medium == pytest.approx(4 * coarse, rel=1e-12)
     assert fine == pytest.approx(16 * coarse, rel=1e-12)
 
@@ -322,45 +509,84 @@ def test_cell_estimate_follows_the_sizes():
     assert run_size.estimated_cells(halved) == pytest.approx(4 * run_size.estimated_cells(base))
     channel = config.load(CHANNEL)
     assert run_size.estimated_cells(channel) == pytest.approx(
-        0.02 * 0.007 / (math.sqrt(3) / 4 * 5e-4**2))
+        0.02 * 0.007 / (math.sqrt(3) / 4 * 5e-4**2)
+    )
 
 
 def test_a_tiny_mesh_size_fails_at_once_with_the_estimate(shared_tmp, capsys):
     out = shared_tmp / "mesh"
     start = time.perf_counter()
-    status, err = cli_error(capsys, "mesh", str(STENOSIS), "--out", str(out), "--set",
-                            "mesh.size=1.0e-6")
+    status, err = cli_error(
+        capsys, "mesh", str(STENOSIS), "--out", str(out), "--set", "mesh.size=1.0e-6"
+    )
     assert time.perf_counter() - start < 1
-    assert_refused(status, err, "--set", "mesh", "triangles estimated", "mesh.size = 1e-06 m",
-                   "more than mesh.max_cells = 1,000,000", "GB", "raise mesh.max_cells")
+    assert_refused(
+        status,
+        err,
+        "--set",
+        "mesh",
+        "triangles estimated",
+        "mesh.size = 1e-06 m",
+        "more than mesh.max_cells = 1,000,000",
+        "GB",
+        "raise mesh.max_cells",
+    )
     assert not out.exists()
     # A fine level multiplies the estimate by 16: the coarse defaults times 16 is fine, but a
     # limit below it refuses the fine level while it accepts the coarse one.
     assert cli.main(["check", str(STENOSIS), "--set", "mesh.max_cells=10000"]) == 0
-    assert_refused(*cli_error(capsys, "check", str(STENOSIS), "--set", "mesh.max_cells=10000",
-                              "--set", "mesh.level=fine"), "--set", "mesh", "mesh.level = fine")
+    assert_refused(
+        *cli_error(
+            capsys,
+            "check",
+            str(STENOSIS),
+            "--set",
+            "mesh.max_cells=10000",
+            "--set",
+            "mesh.level=fine",
+        ),
+        "--set",
+        "mesh",
+        "mesh.level = fine",
+    )
     # Raised, the limit admits the mesh (validated only: nothing is meshed here).
-    assert cli.main(["check", str(STENOSIS), "--set", "mesh.size=1.0e-6", "--set",
-                     "mesh.local_size=1.0e-6", "--set", "mesh.max_cells=1000000000000"]) == 0
+    assert (
+        cli.main(
+            [
+                "check",
+                str(STENOSIS),
+                "--set",
+                "mesh.size=1.0e-6",
+                "--set",
+                "mesh.local_size=1.0e-6",
+                "--set",
+                "mesh.max_cells=1000000000000",
+            ]
+        )
+        == 0
+    )
 
 
 # --------------------------------------------------------------------------------------------
 # Formulas
 
 
-@pytest.mark.parametrize("formula,t,reason", [
-    ("1/(t-0.001)", 0.001, "division by zero"),
-    ("t % (t - 0.5)", 0.5, "division by zero"),
-    ("log(0*t)", 0.2, "math domain error"),
-    ("sqrt(-1-t)", 0.0, "math domain error"),
-    ("9**9**9", 0.0, "overflow"),
-    ("exp(1e6*t)", 0.01, "overflow"),
-    ("(-1)**0.5", 0.0, "complex result"),
-    ("(t - 1)**0.5", 0.5, "complex result"),
-    ("1e308*10", 0.0, "the result is inf"),
-    ("1e308*10 - 1e308*10", 0.0, "the result is nan"),
-    ("max(t)", 0.0, "not iterable"),
-])
+@pytest.mark.parametrize(
+    "formula,t,reason",
+    [
+        ("1/(t-0.001)", 0.001, "division by zero"),
+        ("t % (t - 0.5)", 0.5, "division by zero"),
+        ("log(0*t)", 0.2, "math domain error"),
+        ("sqrt(-1-t)", 0.0, "math domain error"),
+        ("9**9**9", 0.0, "overflow"),
+        ("exp(1e6*t)", 0.01, "overflow"),
+        ("(-1)**0.5", 0.0, "complex result"),
+        ("(t - 1)**0.5", 0.5, "complex result"),
+        ("1e308*10", 0.0, "the result is inf"),
+        ("1e308*10 - 1e308*10", 0.0, "the result is nan"),
+        ("max(t)", 0.0, "not iterable"),
+    ],
+)
 def test_a_formula_failing_when_evaluated_raises_formula_error(formula, t, reason):
     pressure = boundary_data.time_function(formula)
     with pytest.raises(boundary_data.FormulaError) as error:
@@ -370,15 +596,18 @@ def test_a_formula_failing_when_evaluated_raises_formula_error(formula, t, reaso
     assert isinstance(error.value, ValueError)
 
 
-@pytest.mark.parametrize("formula,reason", [
-    ("import os", "not an expression"),
-    ("x + 1", "unknown name 'x'"),
-    ("t.real", "Attribute is not allowed"),
-    ("t" + "+t" * 1000, "longer than 2000 characters"),
-    ("-" * 1999 + "t", "not an expression|cannot be compiled|nested more than 100 levels"),
-    ("t\0", "null bytes"),
-    ("1" * 400, "too large"),
-])
+@pytest.mark.parametrize(
+    "formula,reason",
+    [
+        ("import os", "not an expression"),
+        ("x + 1", "unknown name 'x'"),
+        ("t.real", "Attribute is not allowed"),
+        ("t" + "+t" * 1000, "longer than 2000 characters"),
+        ("-" * 1999 + "t", "not an expression|cannot be compiled|nested more than 100 levels"),
+        ("t\0", "null bytes"),
+        ("1" * 400, "too large"),
+    ],
+)
 def test_a_formula_that_cannot_be_compiled_raises_formula_error(formula, reason):
     with pytest.raises(boundary_data.FormulaError, match=reason) as error:
         boundary_data.time_function(formula)
@@ -390,9 +619,12 @@ def test_a_formula_is_checked_at_every_step_time_of_the_schedule(capsys):
     (nor one between steps: the run reports those if it gets there, e.g. in a retried step)."""
     schedule = "time.schedule=[{until: 0.1, dt: 1.0e-3}]"
     formula = "fluid.inlet={kind: pressure, formula: 'log(0.0965 - t)'}"
-    assert_refused(*cli_error(capsys, "check", str(CHANNEL), "--set", schedule, "--set",
-                              formula), "--set", "fluid.inlet.formula",
-                   "evaluation fails at t = 0.097 s (math domain error)")
+    assert_refused(
+        *cli_error(capsys, "check", str(CHANNEL), "--set", schedule, "--set", formula),
+        "--set",
+        "fluid.inlet.formula",
+        "evaluation fails at t = 0.097 s (math domain error)",
+    )
     after_the_end = "fluid.inlet={kind: pressure, formula: 'log(0.1005 - t)'}"
     assert cli.main(["check", str(CHANNEL), "--set", schedule, "--set", after_the_end]) == 0
 
@@ -402,25 +634,48 @@ def test_a_formula_is_checked_at_every_step_time_of_the_schedule(capsys):
 
 
 ALLOWED = {
-    "ksp_type": "gmres", "ksp_rtol": 1e-10, "ksp_atol": 1e-12, "ksp_max_it": 500,
-    "ksp_gmres_restart": 100, "ksp_pc_side": "right", "ksp_initial_guess_nonzero": "true",
-    "pc_type": "hypre", "pc_hypre_type": "boomeramg",
-    "pc_hypre_boomeramg_strong_threshold": 0.7, "pc_hypre_boomeramg_coarsen_type": "HMIS",
-    "pc_hypre_boomeramg_P_max": 4, "pc_factor_mat_solver_type": "superlu_dist",
-    "mat_mumps_icntl_14": 100, "mat_mumps_icntl_24": 1, "mat_mumps_cntl_1": 0.01,
-    "pc_gamg_threshold": "0.01,0.005", "pc_gamg_agg_nsmooths": 1, "mg_levels_ksp_type":
-    "chebyshev", "mg_levels_pc_type": "jacobi", "mg_levels_2_ksp_max_it": 3,
-    "mg_coarse_pc_type": "lu", "pc_fieldsplit_type": "schur", "pc_fieldsplit_schur_fact_type":
-    "full", "pc_fieldsplit_schur_precondition": "selfp", "fieldsplit_0_ksp_type": "preonly",
-    "fieldsplit_u_pc_type": "gamg", "pc_fieldsplit_0_fields": "0,1", "sub_pc_type": "ilu",
-    "sub_pc_factor_levels": 1, "ksp_divtol": 1e8, "ksp_chebyshev_eigenvalues": "0.1,1.1",
+    "ksp_type": "gmres",
+    "ksp_rtol": 1e-10,
+    "ksp_atol": 1e-12,
+    "ksp_max_it": 500,
+    "ksp_gmres_restart": 100,
+    "ksp_pc_side": "right",
+    "ksp_initial_guess_nonzero": "true",
+    "pc_type": "hypre",
+    "pc_hypre_type": "boomeramg",
+    "pc_hypre_boomeramg_strong_threshold": 0.7,
+    "pc_hypre_boomeramg_coarsen_type": "HMIS",
+    "pc_hypre_boomeramg_P_max": 4,
+    "pc_factor_mat_solver_type": "superlu_dist",
+    "mat_mumps_icntl_14": 100,
+    "mat_mumps_icntl_24": 1,
+    "mat_mumps_cntl_1": 0.01,
+    "pc_gamg_threshold": "0.01,0.005",
+    "pc_gamg_agg_nsmooths": 1,
+    "mg_levels_ksp_type": "chebyshev",
+    "mg_levels_pc_type": "jacobi",
+    "mg_levels_2_ksp_max_it": 3,
+    "mg_coarse_pc_type": "lu",
+    "pc_fieldsplit_type": "schur",
+    "pc_fieldsplit_schur_fact_type": "full",
+    "pc_fieldsplit_schur_precondition": "selfp",
+    "fieldsplit_0_ksp_type": "preonly",
+    "fieldsplit_u_pc_type": "gamg",
+    "pc_fieldsplit_0_fields": "0,1",
+    "sub_pc_type": "ilu",
+    "sub_pc_factor_levels": 1,
+    "ksp_divtol": 1e8,
+    "ksp_chebyshev_eigenvalues": "0.1,1.1",
     "pc_hypre_boomeramg_relax_type_all": "symmetric-SOR/Jacobi",
 }
 
 
 def test_the_allowed_petsc_options_load_in_every_solver():
-    for key in ("fluid.solver.petsc_options", "structure.solver.petsc_options",
-                "mesh_motion.petsc_options"):
+    for key in (
+        "fluid.solver.petsc_options",
+        "structure.solver.petsc_options",
+        "mesh_motion.petsc_options",
+    ):
         petsc_options.check_petsc_options(ALLOWED, key)
         section, *rest = key.split(".")
         data: dict = {}
@@ -429,41 +684,50 @@ def test_the_allowed_petsc_options_load_in_every_solver():
             node = node.setdefault(part, {})
         node[rest[-1]] = ALLOWED
         case = config.from_dict(data)
-        assert (case.mesh_motion.petsc_options if section == "mesh_motion" else
-                getattr(case, section).solver.petsc_options) == ALLOWED
+        assert (
+            case.mesh_motion.petsc_options
+            if section == "mesh_motion"
+            else getattr(case, section).solver.petsc_options
+        ) == ALLOWED
 
 
 def test_the_defaults_are_allowed_petsc_options():
     case = config.from_dict({})
-    for key, options in [("fluid", case.fluid.solver.petsc_options),
-                         ("structure", case.structure.solver.petsc_options),
-                         ("mesh_motion", case.mesh_motion.petsc_options)]:
+    for key, options in [
+        ("fluid", case.fluid.solver.petsc_options),
+        ("structure", case.structure.solver.petsc_options),
+        ("mesh_motion", case.mesh_motion.petsc_options),
+    ]:
         petsc_options.check_petsc_options(options, key)
 
 
-@pytest.mark.parametrize("name,value,why", [
-    ("ksp_view", "", "viewers"),
-    ("ksp_view_mat", "binary:x.bin", "viewers"),
-    ("pc_type", "python", "Python"),
-    ("pc_python_type", "pkg.mod.Attr", "Python"),
-    ("ksp_monitor_true_residual", "", "monitors"),
-    ("options_file", "x.rc", "options files"),
-    ("options_left", "", "options"),
-    ("mat_mumps_icntl_4", 3, "printing"),
-    ("fieldsplit_0_mat_mumps_icntl_2", 6, "output streams"),
-    ("pc_hypre_boomeramg_print_statistics", 1, "printing"),
-    ("log_view", "", "viewers"),
-    ("draw_pause", 1, "drawing"),
-    ("mat_mumps_icntl_99", 1, "not an allowed"),
-    ("snes_type", "newtonls", "not an allowed"),
-    ("ksp_type", "~/x", "no file paths"),
-    ("ksp_type", "C:lu", "no file paths"),
-    ("ksp_type", "", "a type name"),
-    ("ksp_type", "x" * 65, "a type name"),
-    ("x" * 101, 1, "not a PETSc option name"),
-])
+@pytest.mark.parametrize(
+    "name,value,why",
+    [
+        ("ksp_view", "", "viewers"),
+        ("ksp_view_mat", "binary:x.bin", "viewers"),
+        ("pc_type", "python", "Python"),
+        ("pc_python_type", "pkg.mod.Attr", "Python"),
+        ("ksp_monitor_true_residual", "", "monitors"),
+        ("options_file", "x.rc", "options files"),
+        ("options_left", "", "options"),
+        ("mat_mumps_icntl_4", 3, "printing"),
+        ("fieldsplit_0_mat_mumps_icntl_2", 6, "output streams"),
+        ("pc_hypre_boomeramg_print_statistics", 1, "printing"),
+        ("log_view", "", "viewers"),
+        ("draw_pause", 1, "drawing"),
+        ("mat_mumps_icntl_99", 1, "not an allowed"),
+        ("snes_type", "newtonls", "not an allowed"),
+        ("ksp_type", "~/x", "no file paths"),
+        ("ksp_type", "C:lu", "no file paths"),
+        ("ksp_type", "", "a type name"),
+        ("ksp_type", "x" * 65, "a type name"),
+        ("x" * 101, 1, "not a PETSc option name"),
+    ],
+)
 def test_refused_petsc_options_name_the_key_and_why(name, value, why):
     with pytest.raises(config.ConfigError, match=why) as error:
-        petsc_options.check_petsc_options({"ksp_type": "cg", name: value},
-                                   "structure.solver.petsc_options")
+        petsc_options.check_petsc_options(
+            {"ksp_type": "cg", name: value}, "structure.solver.petsc_options"
+        )
     assert error.value.key.startswith("structure.solver.petsc_options." + name[:40])

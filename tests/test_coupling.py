@@ -5,9 +5,10 @@ the two must take the same iterations to the same answer."""
 
 from __future__ import annotations
 
+from mpi4py import MPI
+
 import numpy as np
 import pytest
-from mpi4py import MPI
 
 from fsi import config
 from fsi import coupling as cp
@@ -60,8 +61,9 @@ def run_both(make_acceleration, A, b, eps=0.0, tolerance=1e-10, max_iterations=2
     results = {}
     for name, comm in COMMS.items():
         H = Map(comm, A, b, eps)
-        count, x_tilde, residuals = iterate(make_acceleration(comm), H, np.zeros(len(H.rows)),
-                                            comm, tolerance, max_iterations)
+        count, x_tilde, residuals = iterate(
+            make_acceleration(comm), H, np.zeros(len(H.rows)), comm, tolerance, max_iterations
+        )
         results[name] = count, gather(comm, x_tilde), residuals
     (n_w, x_w, r_w), (n_s, x_s, r_s) = results["world"], results["self"]
     assert n_w == n_s
@@ -307,16 +309,27 @@ def run_coupler(comm, coupling: config.Coupling, steps: int = 6):
     predictor.record(np.zeros(len(rows(comm, N_DN))), 0.0)
     results = []
     for n in range(1, steps + 1):
-        results.append(cp.couple_step(fluid, solid, acceleration, predictor, comm,
-                                      tolerance=coupling.tolerance,
-                                      max_iterations=coupling.max_iterations, step=n, t=0.1 * n))
+        results.append(
+            cp.couple_step(
+                fluid,
+                solid,
+                acceleration,
+                predictor,
+                comm,
+                tolerance=coupling.tolerance,
+                max_iterations=coupling.max_iterations,
+                step=n,
+                t=0.1 * n,
+            )
+        )
     return fluid, solid, results
 
 
 @pytest.mark.parametrize("acceleration", ["constant", "aitken", "iqn-ils"])
 def test_coupler_reproduces_the_coupled_solution(acceleration):
-    coupling = config.Coupling(acceleration=acceleration, tolerance=1e-8, max_iterations=200,
-                               initial_relaxation=0.3)
+    coupling = config.Coupling(
+        acceleration=acceleration, tolerance=1e-8, max_iterations=200, initial_relaxation=0.3
+    )
     # |d̃ − d*| <= |M (M − I)⁻¹| |d̃ − d| <= |M (M − I)⁻¹| · tol · |d̃|: the tolerance's meaning.
     amplification = np.linalg.norm(M @ np.linalg.inv(M - np.eye(N_DN)), 2)
     iterations = {}
@@ -330,8 +343,12 @@ def test_coupler_reproduces_the_coupled_solution(acceleration):
             assert result.residuals[-1] <= 1e-8 < min(result.residuals[:-1], default=1)
         total = sum(iterations[name])
         for solver in (fluid, solid):
-            assert solver.calls == {"save_state": 6, "restore_state": total - 6,
-                                    "solve": total, "advance": 6}
+            assert solver.calls == {
+                "save_state": 6,
+                "restore_state": total - 6,
+                "solve": total,
+                "advance": 6,
+            }
     assert iterations["world"] == iterations["self"]
     if acceleration == "iqn-ils":  # reused columns: later steps need few iterations
         assert max(iterations["world"][2:]) <= 4
@@ -340,8 +357,9 @@ def test_coupler_reproduces_the_coupled_solution(acceleration):
 def test_coupler_iteration_counts_rank_the_accelerations():
     counts = {}
     for acceleration in ("constant", "aitken", "iqn-ils"):
-        coupling = config.Coupling(acceleration=acceleration, tolerance=1e-8,
-                                   max_iterations=200, initial_relaxation=0.3)
+        coupling = config.Coupling(
+            acceleration=acceleration, tolerance=1e-8, max_iterations=200, initial_relaxation=0.3
+        )
         counts[acceleration] = sum(r.iterations for r in run_coupler(MPI.COMM_WORLD, coupling)[2])
     assert counts["iqn-ils"] < counts["aitken"] < counts["constant"]
 
@@ -355,8 +373,17 @@ def test_coupler_raises_after_max_iterations_with_the_residual_history():
     predictor = cp.Predictor("linear")
     predictor.record(np.zeros(len(rows(comm, N_DN))), 0.0)
     with pytest.raises(cp.CouplingNotConverged) as e:
-        cp.couple_step(fluid, solid, cp.from_config(coupling, comm), predictor, comm,
-                       tolerance=coupling.tolerance, max_iterations=5, step=7, t=0.1)
+        cp.couple_step(
+            fluid,
+            solid,
+            cp.from_config(coupling, comm),
+            predictor,
+            comm,
+            tolerance=coupling.tolerance,
+            max_iterations=5,
+            step=7,
+            t=0.1,
+        )
     assert e.value.step == 7 and len(e.value.residuals) == 5
     assert e.value.residuals[-1] > coupling.tolerance
     assert "step 7" in str(e.value) and "5 iterations" in str(e.value)
@@ -367,9 +394,17 @@ def test_coupler_raises_after_max_iterations_with_the_residual_history():
 
 def test_accelerations_from_the_configuration():
     comm = MPI.COMM_WORLD
-    case = config.from_dict({"coupling": {"acceleration": "iqn-ils", "initial_relaxation": 0.4,
-                                          "iqn_reuse": 3, "iqn_filter": 1e-6,
-                                          "predictor": "quadratic"}})
+    case = config.from_dict(
+        {
+            "coupling": {
+                "acceleration": "iqn-ils",
+                "initial_relaxation": 0.4,
+                "iqn_reuse": 3,
+                "iqn_filter": 1e-6,
+                "predictor": "quadratic",
+            }
+        }
+    )
     iqn = cp.from_config(case.coupling, comm)
     assert isinstance(iqn, cp.IQNILS)
     assert (iqn.omega, iqn.reuse, iqn.threshold) == (0.4, 3, 1e-6)

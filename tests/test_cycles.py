@@ -41,8 +41,7 @@ def pulse_csv() -> str:
 
 
 def pulse_inlet(folder: Path) -> str:
-    return (f"fluid.inlet={{kind: pressure_file, file: '{folder / 'pulse.csv'}', "
-            f"period: {PERIOD}}}")
+    return f"fluid.inlet={{kind: pressure_file, file: '{folder / 'pulse.csv'}', period: {PERIOD}}}"
 
 
 def cycles_set(folder: Path, cycles: int = 2, steady: bool = True) -> list[str]:
@@ -50,10 +49,14 @@ def cycles_set(folder: Path, cycles: int = 2, steady: bool = True) -> list[str]:
     ``time.end`` one heartbeat (the case file's view); ``steady``: every step is Poiseuille
     flow for P(t_n) (exact in P2/P1), so the flow is periodic from the first heartbeat on.
     No outlet backflow term (as tests/test_wall_indices.py: the do-nothing outlet is exact)."""
-    return [pulse_inlet(folder), f"time.cycles={cycles}", f"time.end={PERIOD}",
-            f"time.schedule=[{{until: {PERIOD}, dt: 0.001}}]",
-            "fluid.outlet.backflow_stabilization=0",
-            *(["time.scheme=steady"] if steady else [])]
+    return [
+        pulse_inlet(folder),
+        f"time.cycles={cycles}",
+        f"time.end={PERIOD}",
+        f"time.schedule=[{{until: {PERIOD}, dt: 0.001}}]",
+        "fluid.outlet.backflow_stabilization=0",
+        *(["time.scheme=steady"] if steady else []),
+    ]
 
 
 def fsi_run(out: Path, overrides, restart: Path | None = None) -> int:
@@ -63,6 +66,7 @@ def fsi_run(out: Path, overrides, restart: Path | None = None) -> int:
 
 def read_csv(path: Path) -> tuple[list[str], list[dict]]:
     """A CSV's header and rows (numbers as floats, text kept, empty cells as NaN)."""
+
     def value(text: str):
         try:
             return float(text or "nan")
@@ -89,8 +93,10 @@ def runs():
         (path / "pulse.csv").write_text(pulse_csv())
     comm.barrier()
     folders = {name: path / name for name in ("steady", "bdf2", "split")}
-    codes = [fsi_run(folders["steady"], cycles_set(path)),
-             fsi_run(folders["bdf2"], cycles_set(path, steady=False))]
+    codes = [
+        fsi_run(folders["steady"], cycles_set(path)),
+        fsi_run(folders["bdf2"], cycles_set(path, steady=False)),
+    ]
     polls = []
 
     def stop_after_step_6():
@@ -101,10 +107,16 @@ def runs():
     with pytest.raises(simulation.Interrupted) as stop:
         simulation.run(case, folders["split"], comm, stop_requested=stop_after_step_6)
     stopped = read_csv(folders["split"] / "wall_indices.csv")[1]
-    codes.append(fsi_run(folders["split"], cycles_set(path, steady=False),
-                         restart=folders["split"]))
-    yield {"path": path, "codes": codes, "stopped_at": stop.value.step,
-           "stopped_indices": stopped, **folders}
+    codes.append(
+        fsi_run(folders["split"], cycles_set(path, steady=False), restart=folders["split"])
+    )
+    yield {
+        "path": path,
+        "codes": codes,
+        "stopped_at": stop.value.step,
+        "stopped_indices": stopped,
+        **folders,
+    }
     comm.barrier()
     if comm.rank == 0:
         shutil.rmtree(path, ignore_errors=True)
@@ -117,17 +129,21 @@ def runs():
 def test_the_schedule_of_one_heartbeat_is_repeated_to_cycles_times_the_period():
     """A schedule whose second segment runs past the period is cut at T; each heartbeat has the
     same steps, shifted by T, and ends exactly on k T; without cycles the schedule is kept."""
-    time = config.Time(end=0.01, cycles=3, schedule=(config.TimeSegment(0.004, 0.002),
-                                                     config.TimeSegment(0.05, 0.003)))
+    time = config.Time(
+        end=0.01,
+        cycles=3,
+        schedule=(config.TimeSegment(0.004, 0.002), config.TimeSegment(0.05, 0.003)),
+    )
     run = time.run_schedule(0.01)
     assert run.end == pytest.approx(0.03, rel=1e-15) and run.cycles == 0
     walked = list(steps(run))
     assert [s.index for s in walked] == list(range(1, 13))
     assert count_steps(run) == 12
     for k in range(3):
-        beat = walked[4 * k: 4 * k + 4]
-        assert [s.t - k * 0.01 for s in beat] == pytest.approx([0.002, 0.004, 0.007, 0.01],
-                                                                rel=1e-12)
+        beat = walked[4 * k : 4 * k + 4]
+        assert [s.t - k * 0.01 for s in beat] == pytest.approx(
+            [0.002, 0.004, 0.007, 0.01], rel=1e-12
+        )
         assert beat[-1].t == (k + 1) * 0.01  # exactly: the heartbeat's last step ends on k T
     assert time.run_schedule(0.0) is time
     assert config.Time(end=0.01).run_schedule(0.01) == config.Time(end=0.01)
@@ -212,12 +228,15 @@ def test_a_restart_in_heartbeat_two_gives_the_uninterrupted_run(runs):
     assert sorted({r["cycle"] for r in stopped}) == [1, 2]
     first = [r for r in straight if r["cycle"] == 1]
     assert column([r for r in stopped if r["cycle"] == 1], "TAWSS") == pytest.approx(
-        column(first, "TAWSS"), rel=1e-9)
+        column(first, "TAWSS"), rel=1e-9
+    )
     # From rest the flow is not yet periodic: the heartbeats differ.
     second = [r for r in straight if r["cycle"] == 2]
     assert not np.allclose(column(first, "TAWSS"), column(second, "TAWSS"), rtol=1e-3)
-    for a, b in ((split, straight), (read_csv(runs["split"] / "metrics.csv")[1],
-                                     read_csv(runs["bdf2"] / "metrics.csv")[1])):
+    for a, b in (
+        (split, straight),
+        (read_csv(runs["split"] / "metrics.csv")[1], read_csv(runs["bdf2"] / "metrics.csv")[1]),
+    ):
         assert len(a) == len(b)
         for key in a[0]:
             if key == "wall_time_s":
@@ -227,12 +246,16 @@ def test_a_restart_in_heartbeat_two_gives_the_uninterrupted_run(runs):
             elif SERIAL:  # bit for bit (NaN: an empty cell in both)
                 np.testing.assert_array_equal(column(a, key), column(b, key), err_msg=key)
             else:
-                assert column(a, key) == pytest.approx(column(b, key), rel=1e-7, abs=1e-12,
-                                                       nan_ok=True), key
-    beats = [json.loads((runs[name] / "summary.json").read_text())["cycles"]
-             for name in ("split", "bdf2")]
+                assert column(a, key) == pytest.approx(
+                    column(b, key), rel=1e-7, abs=1e-12, nan_ok=True
+                ), key
+    beats = [
+        json.loads((runs[name] / "summary.json").read_text())["cycles"]
+        for name in ("split", "bdf2")
+    ]
     assert [b["values"]["min_tawss"] for b in beats[0]] == pytest.approx(
-        [b["values"]["min_tawss"] for b in beats[1]], rel=1e-9)
+        [b["values"]["min_tawss"] for b in beats[1]], rel=1e-9
+    )
 
 
 def test_a_step_across_a_heartbeat_counts_its_parts_for_each(shared_tmp):
@@ -243,38 +266,59 @@ def test_a_step_across_a_heartbeat_counts_its_parts_for_each(shared_tmp):
     if MPI.COMM_WORLD.rank == 0:
         (shared_tmp / "pulse.csv").write_text(pulse_csv())
     MPI.COMM_WORLD.barrier()
-    overrides = [pulse_inlet(shared_tmp), "time.end=0.006",
-                 "time.schedule=[{until: 0.006, dt: 0.0015}]",
-                 "fluid.outlet.backflow_stabilization=0", "time.scheme=steady"]
+    overrides = [
+        pulse_inlet(shared_tmp),
+        "time.end=0.006",
+        "time.schedule=[{until: 0.006, dt: 0.0015}]",
+        "fluid.outlet.backflow_stabilization=0",
+        "time.scheme=steady",
+    ]
     assert fsi_run(shared_tmp / "run", overrides) == 0
     _, rows = read_csv(shared_tmp / "run" / "metrics.csv")
     assert column(rows, "cycle").tolist() == [1, 1, 2, 2]
     pressure = fluid.inlet_pressure(config.load(CHANNEL, overrides).fluid.inlet)
     tau = [pressure(0.0015 * n) * H / (2 * L) for n in range(1, 5)]
     _, indices = read_csv(shared_tmp / "run" / "wall_indices.csv")
-    for k, exact in ((1, (1.5 * tau[0] + 1.5 * tau[1] + tau[2]) / 4),
-                     (2, (0.5 * tau[2] + 1.5 * tau[3]) / 2)):
+    for k, exact in (
+        (1, (1.5 * tau[0] + 1.5 * tau[1] + tau[2]) / 4),
+        (2, (0.5 * tau[2] + 1.5 * tau[3]) / 2),
+    ):
         beat = [r for r in indices if r["cycle"] == k]
         assert column(beat, "TAWSS") == pytest.approx(exact, rel=1e-9)
 
 
 CYCLE_ERRORS = [
-    (["time.cycles=2"], "--set: time.cycles: 2 heartbeats need a periodic inlet (a "
-     "pressure_table or pressure_file fluid.inlet with period > 0); this inlet does not "
-     "repeat: use time.end instead"),
-    (["PULSE", "time.cycles=3", "time.end=0.005", "time.schedule=[{until: 0.004, dt: 0.001}]"],
-     "--set: time.end: expected fluid.inlet.period = 0.004 s (one heartbeat) or time.cycles × "
-     "period = 0.012 s (the whole run) when time.cycles is 3, got 0.005"),
-    (["PULSE", "time.cycles=2", "time.end=0.004", "time.schedule=[{until: 0.003, dt: 0.001}]"],
-     "--set: time.schedule[0].until: expected at least fluid.inlet.period = 0.004 s (with "
-     "time.cycles the schedule is one heartbeat's), got 0.003"),
-    (["PULSE", "time.cycles=-1"], "--set: time.cycles: expected an integer in [0, 1000] (0: "
-     "time.end sets the end), got -1"),
+    (
+        ["time.cycles=2"],
+        "--set: time.cycles: 2 heartbeats need a periodic inlet (a "
+        "pressure_table or pressure_file fluid.inlet with period > 0); this inlet does not "
+        "repeat: use time.end instead",
+    ),
+    (
+        ["PULSE", "time.cycles=3", "time.end=0.005", "time.schedule=[{until: 0.004, dt: 0.001}]"],
+        "--set: time.end: expected fluid.inlet.period = 0.004 s (one heartbeat) or time.cycles × "
+        "period = 0.012 s (the whole run) when time.cycles is 3, got 0.005",
+    ),
+    (
+        ["PULSE", "time.cycles=2", "time.end=0.004", "time.schedule=[{until: 0.003, dt: 0.001}]"],
+        "--set: time.schedule[0].until: expected at least fluid.inlet.period = 0.004 s (with "
+        "time.cycles the schedule is one heartbeat's), got 0.003",
+    ),
+    (
+        ["PULSE", "time.cycles=-1"],
+        "--set: time.cycles: expected an integer in [0, 1000] (0: time.end sets the end), got -1",
+    ),
     (["PULSE", "time.cycles=1.5"], "--set: time.cycles: expected an integer, got 1.5"),
-    (["PULSE", "time.cycles=1000", "time.end=0.004",
-      "time.schedule=[{until: 0.004, dt: 1.0e-6}]"],
-     "--set: time.schedule: 4,000,000 steps to the end of time.cycles = 1000 heartbeats, 4 s, "
-     "more than time.max_steps = 1,000,000"),
+    (
+        [
+            "PULSE",
+            "time.cycles=1000",
+            "time.end=0.004",
+            "time.schedule=[{until: 0.004, dt: 1.0e-6}]",
+        ],
+        "--set: time.schedule: 4,000,000 steps to the end of time.cycles = 1000 heartbeats, 4 s, "
+        "more than time.max_steps = 1,000,000",
+    ),
 ]
 
 
@@ -304,9 +348,14 @@ def test_one_cycle_without_a_period_is_the_plain_run():
 def cap_location(comm: MPI.Comm) -> tuple[dict, config.Case, list[str]]:
     """One structure step of the coarse stenosis under the inlet pressure on ``comm``: the
     metrics row, the case and the metrics columns."""
-    case = config.load("configs/stenosis_moving_newtonian.yaml",
-                       ["structure.interface_load=inlet_pressure", "time.end=0.001",
-                        "time.schedule=[{until: 0.001, dt: 0.001}]"])
+    case = config.load(
+        "configs/stenosis_moving_newtonian.yaml",
+        [
+            "structure.interface_load=inlet_pressure",
+            "time.end=0.001",
+            "time.schedule=[{until: 0.001, dt: 0.001}]",
+        ],
+    )
     stepper = simulation.StructureStepper(case, comm)
     return stepper.step(next(iter(steps(case.time)))), case, stepper.columns
 
@@ -334,5 +383,6 @@ def test_the_cap_stress_location_is_in_the_cap_and_independent_of_the_ranks():
     assert distance < 1e-12
     alone, _, _ = cap_location(MPI.COMM_SELF)
     assert (alone["max_principal_cap_x"], alone["max_principal_cap_y"]) == pytest.approx(
-        (x, y), abs=1e-12)
+        (x, y), abs=1e-12
+    )
     assert alone["max_principal_cap"] == pytest.approx(row["max_principal_cap"], rel=1e-8)

@@ -30,8 +30,13 @@ from fsi import cli, config, io
 CASE = "configs/stenosis_moving_newtonian.yaml"
 WINDOW = 0.05  # s: the pulse and the ring, up to where it has decayed to ~3 % of the peak
 TIMES = (0.01, 0.02, 0.05)  # the study's reported times inside the window
-QUANTITIES = ("peak_velocity", "peak_pressure", "peak_displacement", "max_sss",
-              "peak_wall_displacement")
+QUANTITIES = (
+    "peak_velocity",
+    "peak_pressure",
+    "peak_displacement",
+    "max_sss",
+    "peak_wall_displacement",
+)
 CRITERION = 0.02
 
 
@@ -40,8 +45,18 @@ def schedule_text(schedule) -> str:
 
 
 def run(out, schedule) -> list[dict]:
-    code = cli.main(["run", CASE, "--out", str(out), "--set", f"time.end={WINDOW!r}",
-                     "--set", f"time.schedule={schedule_text(schedule)}"])
+    code = cli.main(
+        [
+            "run",
+            CASE,
+            "--out",
+            str(out),
+            "--set",
+            f"time.end={WINDOW!r}",
+            "--set",
+            f"time.schedule={schedule_text(schedule)}",
+        ]
+    )
     assert code == 0
     return io.read_metrics(out / "metrics.csv")
 
@@ -70,8 +85,10 @@ def test_reported_quantities_change_by_less_than_two_percent_when_dt_is_halved(s
     rows = run(shared_tmp / "dt", schedule)
     halved = run(shared_tmp / "dt_half", [(u, dt / 2) for u, dt in schedule])
     found = changes(rows, halved)
-    table = "\n".join(f"{q:24s} t={t:<5} {100 * p:+7.2f} % of peak  ({100 * r:+7.2f} % of value)"
-                      for (q, t), (p, r) in found.items())
+    table = "\n".join(
+        f"{q:24s} t={t:<5} {100 * p:+7.2f} % of peak  ({100 * r:+7.2f} % of value)"
+        for (q, t), (p, r) in found.items()
+    )
     print(f"\ndt halved\n{table}")
     worst = max(found, key=lambda k: abs(found[k][0]))
     assert abs(found[worst][0]) < CRITERION, f"{worst}: {100 * found[worst][0]:+.2f} %\n{table}"

@@ -23,10 +23,14 @@ from fsi import cli, config, io, simulation
 ROOT = Path(__file__).resolve().parents[1]
 CHANNEL = str(ROOT / "configs/channel_poiseuille.yaml")
 SHORT = ["time.end=0.004"]  # 4 steps of 1 ms, about a second
-MPIRUN_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
-              "OMPI_MCA_btl_vader_single_copy_mechanism": "none"}
-serial_lane = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
-                                 reason="launches its own processes; runs in the serial lane")
+MPIRUN_ENV = {
+    "OMPI_ALLOW_RUN_AS_ROOT": "1",
+    "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+    "OMPI_MCA_btl_vader_single_copy_mechanism": "none",
+}
+serial_lane = pytest.mark.skipif(
+    MPI.COMM_WORLD.size > 1, reason="launches its own processes; runs in the serial lane"
+)
 
 
 def fsi_run(out: Path, overrides=(), *extra: str) -> int:
@@ -43,8 +47,16 @@ def checkpoint_step(out: Path) -> int:
 
 
 def fsi_command(out: Path, *overrides: str) -> list[str]:
-    return [sys.executable, "-m", "fsi", "run", CHANNEL, "--out", str(out),
-            *sum((["--set", s] for s in overrides), [])]
+    return [
+        sys.executable,
+        "-m",
+        "fsi",
+        "run",
+        CHANNEL,
+        "--out",
+        str(out),
+        *sum((["--set", s] for s in overrides), []),
+    ]
 
 
 # --------------------------------------------------------------------------------------------
@@ -95,8 +107,12 @@ def mounted_tmpfs(folder: Path, options: str, why: str):
     mounted = False
     if comm.rank == 0:
         folder.mkdir()
-        mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)],
-                                 capture_output=True).returncode == 0
+        mounted = (
+            subprocess.run(
+                ["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)], capture_output=True
+            ).returncode
+            == 0
+        )
     if not comm.bcast(mounted, root=0):
         pytest.skip(f"this machine does not let the tests mount a tmpfs ({why})")
     yield folder
@@ -122,10 +138,16 @@ def test_a_read_only_out_is_refused_before_any_computation(read_only_folder, cap
 @serial_lane
 def test_a_read_only_out_ends_both_ranks_of_mpirun(read_only_folder):
     """The defect of issue #14: rank 0 failed to make the folder, rank 1 waited for ever."""
-    command = ["mpirun", "-n", "2", "--oversubscribe", *fsi_command(read_only_folder / "run",
-                                                                    *SHORT)]
-    result = subprocess.run(command, capture_output=True, text=True, timeout=120,
-                            env={**os.environ, **MPIRUN_ENV})
+    command = [
+        "mpirun",
+        "-n",
+        "2",
+        "--oversubscribe",
+        *fsi_command(read_only_folder / "run", *SHORT),
+    ]
+    result = subprocess.run(
+        command, capture_output=True, text=True, timeout=120, env={**os.environ, **MPIRUN_ENV}
+    )
     assert result.returncode == cli.EXIT_USAGE, result.stderr
     assert result.stderr.count("fsi: error: --out:") == 1
 
@@ -159,8 +181,9 @@ def test_a_write_failing_on_rank_0_alone_ends_every_rank(shared_tmp, monkeypatch
     assert "step 2/4" in log and "No space left" in log and f"--restart {out}" in log
 
 
-def test_a_checkpoint_that_cannot_be_written_keeps_the_previous_one(shared_tmp, monkeypatch,
-                                                                    capsys):
+def test_a_checkpoint_that_cannot_be_written_keeps_the_previous_one(
+    shared_tmp, monkeypatch, capsys
+):
     """A full disk while checkpointing: the partial copy is removed, the previous checkpoint
     stays, the run goes on; when the last step cannot be checkpointed the run fails (exit 4)
     naming the checkpoint that is left."""
@@ -191,8 +214,11 @@ def test_a_checkpoint_that_cannot_be_written_keeps_the_previous_one(shared_tmp, 
 @pytest.fixture
 def small_disk(shared_tmp):
     """A 1.2 MB tmpfs: the channel's fields and two checkpoints do not fit."""
-    yield from mounted_tmpfs(shared_tmp / "small-disk", "size=1200k",
-                             "the simulated full disks of the tests above still run")
+    yield from mounted_tmpfs(
+        shared_tmp / "small-disk",
+        "size=1200k",
+        "the simulated full disks of the tests above still run",
+    )
 
 
 @pytest.mark.parametrize("ranks", [1, 2])
@@ -202,8 +228,9 @@ def test_a_disk_that_fills_up_ends_the_run_with_its_last_checkpoint(small_disk, 
     command = fsi_command(out, "time.end=0.05", "output.checkpoint_every=5")
     if ranks > 1:
         command = ["mpirun", "-n", str(ranks), "--oversubscribe", *command]
-    result = subprocess.run(command, capture_output=True, text=True, timeout=180,
-                            env={**os.environ, **MPIRUN_ENV})
+    result = subprocess.run(
+        command, capture_output=True, text=True, timeout=180, env={**os.environ, **MPIRUN_ENV}
+    )
     assert result.returncode == cli.EXIT_OUTPUT_FAILED, result.stderr[-3000:]
     assert "(the disk is full)" in result.stderr
     assert "Traceback" not in result.stderr
@@ -220,8 +247,9 @@ def test_a_disk_that_fills_up_ends_the_run_with_its_last_checkpoint(small_disk, 
 
 def start_and_signal(command: list[str], sig: int, env: dict | None = None):
     """Start ``command``, send ``sig`` once it reports step 5, return (status, stderr)."""
-    process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True,
-                               env={**os.environ, **(env or {})})
+    process = subprocess.Popen(
+        command, stderr=subprocess.PIPE, text=True, env={**os.environ, **(env or {})}
+    )
     lines = []
     deadline = time.monotonic() + 120
     for line in process.stderr:
@@ -238,8 +266,12 @@ def start_and_signal(command: list[str], sig: int, env: dict | None = None):
     return status, "".join(lines)
 
 
-LONG = ["time.end=10", "time.schedule=[{until: 10, dt: 0.001}]", "output.checkpoint_every=1000",
-        "output.fields_every=1000"]
+LONG = [
+    "time.end=10",
+    "time.schedule=[{until: 10, dt: 0.001}]",
+    "output.checkpoint_every=1000",
+    "output.fields_every=1000",
+]
 
 
 @serial_lane
@@ -262,8 +294,11 @@ def test_a_stop_signal_checkpoints_the_last_step_and_says_how_to_continue(shared
 def test_sigusr1_stops_an_mpirun_run_after_the_step_with_a_checkpoint(shared_tmp):
     """mpirun kills its ranks within a second of SIGINT or SIGTERM, but forwards SIGUSR1."""
     out = shared_tmp / "run"
-    status, err = start_and_signal(["mpirun", "-n", "2", "--oversubscribe",
-                                    *fsi_command(out, *LONG)], signal.SIGUSR1, MPIRUN_ENV)
+    status, err = start_and_signal(
+        ["mpirun", "-n", "2", "--oversubscribe", *fsi_command(out, *LONG)],
+        signal.SIGUSR1,
+        MPIRUN_ENV,
+    )
     assert status == 128 + signal.SIGUSR1, err
     last = max(metrics_steps(out))
     assert last >= 5 and checkpoint_step(out) == last
@@ -282,8 +317,9 @@ def test_an_inlet_formula_failing_mid_run_fails_the_step_with_a_checkpoint(share
     inlet = config.InletPressure(formula="1/(t - 0.003) * 0 + 1")
     case = dataclasses.replace(case, fluid=dataclasses.replace(case.fluid, inlet=inlet))
     out = shared_tmp / "run"
-    with pytest.raises(simulation.StepFailed, match=r"step 3 .*fluid\.inlet: .*t = 0\.003"
-                       ) as failed:
+    with pytest.raises(
+        simulation.StepFailed, match=r"step 3 .*fluid\.inlet: .*t = 0\.003"
+    ) as failed:
         simulation.run(case, out, MPI.COMM_WORLD)
     assert (failed.value.step, failed.value.checkpoint) == (2, out / "checkpoint")
     assert metrics_steps(out) == [1, 2]

@@ -24,8 +24,21 @@ def run():
 
     path = Path(comm.bcast(tempfile.mkdtemp(prefix="fsi-fields-") if comm.rank == 0 else None))
     out = path / "run"
-    assert cli.main(["run", CASE, "--out", str(out), "--set", "time.end=0.002",
-                     "--set", "time.schedule=[{until: 0.002, dt: 0.001}]"]) == 0
+    assert (
+        cli.main(
+            [
+                "run",
+                CASE,
+                "--out",
+                str(out),
+                "--set",
+                "time.end=0.002",
+                "--set",
+                "time.schedule=[{until: 0.002, dt: 0.001}]",
+            ]
+        )
+        == 0
+    )
     yield out
     comm.barrier()
     if comm.rank == 0:
@@ -60,14 +73,17 @@ def test_the_per_region_maxima_are_the_maxima_of_the_written_fields(run):
         assert set(region) == {int(Region.WALL), int(Region.CAP), int(Region.LIPID)}
         for r in (Region.WALL, Region.CAP, Region.LIPID):
             inside = region == int(r)
-            written = {"max_sss": np.abs(cells["sss"][inside]).max(),
-                       "max_von_mises": cells["von_mises"][inside].max(),
-                       "max_principal": cells["max_principal"][inside].max()}
+            written = {
+                "max_sss": np.abs(cells["sss"][inside]).max(),
+                "max_von_mises": cells["von_mises"][inside].max(),
+                "max_principal": cells["max_principal"][inside].max(),
+            }
             for name, value in written.items():
                 column = f"{name}_{r.label}"
                 assert value == pytest.approx(row[column], rel=1e-9), (column, row["t"])
         # The whole structure: the largest of the regions.
         for name in ("max_sss", "max_von_mises", "max_principal"):
-            assert row[name] == max(row[f"{name}_{r.label}"]
-                                    for r in (Region.WALL, Region.CAP, Region.LIPID))
+            assert row[name] == max(
+                row[f"{name}_{r.label}"] for r in (Region.WALL, Region.CAP, Region.LIPID)
+            )
         assert row["max_sss_cap"] > 0 and row["max_principal_cap"] > 0

@@ -20,8 +20,14 @@ WALL, INLET, OUTLET = Boundary.RIGID_WALL, Boundary.INLET, Boundary.OUTLET
 
 def channel(size: float, fluid_section: dict, comm: MPI.Comm = MPI.COMM_WORLD):
     """The 2 cm × 0.7 cm channel case, its fluid submesh and facet tags."""
-    case = config.from_dict({"geometry": {"kind": "channel"}, "structure": {"mode": "rigid"},
-                             "mesh": {"size": size, "local_size": size}, "fluid": fluid_section})
+    case = config.from_dict(
+        {
+            "geometry": {"kind": "channel"},
+            "structure": {"mode": "rigid"},
+            "mesh": {"size": size, "local_size": size},
+            "fluid": fluid_section,
+        }
+    )
     tagged = mesh.build(case, comm)
     part = mesh.restrict(tagged, Region.FLUID)
     submesh = part.mesh
@@ -32,11 +38,16 @@ def unit_square(n: int, comm: MPI.Comm = MPI.COMM_WORLD):
     """Unit square, tags 1 (x = 0), 2 (x = 1), 3 (y = 0), 4 (y = 1)."""
     domain = dolfinx.mesh.create_unit_square(comm, n, n)
     domain.topology.create_connectivity(1, 2)
-    sides = [lambda x: np.isclose(x[0], 0), lambda x: np.isclose(x[0], 1),
-             lambda x: np.isclose(x[1], 0), lambda x: np.isclose(x[1], 1)]
+    sides = [
+        lambda x: np.isclose(x[0], 0),
+        lambda x: np.isclose(x[0], 1),
+        lambda x: np.isclose(x[1], 0),
+        lambda x: np.isclose(x[1], 1),
+    ]
     facets = [dolfinx.mesh.locate_entities_boundary(domain, 1, side) for side in sides]
-    values = np.concatenate([np.full(len(f), tag + 1, dtype=np.int32)
-                             for tag, f in enumerate(facets)])
+    values = np.concatenate(
+        [np.full(len(f), tag + 1, dtype=np.int32) for tag, f in enumerate(facets)]
+    )
     facets = np.concatenate(facets)
     order = np.argsort(facets)
     return domain, dolfinx.mesh.meshtags(domain, 1, facets[order], values[order])
@@ -58,11 +69,20 @@ def pressure_driven(size: float, rheology_section: dict, gradient: float):
     fully developed profile satisfies exactly. ρ = 1: the profile does not depend on ρ, and a
     steady Newton solve from rest at blood density (Re ≈ 200) is not what these tests check."""
     L = 0.02
-    case, submesh, tags = channel(size, {
-        "density": 1.0, "rheology": rheology_section, "open_boundary": "do_nothing",
-        "inlet": {"kind": "pressure", "formula": repr(gradient * L)}})
-    boundaries = (fluid.Inflow(INLET, case.fluid.inlet), fluid.Outflow(OUTLET, 0.0),
-                  fluid.NoSlip(WALL))
+    case, submesh, tags = channel(
+        size,
+        {
+            "density": 1.0,
+            "rheology": rheology_section,
+            "open_boundary": "do_nothing",
+            "inlet": {"kind": "pressure", "formula": repr(gradient * L)},
+        },
+    )
+    boundaries = (
+        fluid.Inflow(INLET, case.fluid.inlet),
+        fluid.Outflow(OUTLET, 0.0),
+        fluid.NoSlip(WALL),
+    )
     solver = fluid.FluidSolver(submesh, tags, case.fluid, boundaries, scheme="steady")
     result = solver.step(0.0, 1.0)
     assert result.converged, result
@@ -100,15 +120,25 @@ def test_one_function_builds_every_modes_boundary_conditions():
     assert [type(bc) for bc in rigid] == [fluid.Inflow, fluid.Outflow, fluid.NoSlip]
     assert rigid[2].tags == (WALL, Boundary.OBSTACLE, Boundary.INTERFACE)
     coupled = fluid.boundary_conditions(settings, turek_hron, moving_interface=True)
-    assert [type(bc) for bc in coupled] == [fluid.Inflow, fluid.Outflow, fluid.Velocity,
-                                            fluid.NoSlip]
+    assert [type(bc) for bc in coupled] == [
+        fluid.Inflow,
+        fluid.Outflow,
+        fluid.Velocity,
+        fluid.NoSlip,
+    ]
     assert coupled[2].tags == (Boundary.INTERFACE,) and coupled[3].tags == (WALL, Boundary.OBSTACLE)
     assert rigid[0].spec == settings.inlet and rigid[1].model is None  # traction-free outlet
 
 
 def test_every_boundary_kind_has_its_function_and_others_are_refused():
     assert set(fluid.FluidResidual.BOUNDARY_KINDS) == {
-        fluid.NoSlip, fluid.Velocity, fluid.Inflow, fluid.Outflow, fluid.Slip, fluid.Traction}
+        fluid.NoSlip,
+        fluid.Velocity,
+        fluid.Inflow,
+        fluid.Outflow,
+        fluid.Slip,
+        fluid.Traction,
+    }
 
     class Porous(fluid.NoSlip):  # a kind without a function of its own
         pass
@@ -133,19 +163,26 @@ def test_inlet_pressure_laws():
     assert fluid.inflow_ramp(1.0, 2.0) == pytest.approx(0.5) and fluid.inflow_ramp(3.0, 2.0) == 1
 
 
-@pytest.mark.parametrize("text,key,expected", [
-    ("{kind: pressure, formula: 'import os'}", "fluid.inlet.formula", "an expression in t"),
-    ("{kind: pressure, formula: '__import__(1)'}", "fluid.inlet.formula", "an expression in t"),
-    ("{kind: pressure, formula: 'x + 1'}", "fluid.inlet.formula", "an expression in t"),
-    ("{kind: pressure, formula: 12}", "fluid.inlet.formula", "a string"),
-    ("{kind: pressure_table, table: [[0, 1], [0, 2]]}", "fluid.inlet.table", "increasing t"),
-    ("{kind: pressure_table, table: [[0, 1, 2]]}", "fluid.inlet.table", "[t, P] pairs"),
-    ("{kind: pressure_table, table: []}", "fluid.inlet.table", "non-empty"),
-    ("{kind: parabolic_velocity, mean_velocity: -0.2}", "fluid.inlet.mean_velocity", "positive"),
-    ("{kind: parabolic_velocity, ramp_time: -1}", "fluid.inlet.ramp_time", ">= 0"),
-    ("{kind: parabolic_velocity, amplitude: 1}", "fluid.inlet.amplitude", "one of the keys"),
-    ("{kind: velocity}", "fluid.inlet.kind", "'parabolic_velocity'"),
-])
+@pytest.mark.parametrize(
+    "text,key,expected",
+    [
+        ("{kind: pressure, formula: 'import os'}", "fluid.inlet.formula", "an expression in t"),
+        ("{kind: pressure, formula: '__import__(1)'}", "fluid.inlet.formula", "an expression in t"),
+        ("{kind: pressure, formula: 'x + 1'}", "fluid.inlet.formula", "an expression in t"),
+        ("{kind: pressure, formula: 12}", "fluid.inlet.formula", "a string"),
+        ("{kind: pressure_table, table: [[0, 1], [0, 2]]}", "fluid.inlet.table", "increasing t"),
+        ("{kind: pressure_table, table: [[0, 1, 2]]}", "fluid.inlet.table", "[t, P] pairs"),
+        ("{kind: pressure_table, table: []}", "fluid.inlet.table", "non-empty"),
+        (
+            "{kind: parabolic_velocity, mean_velocity: -0.2}",
+            "fluid.inlet.mean_velocity",
+            "positive",
+        ),
+        ("{kind: parabolic_velocity, ramp_time: -1}", "fluid.inlet.ramp_time", ">= 0"),
+        ("{kind: parabolic_velocity, amplitude: 1}", "fluid.inlet.amplitude", "one of the keys"),
+        ("{kind: velocity}", "fluid.inlet.kind", "'parabolic_velocity'"),
+    ],
+)
 def test_bad_inlet_is_refused_naming_the_key(text, key, expected):
     with pytest.raises(config.ConfigError) as error:
         config.from_dict(config_reader.parse_yaml(f"fluid: {{inlet: {text}}}"), "case.yaml")
@@ -175,11 +212,17 @@ def test_newtonian_poiseuille_is_exact(drive):
     round-off (1e-10 relative allows for the conditioning of the LU solve)."""
     L, H, mu, U = 0.02, 0.007, 0.0035, 0.1  # mean velocity U
     G = 12 * mu * U / H**2  # pressure gradient
-    inlet = ({"kind": "parabolic_velocity", "mean_velocity": U} if drive == "parabolic_velocity"
-             else {"kind": "pressure", "formula": repr(G * L)})
+    inlet = (
+        {"kind": "parabolic_velocity", "mean_velocity": U}
+        if drive == "parabolic_velocity"
+        else {"kind": "pressure", "formula": repr(G * L)}
+    )
     case, submesh, tags = channel(1e-3, {"inlet": inlet, "open_boundary": "do_nothing"})
-    boundaries = (fluid.Inflow(INLET, case.fluid.inlet), fluid.Outflow(OUTLET, 0.0),
-                  fluid.NoSlip(WALL))
+    boundaries = (
+        fluid.Inflow(INLET, case.fluid.inlet),
+        fluid.Outflow(OUTLET, 0.0),
+        fluid.NoSlip(WALL),
+    )
     solver = fluid.FluidSolver(submesh, tags, case.fluid, boundaries, scheme="steady")
     result = solver.step(1.0, 1.0)
     assert result.converged and result.iterations <= 2, result
@@ -207,8 +250,12 @@ def test_newtonian_poiseuille_is_exact(drive):
 
     wss = metrics.wall_shear_stress(solver.u, solver.p, solver.law, tags, [WALL])
     assert len(wss.tau) == 2 * submesh.comm.allreduce(  # two Gauss points per facet
-        int(np.count_nonzero((tags.values == WALL)
-                             & (tags.indices < submesh.topology.index_map(1).size_local))))
+        int(
+            np.count_nonzero(
+                (tags.values == WALL) & (tags.indices < submesh.topology.index_map(1).size_local)
+            )
+        )
+    )
     assert np.allclose(wss.tau, G * H / 2, rtol=1e-9, atol=0)
     assert metrics.recirculation_length(wss.s, wss.tau) == 0.0
     # Nodal peaks: the pressure at the inlet corner; the velocity at the nodes nearest the
@@ -248,8 +295,9 @@ def test_output_fields_on_poiseuille_flow(G):
     assert np.abs(fields.shear_rate.x.array - exact).max() < 1e-6 * abs(G) * H / mu
     assert np.all(fields.viscosity.x.array == mu)
 
-    summary = metrics.wall_shear_summary(metrics.wall_shear_stress(
-        solver.u, solver.p, solver.law, solver.facet_tags, [WALL]))
+    summary = metrics.wall_shear_summary(
+        metrics.wall_shear_stress(solver.u, solver.p, solver.law, solver.facet_tags, [WALL])
+    )
     assert summary["min_wss"] == pytest.approx(G * H / 2, rel=1e-9)
     assert summary["max_wss"] == pytest.approx(G * H / 2, rel=1e-9)
     if G > 0:
@@ -334,8 +382,16 @@ def test_carreau_channel_flow_rate_matches_1d_quadrature():
 # Manufactured solutions
 
 
-CARREAU_MMS = {"density": 1.0, "rheology": {"model": "carreau", "mu_0": 1.0, "mu_inf": 0.1,
-                                            "relaxation_time": 1.0, "power_index": 0.5}}
+CARREAU_MMS = {
+    "density": 1.0,
+    "rheology": {
+        "model": "carreau",
+        "mu_0": 1.0,
+        "mu_inf": 0.1,
+        "relaxation_time": 1.0,
+        "power_index": 0.5,
+    },
+}
 
 
 def carreau_mms(n: int, comm: MPI.Comm = MPI.COMM_WORLD) -> np.ndarray:
@@ -347,8 +403,12 @@ def carreau_mms(n: int, comm: MPI.Comm = MPI.COMM_WORLD) -> np.ndarray:
 
     def exact(x):
         pi = ufl.pi
-        u = ufl.as_vector([pi * ufl.sin(pi * x[0]) ** 2 * ufl.sin(2 * pi * x[1]),
-                           -pi * ufl.sin(2 * pi * x[0]) * ufl.sin(pi * x[1]) ** 2])
+        u = ufl.as_vector(
+            [
+                pi * ufl.sin(pi * x[0]) ** 2 * ufl.sin(2 * pi * x[1]),
+                -pi * ufl.sin(2 * pi * x[0]) * ufl.sin(pi * x[1]) ** 2,
+            ]
+        )
         return u, ufl.cos(pi * x[0]) * ufl.cos(pi * x[1])
 
     def body_force(x, t):
@@ -359,17 +419,28 @@ def carreau_mms(n: int, comm: MPI.Comm = MPI.COMM_WORLD) -> np.ndarray:
         return rheology.cauchy_stress(*exact(x), law) * normal
 
     domain, tags = unit_square(n, comm)
-    solver = fluid.FluidSolver(domain, tags, cfg, (fluid.Velocity((1, 3, 4)),
-                                                   fluid.Traction(2, traction)),
-                               scheme="steady", body_force=body_force)
+    solver = fluid.FluidSolver(
+        domain,
+        tags,
+        cfg,
+        (fluid.Velocity((1, 3, 4)), fluid.Traction(2, traction)),
+        scheme="steady",
+        body_force=body_force,
+    )
     u_e, p_e = exact(ufl.SpatialCoordinate(domain))
     solver.boundary_velocity.interpolate(
-        dolfinx.fem.Expression(u_e, compat.interpolation_points(solver.V)))
+        dolfinx.fem.Expression(u_e, compat.interpolation_points(solver.V))
+    )
     result = solver.step(0.0, 1.0)
     assert result.converged, result
     e_u, e_p = solver.u - u_e, solver.p - p_e
-    return np.array([l2(ufl.inner(e_u, e_u), domain),
-                     l2(ufl.inner(ufl.grad(e_u), ufl.grad(e_u)), domain), l2(e_p**2, domain)])
+    return np.array(
+        [
+            l2(ufl.inner(e_u, e_u), domain),
+            l2(ufl.inner(ufl.grad(e_u), ufl.grad(e_u)), domain),
+            l2(e_p**2, domain),
+        ]
+    )
 
 
 def test_carreau_mms_converges_at_the_optimal_rates():
@@ -393,8 +464,15 @@ def time_mms(scheme: str, steps: int, moving: bool, variable: bool = False) -> f
     [0, 1], so the error does not cancel), Newtonian, on a 6×6 unit square, optionally moved by
     d = 0.1 sin(πt) sin(πX) sin(πY) (1, 1/2) (boundary fixed). P2/P1 holds the exact solution,
     so the error at T = 1 is the time error. Returns ‖u(T) − u_h‖."""
-    cfg = config.from_dict({"fluid": {"density": 1.0, "quadrature_degree": 6,
-                                      "rheology": {"model": "newtonian", "viscosity": 0.1}}}).fluid
+    cfg = config.from_dict(
+        {
+            "fluid": {
+                "density": 1.0,
+                "quadrature_degree": 6,
+                "rheology": {"model": "newtonian", "viscosity": 0.1},
+            }
+        }
+    ).fluid
     law = rheology.from_config(cfg.rheology)
 
     def g(t):
@@ -412,9 +490,14 @@ def time_mms(scheme: str, steps: int, moving: bool, variable: bool = False) -> f
         return rheology.cauchy_stress(*exact(x, t), law) * normal
 
     domain, tags = unit_square(6)
-    solver = fluid.FluidSolver(domain, tags, cfg, (fluid.Velocity((1, 3, 4)),
-                                                   fluid.Traction(2, traction)),
-                               scheme=scheme, body_force=body_force)
+    solver = fluid.FluidSolver(
+        domain,
+        tags,
+        cfg,
+        (fluid.Velocity((1, 3, 4)), fluid.Traction(2, traction)),
+        scheme=scheme,
+        body_force=body_force,
+    )
     time = dolfinx.fem.Constant(domain, 0.0)
     x = ufl.SpatialCoordinate(domain)
     u_expression = dolfinx.fem.Expression(exact(x, time)[0], compat.interpolation_points(solver.V))
@@ -428,8 +511,9 @@ def time_mms(scheme: str, steps: int, moving: bool, variable: bool = False) -> f
     for dt in sizes:
         t += dt
         if moving:
-            bump = (0.1 * math.sin(math.pi * t) * np.sin(math.pi * X[:, 0])
-                    * np.sin(math.pi * X[:, 1]))
+            bump = (
+                0.1 * math.sin(math.pi * t) * np.sin(math.pi * X[:, 0]) * np.sin(math.pi * X[:, 1])
+            )
             d.x.array[:] = np.column_stack([bump, 0.5 * bump]).ravel()
             solver.set_mesh_displacement(d)
         time.value = t
@@ -442,13 +526,17 @@ def time_mms(scheme: str, steps: int, moving: bool, variable: bool = False) -> f
     return l2(ufl.inner(solver.u - u_e, solver.u - u_e), domain)
 
 
-@pytest.mark.parametrize("scheme,order,moving,variable", [
-    ("backward_euler", 1, False, False),
-    ("bdf2", 2, False, False),
-    ("backward_euler", 1, True, False),
-    ("bdf2", 2, True, False),
-    ("bdf2", 2, True, True),
-], ids=["be", "bdf2", "be-ale", "bdf2-ale", "bdf2-ale-variable-steps"])
+@pytest.mark.parametrize(
+    "scheme,order,moving,variable",
+    [
+        ("backward_euler", 1, False, False),
+        ("bdf2", 2, False, False),
+        ("backward_euler", 1, True, False),
+        ("bdf2", 2, True, False),
+        ("bdf2", 2, True, True),
+    ],
+    ids=["be", "bdf2", "be-ale", "bdf2-ale", "bdf2-ale-variable-steps"],
+)
 def test_time_order(scheme, order, moving, variable):
     """Measured rates (16→32 steps): BE 0.98, BDF2 2.04, BE-ALE 0.97, BDF2-ALE 2.15."""
     errors = np.array([time_mms(scheme, k, moving, variable) for k in (8, 16, 32)])
@@ -462,8 +550,9 @@ def test_uniform_flow_stays_uniform_on_a_moving_mesh():
     the non-conservative ALE form with w = BDF(d) keeps it to solver tolerance."""
     cfg = config.from_dict({"fluid": {"density": 1000.0, "rheology": {"model": "carreau"}}}).fluid
     domain, tags = unit_square(6)
-    solver = fluid.FluidSolver(domain, tags, cfg, (fluid.Velocity((1, 3, 4)),
-                                                   fluid.Outflow(2, 1.0)), scheme="bdf2")
+    solver = fluid.FluidSolver(
+        domain, tags, cfg, (fluid.Velocity((1, 3, 4)), fluid.Outflow(2, 1.0)), scheme="bdf2"
+    )
     U = np.array([1.0, 0.5])
     solver.initialize(lambda x: np.outer(U, np.ones(x.shape[1])))
     solver.boundary_velocity.interpolate(lambda x: np.outer(U, np.ones(x.shape[1])))
@@ -472,8 +561,9 @@ def test_uniform_flow_stays_uniform_on_a_moving_mesh():
     dt = 0.05
     for k in range(1, 5):
         a = 0.15 * math.sin(3 * k * dt / 0.2)
-        d.x.array[:] = np.column_stack([a * np.sin(np.pi * X[:, 1]) * X[:, 0],
-                                        a * np.cos(np.pi * X[:, 0]) * X[:, 1]]).ravel()
+        d.x.array[:] = np.column_stack(
+            [a * np.sin(np.pi * X[:, 1]) * X[:, 0], a * np.cos(np.pi * X[:, 0]) * X[:, 1]]
+        ).ravel()
         solver.set_mesh_displacement(d)
         assert solver.step(k * dt, dt).converged
         solver.advance()
@@ -495,8 +585,11 @@ def test_slip_wall_with_traction_on_a_tilted_channel():
     R_ufl = ufl.as_matrix(R.tolist())
     e_x = ufl.as_vector(R[:, 0].tolist())
     sigma = tau * (ufl.outer(R_ufl[:, 0], R_ufl[:, 1]) + ufl.outer(R_ufl[:, 1], R_ufl[:, 0]))
-    boundaries = (fluid.NoSlip(3), fluid.Slip(4, lambda x, n, t: tau * e_x),
-                  fluid.Traction((1, 2), lambda x, n, t: sigma * n))
+    boundaries = (
+        fluid.NoSlip(3),
+        fluid.Slip(4, lambda x, n, t: tau * e_x),
+        fluid.Traction((1, 2), lambda x, n, t: sigma * n),
+    )
     solver = fluid.FluidSolver(domain, tags, cfg, boundaries, scheme="steady")
     result = solver.step(0.0, 1.0)
     assert result.converged, result
@@ -515,8 +608,9 @@ def test_backflow_stabilization_sets_the_outlet_pressure_of_an_inflow(beta):
     rho, U = 1000.0, 0.3
     cfg = config.from_dict({"fluid": {"density": rho}}).fluid
     domain, tags = unit_square(3)
-    solver = fluid.FluidSolver(domain, tags, cfg, (fluid.Velocity((1, 3, 4)),
-                                                   fluid.Outflow(2, beta)), scheme="steady")
+    solver = fluid.FluidSolver(
+        domain, tags, cfg, (fluid.Velocity((1, 3, 4)), fluid.Outflow(2, beta)), scheme="steady"
+    )
     solver.boundary_velocity.interpolate(lambda x: np.vstack([-U + 0 * x[0], 0 * x[0]]))
     result = solver.step(0.0, 1.0)
     assert result.converged, result
@@ -535,8 +629,12 @@ def test_study_pulse_matches_stokes_layer_theory():
     mm ≪ H). The layers take 2.9 % of the flow; the solver matches Q to 0.02 % (0.6 mm mesh),
     so 0.5 % tests both the impulse and the layers. It also confirms that h pushes blood in."""
     case, submesh, tags = channel(6e-4, {})
-    solver = fluid.FluidSolver(submesh, tags, case.fluid, (
-        fluid.Inflow(INLET, case.fluid.inlet), fluid.Outflow(OUTLET, 1.0), fluid.NoSlip(WALL)))
+    solver = fluid.FluidSolver(
+        submesh,
+        tags,
+        case.fluid,
+        (fluid.Inflow(INLET, case.fluid.inlet), fluid.Outflow(OUTLET, 1.0), fluid.NoSlip(WALL)),
+    )
     T, L, H = case.fluid.inlet.duration, case.geometry.length, case.geometry.height
     rho, nu = case.fluid.density, case.fluid.rheology.viscosity / case.fluid.density
     steps = 10
@@ -563,8 +661,9 @@ def test_study_pulse_matches_stokes_layer_theory():
 def test_restore_state_resolves_the_same_step():
     cfg = config.from_dict({"fluid": {"density": 1.0, "rheology": {"model": "carreau"}}}).fluid
     domain, tags = unit_square(4)
-    solver = fluid.FluidSolver(domain, tags, cfg, (fluid.Velocity((1, 3, 4)),
-                                                   fluid.Outflow(2, 1.0)))
+    solver = fluid.FluidSolver(
+        domain, tags, cfg, (fluid.Velocity((1, 3, 4)), fluid.Outflow(2, 1.0))
+    )
     solver.boundary_velocity.interpolate(lambda x: np.vstack([x[1] * (1 - x[1]), 0 * x[0]]))
     assert solver.step(0.1, 0.1).converged
     solver.advance()
@@ -587,19 +686,29 @@ def test_restore_state_resolves_the_same_step():
     assert solver.time == pytest.approx(0.1) and solver.accepted_steps == 1
     assert solver.step(0.25, 0.15).converged
     assert np.allclose(solver.U.x.array, first, rtol=0, atol=1e-10 * np.abs(first).max())
-    assert np.allclose(solver.interface_force().force, force, rtol=0,
-                       atol=1e-8 * np.abs(force).max())
+    assert np.allclose(
+        solver.interface_force().force, force, rtol=0, atol=1e-8 * np.abs(force).max()
+    )
 
 
 def test_failed_newton_is_reported_and_leaves_the_previous_solution():
     """Steady Carreau channel at blood density from rest with 3 Newton iterations cannot
     converge: the step says so, keeps the previous (zero) solution, and raises on request."""
-    case, submesh, tags = channel(1e-3, {
-        "rheology": {"model": "carreau"}, "inlet": {"kind": "pressure", "formula": "2.0"},
-        "solver": {"max_iterations": 3}})
-    solver = fluid.FluidSolver(submesh, tags, case.fluid, (
-        fluid.Inflow(INLET, case.fluid.inlet), fluid.Outflow(OUTLET, 0.0), fluid.NoSlip(WALL)),
-        scheme="steady")
+    case, submesh, tags = channel(
+        1e-3,
+        {
+            "rheology": {"model": "carreau"},
+            "inlet": {"kind": "pressure", "formula": "2.0"},
+            "solver": {"max_iterations": 3},
+        },
+    )
+    solver = fluid.FluidSolver(
+        submesh,
+        tags,
+        case.fluid,
+        (fluid.Inflow(INLET, case.fluid.inlet), fluid.Outflow(OUTLET, 0.0), fluid.NoSlip(WALL)),
+        scheme="steady",
+    )
     result = solver.step(0.0, 1.0)
     assert not result.converged and result.iterations == 3
     assert "did not converge in 3 iterations" in result.reason
@@ -611,8 +720,9 @@ def test_failed_newton_is_reported_and_leaves_the_previous_solution():
 def test_non_finite_data_is_reported_and_leaves_no_nan():
     cfg = config.from_dict({}).fluid
     domain, tags = unit_square(3)
-    solver = fluid.FluidSolver(domain, tags, cfg, (fluid.Velocity((1, 3, 4)),
-                                                   fluid.Outflow(2, 1.0)))
+    solver = fluid.FluidSolver(
+        domain, tags, cfg, (fluid.Velocity((1, 3, 4)), fluid.Outflow(2, 1.0))
+    )
     solver.boundary_velocity.x.array[:] = np.nan  # e.g. a diverged coupling iterate
     result = solver.step(0.01, 0.01)
     assert not result.converged and "non-finite" in result.reason, result
@@ -637,8 +747,9 @@ def test_study_conditions_on_the_stenosis_give_the_rigid_column_velocity():
     part = mesh.restrict(tagged, Region.FLUID)
     submesh = part.mesh
     tags = part.facet_tags
-    boundaries = fluid.boundary_conditions(case.fluid, mesh.geometry_module(case).BOUNDARIES,
-                                           moving_interface=True)
+    boundaries = fluid.boundary_conditions(
+        case.fluid, mesh.geometry_module(case).BOUNDARIES, moving_interface=True
+    )
     solver = fluid.FluidSolver(submesh, tags, case.fluid, boundaries)
     T = case.fluid.inlet.duration
     for k in range(1, 6):
@@ -647,10 +758,14 @@ def test_study_conditions_on_the_stenosis_give_the_rigid_column_velocity():
         solver.advance()
     g = case.geometry
     x = np.linspace(0, g.length, 20001)
-    plaque = np.where(np.abs(x - g.length / 2) < g.stenosis_length / 2,
-                      g.stenosis_degree * g.height / 2
-                      * (1 - np.cos(2 * np.pi * (x - (g.length - g.stenosis_length) / 2)
-                                    / g.stenosis_length)), 0.0)
+    plaque = np.where(
+        np.abs(x - g.length / 2) < g.stenosis_length / 2,
+        g.stenosis_degree
+        * g.height
+        / 2
+        * (1 - np.cos(2 * np.pi * (x - (g.length - g.stenosis_length) / 2) / g.stenosis_length)),
+        0.0,
+    )
     ratio = g.height / (g.height - plaque)
     effective_length = np.sum((ratio[1:] + ratio[:-1]) / 2 * np.diff(x))  # trapezoid rule
     impulse = case.fluid.inlet.amplitude / 2 * T
@@ -668,22 +783,35 @@ def test_study_conditions_on_the_stenosis_give_the_rigid_column_velocity():
 
 
 def turek_hron_forces(name: str, mean_velocity: float, level: str = "coarse"):
-    case = config.load(f"configs/turek_hron_{name}.yaml", [
-        f"fluid.inlet={{kind: parabolic_velocity, mean_velocity: {mean_velocity}}}",
-        f"mesh.level={level}"])
+    case = config.load(
+        f"configs/turek_hron_{name}.yaml",
+        [
+            f"fluid.inlet={{kind: parabolic_velocity, mean_velocity: {mean_velocity}}}",
+            f"mesh.level={level}",
+        ],
+    )
     tagged = mesh.build(case)
     part = mesh.restrict(tagged, Region.FLUID)
     submesh = part.mesh
     tags = part.facet_tags
     wetted = (Boundary.OBSTACLE, Boundary.INTERFACE)
-    solver = fluid.FluidSolver(submesh, tags, case.fluid, (
-        fluid.Inflow(INLET, case.fluid.inlet), fluid.Outflow(OUTLET, 0.0),
-        fluid.NoSlip((WALL, *wetted))), scheme="steady")
+    solver = fluid.FluidSolver(
+        submesh,
+        tags,
+        case.fluid,
+        (
+            fluid.Inflow(INLET, case.fluid.inlet),
+            fluid.Outflow(OUTLET, 0.0),
+            fluid.NoSlip((WALL, *wetted)),
+        ),
+        scheme="steady",
+    )
     result = solver.step(0.0, 1.0)
     assert result.converged, result
     residual_based = solver.boundary_force(wetted)
-    surface = metrics.surface_force(solver.u, solver.p, solver.law, tags, wetted,
-                                    case.fluid.quadrature_degree)
+    surface = metrics.surface_force(
+        solver.u, solver.p, solver.law, tags, wetted, case.fluid.quadrature_degree
+    )
     return residual_based, surface, result
 
 

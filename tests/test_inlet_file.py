@@ -41,8 +41,9 @@ def case_file(folder, inlet, name="case.yaml"):
 def test_csv_inlet_equals_the_table_inlet_with_the_same_rows(shared_tmp):
     write(shared_tmp / "waves" / "w.csv", "# a comment\n" + csv(ROWS) + "\n# the end\n")
     from_file = config.load(case_file(shared_tmp, "{kind: pressure_file, file: waves/w.csv}"))
-    inline = config.load(case_file(shared_tmp, f"{{kind: pressure_table, table: {table(ROWS)}}}",
-                                   "inline.yaml"))
+    inline = config.load(
+        case_file(shared_tmp, f"{{kind: pressure_table, table: {table(ROWS)}}}", "inline.yaml")
+    )
     assert from_file.fluid.inlet.table == ROWS
     assert from_file.fluid.inlet.file == str(shared_tmp / "waves" / "w.csv")
     p_file = fluid.inlet_pressure(from_file.fluid.inlet)
@@ -56,8 +57,7 @@ def test_csv_inlet_equals_the_table_inlet_with_the_same_rows(shared_tmp):
 def test_the_period_repeats_the_waveform(shared_tmp):
     rows = ((-0.1, 7.0), (0.0, 10.0), (0.3, 90.0), (0.5, 40.0), (0.8, 10.0), (0.9, 99.0))
     write(shared_tmp / "beat.csv", csv(rows, header=""))
-    case = config.load(case_file(shared_tmp, "{kind: pressure_file, file: beat.csv, "
-                                             "period: 0.8}"))
+    case = config.load(case_file(shared_tmp, "{kind: pressure_file, file: beat.csv, period: 0.8}"))
     pressure = fluid.inlet_pressure(case.fluid.inlet)
     for t in np.linspace(0.0, 0.8, 81):
         for k in range(1, 6):
@@ -67,8 +67,9 @@ def test_the_period_repeats_the_waveform(shared_tmp):
 
 
 def test_the_shipped_pulse_waveform_is_the_study_pulse():
-    case = config.load(CHANNEL, ["fluid.inlet={kind: pressure_file, "
-                                 "file: configs/waveforms/pulse.csv}"])
+    case = config.load(
+        CHANNEL, ["fluid.inlet={kind: pressure_file, file: configs/waveforms/pulse.csv}"]
+    )
     sampled = fluid.inlet_pressure(case.fluid.inlet)
     pulse = fluid.inlet_pressure(config.InletPulse())
     # linear interpolation of (A/2)(1 − cos 2πt/T) every h: error <= (A/2)(2π/T)² h²/8 = 0.3 Pa
@@ -79,8 +80,10 @@ def test_the_shipped_pulse_waveform_is_the_study_pulse():
 
 def test_a_run_with_the_csv_inlet_equals_one_with_the_table_inlet(shared_tmp):
     write(shared_tmp / "w.csv", csv(ROWS))
-    inlets = {"table": f"fluid.inlet={{kind: pressure_table, table: {table(ROWS)}}}",
-              "file": f"fluid.inlet={{kind: pressure_file, file: {shared_tmp / 'w.csv'}}}"}
+    inlets = {
+        "table": f"fluid.inlet={{kind: pressure_table, table: {table(ROWS)}}}",
+        "file": f"fluid.inlet={{kind: pressure_file, file: {shared_tmp / 'w.csv'}}}",
+    }
     metrics = {}
     for name, inlet in inlets.items():
         out = shared_tmp / name
@@ -97,8 +100,7 @@ def test_a_run_with_the_csv_inlet_equals_one_with_the_table_inlet(shared_tmp):
 
 def test_the_dumped_configuration_is_a_table_that_loads_again(shared_tmp):
     write(shared_tmp / "w.csv", csv(ROWS))
-    case = config.load(case_file(shared_tmp, "{kind: pressure_file, file: w.csv, "
-                                             "period: 0.003}"))
+    case = config.load(case_file(shared_tmp, "{kind: pressure_file, file: w.csv, period: 0.003}"))
     dumped = shared_tmp / "run" / "config.yaml"  # another folder, as a run's: no w.csv there
     if MPI.COMM_WORLD.rank == 0:
         dumped.parent.mkdir()
@@ -113,8 +115,7 @@ def test_the_dumped_configuration_is_a_table_that_loads_again(shared_tmp):
     assert config.to_dict(again) == config.to_dict(case)  # and dumping again changes nothing
 
 
-def test_the_file_is_relative_to_the_case_file_or_to_the_current_directory(shared_tmp,
-                                                                            monkeypatch):
+def test_the_file_is_relative_to_the_case_file_or_to_the_current_directory(shared_tmp, monkeypatch):
     write(shared_tmp / "a" / "w.csv", csv(ROWS))
     case = case_file(shared_tmp / "a", "{kind: pressure_file, file: w.csv}")
     monkeypatch.chdir(shared_tmp)  # the file is found beside the case, not here
@@ -126,34 +127,52 @@ def test_the_file_is_relative_to_the_case_file_or_to_the_current_directory(share
 
 BAD = [  # (CSV text or None for no file, inlet keys after the file, message after "case.yaml: ")
     (None, "", "fluid.inlet.file: cannot read {dir}/x.csv (No such file or directory)"),
-    ("t,P\n0,0\n0.1,1\n0.2,abc\n", "", "fluid.inlet.file: {dir}/x.csv: line 4: 'abc' is not a "
-     "number"),
+    (
+        "t,P\n0,0\n0.1,1\n0.2,abc\n",
+        "",
+        "fluid.inlet.file: {dir}/x.csv: line 4: 'abc' is not a number",
+    ),
     ("0,0\n0.1,x\n", "", "fluid.inlet.file: {dir}/x.csv: line 2: 'x' is not a number"),
-    ("0,0\n# ok\n0.2,1\n0.1,2\n", "", "fluid.inlet.file: {dir}/x.csv: line 4: t = 0.1 is not "
-     "after the previous row's t = 0.2"),
-    ("0,0\n0,1\n", "", "fluid.inlet.file: {dir}/x.csv: line 2: t = 0 is not after the previous "
-     "row's t = 0"),
+    (
+        "0,0\n# ok\n0.2,1\n0.1,2\n",
+        "",
+        "fluid.inlet.file: {dir}/x.csv: line 4: t = 0.1 is not after the previous row's t = 0.2",
+    ),
+    (
+        "0,0\n0,1\n",
+        "",
+        "fluid.inlet.file: {dir}/x.csv: line 2: t = 0 is not after the previous row's t = 0",
+    ),
     ("t,P\n0,5\n", "", "fluid.inlet.file: {dir}/x.csv: 1 row of t, P; at least 2 are needed"),
     ("", "", "fluid.inlet.file: {dir}/x.csv: 0 rows of t, P; at least 2 are needed"),
-    ("0,0\n0.1,nan\n", "", "fluid.inlet.file: {dir}/x.csv: line 2: P = nan is not a finite "
-     "number"),
+    ("0,0\n0.1,nan\n", "", "fluid.inlet.file: {dir}/x.csv: line 2: P = nan is not a finite number"),
     ("0,0\ninf,1\n", "", "fluid.inlet.file: {dir}/x.csv: line 2: t = inf is not a finite number"),
-    ("0,0\n0.1,1,2\n", "", "fluid.inlet.file: {dir}/x.csv: line 2: expected 2 columns t, P, "
-     "got 3"),
-    ("0,0\n0.5,1\n", ", period: 0.8", "fluid.inlet.period: the rows of {dir}/x.csv cover t in "
-     "[0, 0.5] s, not the whole period [0, 0.8] s (the first t must be <= 0 and the last >= "
-     "period)"),
-    ("0,0\n0.5,1\n", ", period: -1", "fluid.inlet.period: expected a number >= 0 (s; 0: no "
-     "repetition), got -1"),
+    ("0,0\n0.1,1,2\n", "", "fluid.inlet.file: {dir}/x.csv: line 2: expected 2 columns t, P, got 3"),
+    (
+        "0,0\n0.5,1\n",
+        ", period: 0.8",
+        "fluid.inlet.period: the rows of {dir}/x.csv cover t in "
+        "[0, 0.5] s, not the whole period [0, 0.8] s (the first t must be <= 0 and the last >= "
+        "period)",
+    ),
+    (
+        "0,0\n0.5,1\n",
+        ", period: -1",
+        "fluid.inlet.period: expected a number >= 0 (s; 0: no repetition), got -1",
+    ),
     ("0,0\n0.5,1\n", ", table: [[0, 1]]", "fluid.inlet.table: not a key of kind 'pressure_file'"),
-    (b"0,0\n0.5,\xff\n", "", "fluid.inlet.file: {dir}/x.csv: not UTF-8 text (byte 0xff at "
-     "offset 8)"),
+    (
+        b"0,0\n0.5,\xff\n",
+        "",
+        "fluid.inlet.file: {dir}/x.csv: not UTF-8 text (byte 0xff at offset 8)",
+    ),
 ]
 
 
 @pytest.mark.parametrize("text,keys,message", BAD)
-def test_bad_waveform_input_exits_2_with_one_line_naming_file_and_line(shared_tmp, capsys, text,
-                                                                       keys, message):
+def test_bad_waveform_input_exits_2_with_one_line_naming_file_and_line(
+    shared_tmp, capsys, text, keys, message
+):
     if text is not None and MPI.COMM_WORLD.rank == 0:
         data = text if isinstance(text, bytes) else text.encode()
         (shared_tmp / "x.csv").write_bytes(data)
@@ -175,11 +194,17 @@ def test_a_missing_file_key_and_an_unloaded_inlet_are_refused():
 
 def test_a_periodic_inline_table_must_cover_its_period():
     inlet = "{kind: pressure_table, table: [[0, 1], [0.5, 2]], period: 0.6}"
-    with pytest.raises(config.ConfigError, match=r"case.yaml: fluid.inlet.period: "
-                                                 r"fluid.inlet.table cover t in \[0, 0.5\] s"):
+    with pytest.raises(
+        config.ConfigError,
+        match=r"case.yaml: fluid.inlet.period: "
+        r"fluid.inlet.table cover t in \[0, 0.5\] s",
+    ):
         config.from_dict(config_reader.parse_yaml(f"fluid: {{inlet: {inlet}}}"), "case.yaml")
-    periodic = config.from_dict(config_reader.parse_yaml(
-        "fluid: {inlet: {kind: pressure_table, table: [[0, 1], [0.5, 2]], period: 0.5}}"))
+    periodic = config.from_dict(
+        config_reader.parse_yaml(
+            "fluid: {inlet: {kind: pressure_table, table: [[0, 1], [0.5, 2]], period: 0.5}}"
+        )
+    )
     pressure = fluid.inlet_pressure(periodic.fluid.inlet)
     assert pressure(0.25) == pytest.approx(1.5) and pressure(0.75) == pytest.approx(1.5)
     assert math.isclose(pressure(1.0 + 0.1), pressure(0.1))

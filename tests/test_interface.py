@@ -41,8 +41,9 @@ def test_solid_to_fluid_transfer_is_exact_at_the_interface(parts, degree):
     _, fluid, solid = parts
     V_s = compat.function_space(solid.mesh, "Lagrange", degree, (2,))
     V_f = compat.function_space(fluid.mesh, "Lagrange", degree, (2,))
-    imap = interface.InterfaceMap(V_s, solid.facets(Boundary.INTERFACE),
-                                  V_f, fluid.facets(Boundary.INTERFACE))
+    imap = interface.InterfaceMap(
+        V_s, solid.facets(Boundary.INTERFACE), V_f, fluid.facets(Boundary.INTERFACE)
+    )
 
     def field(x):
         return np.vstack([np.sin(300 * x[0]) + x[1], np.cos(200 * x[1]) * x[0]])
@@ -68,5 +69,6 @@ def test_non_conforming_spaces_are_refused(parts):
     V_s = compat.function_space(solid.mesh, "Lagrange", 2, (2,))
     V_f = compat.function_space(fluid.mesh, "Lagrange", 1, (2,))
     with pytest.raises(ValueError, match="interface dof counts differ"):
-        interface.InterfaceMap(V_s, solid.facets(Boundary.INTERFACE),
-                               V_f, fluid.facets(Boundary.INTERFACE))
+        interface.InterfaceMap(
+            V_s, solid.facets(Boundary.INTERFACE), V_f, fluid.facets(Boundary.INTERFACE)
+        )

@@ -22,8 +22,13 @@ G = FSI2.geometry
 CENTRE_Y = G.cylinder_centre[1]
 JOINT_X = G.cylinder_centre[0] + np.sqrt(G.cylinder_radius**2 - (G.flag_thickness / 2) ** 2)
 FLAG = G.cylinder_centre[0] + G.cylinder_radius + G.flag_length - JOINT_X  # joint to tip, m
-FLUID_BOUNDARIES = (Boundary.INLET, Boundary.OUTLET, Boundary.RIGID_WALL, Boundary.OBSTACLE,
-                    Boundary.INTERFACE)
+FLUID_BOUNDARIES = (
+    Boundary.INLET,
+    Boundary.OUTLET,
+    Boundary.RIGID_WALL,
+    Boundary.OBSTACLE,
+    Boundary.INTERFACE,
+)
 
 
 @pytest.fixture(scope="module")
@@ -80,9 +85,16 @@ def bent_min_ratio(tagged, motion: config.MeshMotion, tip: float):
 # --------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("method, stiffening", [
-    ("harmonic", "none"), ("elastic", "none"),
-    ("biharmonic", "none"), ("biharmonic", "jacobian"), ("biharmonic", "distance")])
+@pytest.mark.parametrize(
+    "method, stiffening",
+    [
+        ("harmonic", "none"),
+        ("elastic", "none"),
+        ("biharmonic", "none"),
+        ("biharmonic", "jacobian"),
+        ("biharmonic", "distance"),
+    ],
+)
 def test_affine_motion_is_extended_exactly(fluid, method, stiffening):
     """d = a + B X on every boundary (the flag, cylinder, walls, inlet and outlet) is the exact
     solution of each extension: constant ∇d solves −Δd = 0 and ∇·σ(d) = 0 (constant k), and it
@@ -95,8 +107,9 @@ def test_affine_motion_is_extended_exactly(fluid, method, stiffening):
     def affine(x):
         return a[:, None] + B @ x[:2]
 
-    mm = MeshMotion(fluid, settings(method=method, stiffening=stiffening),
-                    moving=FLUID_BOUNDARIES, fixed=())
+    mm = MeshMotion(
+        fluid, settings(method=method, stiffening=stiffening), moving=FLUID_BOUNDARIES, fixed=()
+    )
     mm.set_boundary_function(affine)
     mm.solve()
     n_owned = mm.V.dofmap.index_map.size_local
@@ -114,8 +127,9 @@ def test_stiffened_harmonic_is_not_exact_for_affine_motion(fluid):
     """The contrast that makes the test above meaningful: with a stiffening k varying per cell
     the harmonic extension is not affine (∇·(k B) ≠ 0 across cells of different k)."""
     B = np.array([[0.05, -0.08], [0.06, 0.02]])
-    mm = MeshMotion(fluid, settings(method="harmonic", stiffening="jacobian"),
-                    moving=FLUID_BOUNDARIES, fixed=())
+    mm = MeshMotion(
+        fluid, settings(method="harmonic", stiffening="jacobian"), moving=FLUID_BOUNDARIES, fixed=()
+    )
     mm.set_boundary_function(lambda x: B @ x[:2])
     mm.solve()
     n_owned = mm.V.dofmap.index_map.size_local
@@ -183,8 +197,14 @@ def test_biharmonic_partition_independent(fluid):
 
 def test_biharmonic_is_a_config_choice(capsys):
     assert settings(method="biharmonic").method == "biharmonic"
-    status = cli.main(["check", str(ROOT / "configs/turek_hron_fsi2.yaml"), "--set",
-                       "mesh_motion.method=bilaplace"])
+    status = cli.main(
+        [
+            "check",
+            str(ROOT / "configs/turek_hron_fsi2.yaml"),
+            "--set",
+            "mesh_motion.method=bilaplace",
+        ]
+    )
     err = capsys.readouterr().err
     assert status == 2
     if MPI.COMM_WORLD.rank == 0:
@@ -201,7 +221,8 @@ def test_benchmark_script_analyses_fsi2_like_fsi3(tmp_path):
     import sys
 
     spec = importlib.util.spec_from_file_location(
-        "benchmark_turek_hron", ROOT / "scripts/benchmark_turek_hron.py")
+        "benchmark_turek_hron", ROOT / "scripts/benchmark_turek_hron.py"
+    )
     bench = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = bench  # its dataclasses look their module up there
     spec.loader.exec_module(bench)
@@ -211,12 +232,16 @@ def test_benchmark_script_analyses_fsi2_like_fsi3(tmp_path):
         folder.mkdir()
         (folder / "config.yaml").write_text(
             "name: turek_hron_fsi2\nfluid: {inlet: {ramp_time: 2.0}}\n"
-            "structure: {mode: moving_wall}\n")
+            "structure: {mode: moving_wall}\n"
+        )
         t = np.arange(1, 3001) * 0.002  # 6 s
         w1, w2 = 2 * np.pi * 1.93 * t, 2 * np.pi * 3.86 * t
-        columns = {"ux_A": -14.85e-3 + 12.70e-3 * np.sin(w2),
-                   "uy_A": 1.30e-3 + uy_scale * 81.7e-3 * np.sin(w1),
-                   "drag": 215.06 + 77.65 * np.sin(w2), "lift": 0.61 + 237.8 * np.sin(w1)}
+        columns = {
+            "ux_A": -14.85e-3 + 12.70e-3 * np.sin(w2),
+            "uy_A": 1.30e-3 + uy_scale * 81.7e-3 * np.sin(w1),
+            "drag": 215.06 + 77.65 * np.sin(w2),
+            "lift": 0.61 + 237.8 * np.sin(w1),
+        }
         lines = ["step,t,dt,wall_time_s," + ",".join(columns)]
         for i, ti in enumerate(t):
             values = ",".join(f"{columns[c][i]:.10g}" for c in columns)
@@ -224,12 +249,13 @@ def test_benchmark_script_analyses_fsi2_like_fsi3(tmp_path):
         (folder / "metrics.csv").write_text("\n".join(lines) + "\n")
         return folder
 
-    _, table, _ = bench.analyse_run(write_run(tmp_path / "exact", 1.0), "fsi2", "featflow", 1,
-                                    None)
+    _, table, _ = bench.analyse_run(write_run(tmp_path / "exact", 1.0), "fsi2", "featflow", 1, None)
     checked = [r for r in table if r.difference.passed is not None]
     assert len(checked) == 10 and all(r.difference.passed for r in checked)
-    _, table, _ = bench.analyse_run(write_run(tmp_path / "small", 0.9), "fsi2", "featflow", 1,
-                                    None)
-    failed = [(r.column, r.stat) for r in table
-              if r.difference.passed is not None and not r.difference.passed]
+    _, table, _ = bench.analyse_run(write_run(tmp_path / "small", 0.9), "fsi2", "featflow", 1, None)
+    failed = [
+        (r.column, r.stat)
+        for r in table
+        if r.difference.passed is not None and not r.difference.passed
+    ]
     assert failed == [("uy_A", "amplitude")]

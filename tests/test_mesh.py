@@ -6,17 +6,24 @@ from mpi4py import MPI
 
 import numpy as np
 import pytest
+from mesh_checks import boundary_vertices
 
 from fsi import cli, compat, config, config_reader, mesh
 from geometry import stenosis
 from geometry.tags import STRUCTURE_REGIONS, Boundary, Region
-from mesh_checks import boundary_vertices
 
 STUDY_COARSE_TRIANGLES = 3272  # MODEL.md §1
 STENOSIS_REGIONS = (Region.FLUID, Region.WALL, Region.CAP, Region.LIPID)
-STENOSIS_BOUNDARIES = (Boundary.INLET, Boundary.OUTLET, Boundary.INTERFACE, Boundary.RIGID_WALL,
-                       Boundary.CLAMPED, Boundary.EXTERIOR, Boundary.CAP_LIPID,
-                       Boundary.PLAQUE_BASE)
+STENOSIS_BOUNDARIES = (
+    Boundary.INLET,
+    Boundary.OUTLET,
+    Boundary.INTERFACE,
+    Boundary.RIGID_WALL,
+    Boundary.CLAMPED,
+    Boundary.EXTERIOR,
+    Boundary.CAP_LIPID,
+    Boundary.PLAQUE_BASE,
+)
 
 
 @pytest.fixture(scope="module")
@@ -104,8 +111,11 @@ def test_plaque_on_the_top_or_both_sides(sides):
 
 
 def test_channel_mesh():
-    case = config.from_dict(config_reader.parse_yaml(
-        "geometry: {kind: channel, length: 0.02, height: 0.007}\nstructure: {mode: rigid}"))
+    case = config.from_dict(
+        config_reader.parse_yaml(
+            "geometry: {kind: channel, length: 0.02, height: 0.007}\nstructure: {mode: rigid}"
+        )
+    )
     tagged = mesh.build(case)
     s = mesh.summary(tagged, case)
     assert s["area_m2"]["fluid"] == pytest.approx(0.02 * 0.007, rel=1e-12)
@@ -122,7 +132,8 @@ def test_fsi_mesh_writes_xdmf_and_json(shared_tmp, coarse):
     assert set(summary["cells"]) == {"fluid", "wall", "cap", "lipid", "total"}
     assert set(summary["area_m2"]) == {"fluid", "wall", "cap", "lipid", "total"}
     assert {"inlet", "outlet", "interface", "rigid_wall", "clamped", "exterior"} <= set(
-        summary["facets"])
+        summary["facets"]
+    )
     assert set(summary["measures"]) == {"stenosis_degree", "min_cap_thickness_m"}
     assert summary["cells"] == coarse[2]["cells"]
 
@@ -133,4 +144,5 @@ def test_fsi_mesh_writes_xdmf_and_json(shared_tmp, coarse):
     fluid = MPI.COMM_WORLD.allreduce(int(np.count_nonzero(cell_tags.values[owned] == Region.FLUID)))
     assert fluid == summary["cells"]["fluid"]
     assert set(np.unique(np.concatenate(MPI.COMM_WORLD.allgather(facet_tags.values)))) == {
-        int(b) for b in STENOSIS_BOUNDARIES}
+        int(b) for b in STENOSIS_BOUNDARIES
+    }

@@ -75,8 +75,9 @@ def test_affine_boundary_displacement_is_extended_exactly(fluid, method):
     def affine(x):
         return a[:, None] + B @ x[:2]
 
-    mm = MeshMotion(fluid, settings(method=method, stiffening="none"),
-                    moving=FLUID_BOUNDARIES, fixed=())
+    mm = MeshMotion(
+        fluid, settings(method=method, stiffening="none"), moving=FLUID_BOUNDARIES, fixed=()
+    )
     mm.set_boundary_function(affine)
     mm.solve()
     n_owned = mm.V.dofmap.index_map.size_local
@@ -101,8 +102,9 @@ def test_bump_moves_interface_nodes_exactly_and_keeps_the_other_boundaries(fluid
     cap = boundary_nodes(fluid, Boundary.INTERFACE)
     # Exactly X + d on the interface: boundary values are copied into d, not solved for.
     assert np.array_equal(x[cap, :2], X[cap, :2] + bump(A)(X[cap].T).T)
-    still = np.setdiff1d(boundary_nodes(fluid, Boundary.INLET, Boundary.OUTLET,
-                                        Boundary.RIGID_WALL), cap)
+    still = np.setdiff1d(
+        boundary_nodes(fluid, Boundary.INLET, Boundary.OUTLET, Boundary.RIGID_WALL), cap
+    )
     assert np.array_equal(x[still], X[still])
     # The apex moved by A and the interior followed (by less than A, more than nothing).
     assert np.isclose(global_max(fluid.comm, x[cap, 1] - X[cap, 1]), A, rtol=1e-6)
@@ -126,8 +128,9 @@ def test_boundary_data_from_the_solid_through_a_p2_interface_map(fluid):
     solid = mesh.restrict(mesh.build(CASE), *STRUCTURE_REGIONS)
     V_s = compat.function_space(solid.mesh, "Lagrange", 2, (2,))
     V_f = compat.function_space(fluid.mesh, "Lagrange", 2, (2,))
-    imap = InterfaceMap(V_s, solid.facets(Boundary.INTERFACE),
-                        V_f, fluid.facets(Boundary.INTERFACE))
+    imap = InterfaceMap(
+        V_s, solid.facets(Boundary.INTERFACE), V_f, fluid.facets(Boundary.INTERFACE)
+    )
     eta, on_fluid = dolfinx.fem.Function(V_s), dolfinx.fem.Function(V_f)
     eta.interpolate(bump(3e-4))
     imap.set_dst(on_fluid, imap.transfer(imap.src_vector(eta)))
@@ -246,16 +249,26 @@ def test_iterative_solver_from_the_config(fluid):
     """petsc_options reach the mesh_ solver: CG + Jacobi gives the LU answer."""
     values = None
     results = []
-    for options in ({}, {"petsc_options": {"ksp_type": "cg", "pc_type": "jacobi",
-                                           "ksp_rtol": 1e-12, "ksp_max_it": 5000}}):
+    for options in (
+        {},
+        {
+            "petsc_options": {
+                "ksp_type": "cg",
+                "pc_type": "jacobi",
+                "ksp_rtol": 1e-12,
+                "ksp_max_it": 5000,
+            }
+        },
+    ):
         mm = MeshMotion(fluid, settings(**options))
         values = bump(2e-4)(mm.interface_points.T).T if values is None else values
         mm.set_boundary_displacement(values)
         results.append(mm.solve().x.array.copy())
         assert mm._ksp.getType() == ("cg" if options else "preonly")
     # CG stops at rtol 1e-12 on the preconditioned residual: ~1e-9 in d is ample.
-    assert global_max(fluid.comm, results[1] - results[0]) < 1e-8 * global_max(fluid.comm,
-                                                                                results[0])
+    assert global_max(fluid.comm, results[1] - results[0]) < 1e-8 * global_max(
+        fluid.comm, results[0]
+    )
 
 
 def test_apply_reset_and_restore(fluid):

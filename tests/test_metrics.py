@@ -4,9 +4,9 @@ positive downstream, on the mesh as it is now; 1 rank = 2 ranks (the suite runs 
 import dolfinx.fem
 import numpy as np
 import pytest
+from test_fluid import INLET, OUTLET, channel, pressure_driven
 
 from fsi import compat, metrics
-from test_fluid import INLET, OUTLET, channel, pressure_driven
 
 H = 0.007  # the height of test_fluid.channel
 

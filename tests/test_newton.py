@@ -117,8 +117,9 @@ def test_fluid_with_reused_jacobians_finds_newtons_solution(whole):
     solvers = {}
     for reuse in ("none", "step", "run"):
         case = case_with("structure.mode=rigid", f"fluid.solver.jacobian_reuse={reuse}")
-        solvers[reuse] = fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid,
-                                           simulation.fluid_boundaries(case))
+        solvers[reuse] = fluid.FluidSolver(
+            part.mesh, part.facet_tags, case.fluid, simulation.fluid_boundaries(case)
+        )
     newton = solvers["none"]
     iterations = {"step": 0, "run": 0}
     for st in steps(case_with().time):
@@ -132,10 +133,17 @@ def test_fluid_with_reused_jacobians_finds_newtons_solution(whole):
             assert result.converged
             iterations[reuse] += result.iterations
             # An unchanged matrix keeps its factorisation: one LU per assembled Jacobian.
-            assert (lu_factorisations() - factorisations
-                    == s.newton.callbacks.jacobian_assemblies - jacobians)
-            assert_same_solution(s.U, newton.U, [(s.problem, s.U), (newton.problem, newton.U)],
-                                 comm, f"{reuse}, step {st.index}")
+            assert (
+                lu_factorisations() - factorisations
+                == s.newton.callbacks.jacobian_assemblies - jacobians
+            )
+            assert_same_solution(
+                s.U,
+                newton.U,
+                [(s.problem, s.U), (newton.problem, newton.U)],
+                comm,
+                f"{reuse}, step {st.index}",
+            )
         for s in solvers.values():
             s.advance()
     for reuse in ("step", "run"):
@@ -143,18 +151,28 @@ def test_fluid_with_reused_jacobians_finds_newtons_solution(whole):
         assert callbacks.retries == 0
         # Measured over the 4 steps: step 7 assemblies for 14 iterations, run 5 for 15.
         assert callbacks.jacobian_assemblies < iterations[reuse]
-    assert solvers["run"].newton.callbacks.jacobian_assemblies <= \
-        solvers["step"].newton.callbacks.jacobian_assemblies
+    assert (
+        solvers["run"].newton.callbacks.jacobian_assemblies
+        <= solvers["step"].newton.callbacks.jacobian_assemblies
+    )
 
 
 def test_structure_with_reused_jacobians_finds_newtons_solution(whole):
     """The moving wall and plaque alone under the inlet pulse as a follower pressure."""
     comm = whole.comm
     pressure = fluid.inlet_pressure(case_with().fluid.inlet)
-    solvers = {reuse: solid.build(case_with("structure.interface_load=inlet_pressure",
-                                            f"structure.solver.jacobian_reuse={reuse}"),
-                                  whole, comm, pressure)
-               for reuse in ("none", "step", "run")}
+    solvers = {
+        reuse: solid.build(
+            case_with(
+                "structure.interface_load=inlet_pressure",
+                f"structure.solver.jacobian_reuse={reuse}",
+            ),
+            whole,
+            comm,
+            pressure,
+        )
+        for reuse in ("none", "step", "run")
+    }
     newton = solvers["none"]
     iterations = {"step": 0, "run": 0}
     for st in steps(case_with().time):
@@ -166,9 +184,13 @@ def test_structure_with_reused_jacobians_finds_newtons_solution(whole):
             result = s.step(st.t, st.dt)
             assert result.converged
             iterations[reuse] += result.iterations
-            assert_same_solution(s.eta, newton.eta, [(s.problem, s.eta),
-                                                     (newton.problem, newton.eta)],
-                                 comm, f"{reuse}, step {st.index}")
+            assert_same_solution(
+                s.eta,
+                newton.eta,
+                [(s.problem, s.eta), (newton.problem, newton.eta)],
+                comm,
+                f"{reuse}, step {st.index}",
+            )
         for s in solvers.values():
             s.advance()
     # Measured: step 4 assemblies for 14 iterations, run 2 for 14 (Newton: 12 for 12).
@@ -182,9 +204,12 @@ def test_coupled_run_with_reuse_matches_plain_newton():
     comm = MPI.COMM_WORLD
     steppers, rows = {}, {}
     for reuse in ("none", "step"):
-        case = case_with("time.end=0.00075", "coupling.acceleration=iqn-ils",
-                         f"fluid.solver.jacobian_reuse={reuse}",
-                         f"structure.solver.jacobian_reuse={reuse}")
+        case = case_with(
+            "time.end=0.00075",
+            "coupling.acceleration=iqn-ils",
+            f"fluid.solver.jacobian_reuse={reuse}",
+            f"structure.solver.jacobian_reuse={reuse}",
+        )
         steppers[reuse] = simulation.CoupledStepper(case, comm)
         rows[reuse] = [steppers[reuse].step(st) for st in steps(case.time)]
     tolerance = case.coupling.tolerance
@@ -192,9 +217,12 @@ def test_coupled_run_with_reuse_matches_plain_newton():
         for key in ("peak_velocity", "peak_pressure", "peak_displacement", "max_sss"):
             assert a[key] == pytest.approx(b[key], rel=tolerance), key
     # Each run built its own mesh (on several ranks, another partition): compare by position.
-    x = {r: gathered_by_position(comm, s.problem.solid.interface_points,
-                                 s.problem.solid.interface_displacement())
-         for r, s in steppers.items()}
+    x = {
+        r: gathered_by_position(
+            comm, s.problem.solid.interface_points, s.problem.solid.interface_displacement()
+        )
+        for r, s in steppers.items()
+    }
     assert np.linalg.norm(x["step"] - x["none"]) <= tolerance * np.linalg.norm(x["none"])
     # The point of it: far fewer fluid Jacobians (and factorisations) than Newton iterations.
     fluid_side = steppers["step"].problem.fluid
@@ -209,8 +237,10 @@ def test_step_reuse_makes_a_step_depend_only_on_its_start(whole):
     part = mesh.restrict(whole, Region.FLUID)
     case = case_with("structure.mode=rigid", "fluid.solver.jacobian_reuse=step")
     schedule = list(steps(case.time))
-    runs = [fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid,
-                              simulation.fluid_boundaries(case)) for _ in range(2)]
+    runs = [
+        fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid, simulation.fluid_boundaries(case))
+        for _ in range(2)
+    ]
     through, restarted = runs
     for st in schedule[:2]:
         assert through.step(st.t, st.dt).converged
@@ -228,10 +258,14 @@ def test_a_failed_solve_with_a_reused_jacobian_is_repeated_with_fresh_ones(whole
     part = mesh.restrict(whole, Region.FLUID)
     solvers = {}
     for reuse in ("none", "run"):
-        case = case_with("structure.mode=rigid", "fluid.solver.max_iterations=4",
-                         f"fluid.solver.jacobian_reuse={reuse}")
-        solvers[reuse] = fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid,
-                                           simulation.fluid_boundaries(case))
+        case = case_with(
+            "structure.mode=rigid",
+            "fluid.solver.max_iterations=4",
+            f"fluid.solver.jacobian_reuse={reuse}",
+        )
+        solvers[reuse] = fluid.FluidSolver(
+            part.mesh, part.facet_tags, case.fluid, simulation.fluid_boundaries(case)
+        )
     st = next(iter(steps(case.time)))
     results = {reuse: s.step(st.t, st.dt) for reuse, s in solvers.items()}
     assert results["none"].converged and results["run"].converged
@@ -240,17 +274,21 @@ def test_a_failed_solve_with_a_reused_jacobian_is_repeated_with_fresh_ones(whole
     assert_equal_arrays(solvers["run"].U.x.array, solvers["none"].U.x.array, whole.comm)
 
 
-@pytest.mark.parametrize("key, value, expected", [
-    ("fluid.solver.jacobian_reuse", "true", "one of 'none', 'step', 'run'"),
-    ("structure.solver.jacobian_reuse", "yes", "one of 'none', 'step', 'run'"),
-    ("fluid.solver.jacobian_reuse_rate", "1.0", "a number in (0.0, 1.0)"),
-    ("structure.solver.jacobian_reuse_rate", "0", "a number in (0.0, 1.0)"),
-])
+@pytest.mark.parametrize(
+    "key, value, expected",
+    [
+        ("fluid.solver.jacobian_reuse", "true", "one of 'none', 'step', 'run'"),
+        ("structure.solver.jacobian_reuse", "yes", "one of 'none', 'step', 'run'"),
+        ("fluid.solver.jacobian_reuse_rate", "1.0", "a number in (0.0, 1.0)"),
+        ("structure.solver.jacobian_reuse_rate", "0", "a number in (0.0, 1.0)"),
+    ],
+)
 def test_reuse_settings_are_checked(key, value, expected):
     with pytest.raises(config.ConfigError, match=key.replace(".", r"\.")) as e:
         config.load(CASE, [f"{key}={value}"])
     assert expected in str(e.value)
-    reused = config.load(CASE, ["fluid.solver.jacobian_reuse=run",
-                                "structure.solver.jacobian_reuse_rate=0.5"])
+    reused = config.load(
+        CASE, ["fluid.solver.jacobian_reuse=run", "structure.solver.jacobian_reuse_rate=0.5"]
+    )
     assert reused.fluid.solver.jacobian_reuse == "run"
     assert reused.structure.solver.jacobian_reuse_rate == 0.5

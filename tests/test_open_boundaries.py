@@ -13,15 +13,16 @@ from mpi4py import MPI
 import dolfinx.mesh
 import numpy as np
 import pytest
+from test_fluid import carreau_flow_rate_1d, channel
 
 from fsi import config, config_reader, fluid, metrics, rheology, simulation
 from fsi.timestepping import steps
 from geometry.tags import Boundary
 
-from test_fluid import carreau_flow_rate_1d, channel
-
-STUDY = {"newtonian": "configs/stenosis_fixed_newtonian.yaml",
-         "carreau": "configs/stenosis_fixed_carreau.yaml"}
+STUDY = {
+    "newtonian": "configs/stenosis_fixed_newtonian.yaml",
+    "carreau": "configs/stenosis_fixed_carreau.yaml",
+}
 OPEN_BOUNDARY_KEYS = ("open_boundary", "normal_flow", "inflow_stabilization", "outlet", "supg")
 L, H = 0.02, 0.007  # the channel (configs/channel_poiseuille.yaml)
 
@@ -40,15 +41,18 @@ def exact_flow_rate(law: rheology.ViscosityLaw, gradient: float) -> float:
     return carreau_flow_rate_1d(law, gradient, H)
 
 
-def march_channel(fluid_section: dict, gradient: float, dt: float, settled: float,
-                  end: float = 20.0) -> tuple[fluid.FluidSolver, np.ndarray]:
+def march_channel(
+    fluid_section: dict, gradient: float, dt: float, settled: float, end: float = 20.0
+) -> tuple[fluid.FluidSolver, np.ndarray]:
     """The channel under the pressure gradient G between its open ends, marched from rest
     (BDF2) to ``end``; returns the solver and, for every step from ``settled`` on, the inlet
     and outlet flow rates relative to the fully developed one, minus 1."""
-    case, submesh, tags = channel(5e-4, {
-        **fluid_section, "inlet": {"kind": "pressure", "formula": repr(gradient * L)}})
-    solver = fluid.FluidSolver(submesh, tags, case.fluid, simulation.fluid_boundaries(case),
-                               scheme="bdf2")
+    case, submesh, tags = channel(
+        5e-4, {**fluid_section, "inlet": {"kind": "pressure", "formula": repr(gradient * L)}}
+    )
+    solver = fluid.FluidSolver(
+        submesh, tags, case.fluid, simulation.fluid_boundaries(case), scheme="bdf2"
+    )
     exact = exact_flow_rate(solver.law, gradient)
     t, late = 0.0, []
     while t < end - 1e-9:
@@ -57,8 +61,12 @@ def march_channel(fluid_section: dict, gradient: float, dt: float, settled: floa
         assert result.converged, result.reason
         solver.advance()
         if t >= settled - 1e-9:
-            late.append([metrics.flow_rate(solver.u, tags, [Boundary.INLET], -1.0) / exact - 1,
-                         metrics.flow_rate(solver.u, tags, [Boundary.OUTLET]) / exact - 1])
+            late.append(
+                [
+                    metrics.flow_rate(solver.u, tags, [Boundary.INLET], -1.0) / exact - 1,
+                    metrics.flow_rate(solver.u, tags, [Boundary.OUTLET]) / exact - 1,
+                ]
+            )
     return solver, np.array(late)
 
 
@@ -68,8 +76,10 @@ def inlet_pressure_range(solver: fluid.FluidSolver) -> tuple[float, float]:
     owned = solver.Q.dofmap.index_map.size_local
     inlet = np.isclose(solver.Q.tabulate_dof_coordinates()[:owned, 0], 0.0)
     p = solver.p.x.array[:owned][inlet]
-    return (solver.comm.allreduce(p.min(initial=np.inf), op=MPI.MIN),
-            solver.comm.allreduce(p.max(initial=-np.inf), op=MPI.MAX))
+    return (
+        solver.comm.allreduce(p.min(initial=np.inf), op=MPI.MIN),
+        solver.comm.allreduce(p.max(initial=-np.inf), op=MPI.MAX),
+    )
 
 
 def test_study_configs_share_the_verified_open_boundaries():
@@ -115,10 +125,12 @@ def test_steady_carreau_channel_converges_from_rest():
     converges (measured: 9 iterations) to the 1D quadrature's flow rate (measured −0.037 %, the
     0.5 mm mesh's error; 0.5 % allowed, as for the marched channel)."""
     G = 300.0
-    case, submesh, tags = channel(5e-4, study_fluid(
-        "carreau", inlet={"kind": "pressure", "formula": repr(G * L)}))
-    solver = fluid.FluidSolver(submesh, tags, case.fluid, simulation.fluid_boundaries(case),
-                               scheme="steady")
+    case, submesh, tags = channel(
+        5e-4, study_fluid("carreau", inlet={"kind": "pressure", "formula": repr(G * L)})
+    )
+    solver = fluid.FluidSolver(
+        submesh, tags, case.fluid, simulation.fluid_boundaries(case), scheme="steady"
+    )
     result = solver.step(1.0, 1.0)
     assert result.converged, result.reason
     q = metrics.flow_rate(solver.u, tags, [Boundary.OUTLET])
@@ -132,9 +144,11 @@ def test_normal_flow_needs_an_axis_parallel_boundary():
     domain.geometry.x[:, 0] += 0.3 * domain.geometry.x[:, 1]  # shear: x = 0 becomes slanted
     domain.topology.create_connectivity(1, 2)
     facets = dolfinx.mesh.locate_entities_boundary(
-        domain, 1, lambda x: np.isclose(x[0], 0.3 * x[1]))
-    tags = dolfinx.mesh.meshtags(domain, 1, np.sort(facets).astype(np.int32),
-                                 np.full(len(facets), 1, dtype=np.int32))
+        domain, 1, lambda x: np.isclose(x[0], 0.3 * x[1])
+    )
+    tags = dolfinx.mesh.meshtags(
+        domain, 1, np.sort(facets).astype(np.int32), np.full(len(facets), 1, dtype=np.int32)
+    )
     settings = config.from_dict({"fluid": {"inlet": {"kind": "pressure", "formula": "1"}}}).fluid
     with pytest.raises(ValueError, match="normal_flow needs straight open boundaries"):
         fluid.FluidSolver(domain, tags, settings, (fluid.Inflow(1, settings.inlet),))
@@ -147,8 +161,9 @@ def test_normal_flow_needs_an_axis_parallel_boundary():
 def rigid_stenosis(overrides: list[str], times: tuple[float, ...]) -> dict:
     """Peaks, inlet flow rate and the inlet's pressure range at ``times`` of the rigid-wall
     Newtonian stenosis (the study's resolved schedule), run through the ``fsi run`` stepper."""
-    case = config.load(STUDY["newtonian"], ["structure.mode=rigid", f"time.end={max(times)}",
-                                            *overrides])
+    case = config.load(
+        STUDY["newtonian"], ["structure.mode=rigid", f"time.end={max(times)}", *overrides]
+    )
     stepper = simulation.RigidStepper(case, MPI.COMM_WORLD)
     solver = stepper.solver
     found = {}
@@ -173,15 +188,16 @@ def test_stenosis_response_matches_the_plain_traction_condition():
     (0.10 and 0.24 Pa), less than the plain inlet's own error (asserted, with a 10 % bound).
     docs/boundary-conditions.md has the figures."""
     times = (0.0025, 0.005, 0.01, 0.02)
-    plain = rigid_stenosis(["fluid.open_boundary=stress", "fluid.normal_flow=false",
-                            "fluid.inflow_stabilization=0"], times)
+    plain = rigid_stenosis(
+        ["fluid.open_boundary=stress", "fluid.normal_flow=false", "fluid.inflow_stabilization=0"],
+        times,
+    )
     study = rigid_stenosis([], times)
     for t in times:
         a, b = plain[t], study[t]
         assert b["peak_velocity"] == pytest.approx(a["peak_velocity"], rel=1e-2), t
         assert b["inlet_flow_rate"] == pytest.approx(a["inlet_flow_rate"], rel=1e-2), t
-    assert study[0.0025]["peak_pressure"] == pytest.approx(plain[0.0025]["peak_pressure"],
-                                                           rel=1e-2)
+    assert study[0.0025]["peak_pressure"] == pytest.approx(plain[0.0025]["peak_pressure"], rel=1e-2)
     for t in (0.01, 0.02):  # P = 0 after the pulse
         plain_error = max(abs(v) for v in plain[t]["inlet_pressure"])
         study_error = max(abs(v) for v in study[t]["inlet_pressure"])
@@ -200,10 +216,15 @@ def test_supg_leaves_poiseuille_flow_exact():
     makes zero pointwise (−μΔu + ∇p = 0 with a quadratic u and a linear p): the discrete
     solution is the exact one, to round-off (1e-10 relative, as test_fluid's Poiseuille test)."""
     G, mu = 300.0, 0.0035
-    case, submesh, tags = channel(1e-3, study_fluid(  # ρ = 1: a steady solve from rest
-        "newtonian", supg=True, density=1.0, inlet={"kind": "pressure", "formula": repr(G * L)}))
-    solver = fluid.FluidSolver(submesh, tags, case.fluid, simulation.fluid_boundaries(case),
-                               scheme="steady")
+    case, submesh, tags = channel(
+        1e-3,
+        study_fluid(  # ρ = 1: a steady solve from rest
+            "newtonian", supg=True, density=1.0, inlet={"kind": "pressure", "formula": repr(G * L)}
+        ),
+    )
+    solver = fluid.FluidSolver(
+        submesh, tags, case.fluid, simulation.fluid_boundaries(case), scheme="steady"
+    )
     result = solver.step(1.0, 1.0)
     assert result.converged and result.iterations >= 1, result
     x = solver.V.tabulate_dof_coordinates()

@@ -55,9 +55,11 @@ def test_sine_with_offset(steps_per_period):
     s = peak / 2 / A + OMEGA * dt
     bound_t = crossing_error_bound(A * OMEGA**2 * s, A * OMEGA, dt)
     errors = (osc.mean - m, A - osc.amplitude, osc.frequency / F - 1)
-    print(f"dt = T/{steps_per_period}: mean {errors[0]:+.2e} (bound {peak / 2:.1e}), amplitude "
-          f"{-errors[1]:+.2e} (bound {peak:.1e}), frequency {errors[2]:+.2e} (bound "
-          f"{2 * bound_t / T:.1e}), {osc.periods} periods")
+    print(
+        f"dt = T/{steps_per_period}: mean {errors[0]:+.2e} (bound {peak / 2:.1e}), amplitude "
+        f"{-errors[1]:+.2e} (bound {peak:.1e}), frequency {errors[2]:+.2e} (bound "
+        f"{2 * bound_t / T:.1e}), {osc.periods} periods"
+    )
     assert abs(errors[0]) <= peak / 2
     assert 0 <= errors[1] <= peak  # sampled extremes never overshoot: amplitude errs low
     assert abs(errors[2]) <= 2 * bound_t / T * (1 + 1e-9)  # two crossings per period
@@ -65,8 +67,9 @@ def test_sine_with_offset(steps_per_period):
     # Up-crossings at ωt + φ = 2πk, k = 1..10 (t = 0 starts above the level): 9 periods.
     assert osc.periods == 9
     # The last crossing: off by the interpolation error plus the level's offset / slope.
-    assert osc.end == pytest.approx((20 * math.pi - phi) / OMEGA,
-                                    abs=bound_t + peak / 2 / (A * OMEGA))
+    assert osc.end == pytest.approx(
+        (20 * math.pi - phi) / OMEGA, abs=bound_t + peak / 2 / (A * OMEGA)
+    )
     assert osc.period == pytest.approx(T, rel=2 * bound_t / T + 1e-12)
 
 
@@ -90,8 +93,9 @@ def test_frequency_error_shrinks_with_dt():
     assert worst[0] / worst[1] > 2 and worst[1] / worst[2] > 2
 
 
-def check_two_harmonics(c: float, a1: float, a2: float, psi: float, frequency: float,
-                        dt: float) -> Oscillation:
+def check_two_harmonics(
+    c: float, a1: float, a2: float, psi: float, frequency: float, dt: float
+) -> Oscillation:
     """y = c + a1 sin(ωt) + a2 sin(2ωt + ψ) sampled every dt over 10 periods of ω: mean and
     amplitude against a dense sampling of one period (its own error, max|y''| (T/1e6)²/8, is
     below 1e-9 here), within max|y''| dt²/8; the frequency within the crossing bound."""
@@ -115,9 +119,11 @@ def check_two_harmonics(c: float, a1: float, a2: float, psi: float, frequency: f
     level = (high + low) / 2
     k = np.flatnonzero((y(dense[:-1]) < level) & (y(dense[1:]) >= level))[0]
     bound_t = crossing_error_bound(y2_max, slope(dense[k]), dt, shift=peak / slope(dense[k]))
-    print(f"{osc} (exact {level:.4f} ± {(high - low) / 2:.4f} [{frequency}]): errors "
-          f"{osc.mean - level:+.2e}, {osc.amplitude - (high - low) / 2:+.2e} (bound {peak:.2e}), "
-          f"frequency {osc.frequency / frequency - 1:+.2e} (bound {2 * bound_t / period:.1e})")
+    print(
+        f"{osc} (exact {level:.4f} ± {(high - low) / 2:.4f} [{frequency}]): errors "
+        f"{osc.mean - level:+.2e}, {osc.amplitude - (high - low) / 2:+.2e} (bound {peak:.2e}), "
+        f"frequency {osc.frequency / frequency - 1:+.2e} (bound {2 * bound_t / period:.1e})"
+    )
     assert abs(osc.mean - level) <= peak
     assert 0 <= (high - low) / 2 - osc.amplitude <= peak  # sampled extremes never overshoot
     assert abs(osc.frequency / frequency - 1) <= 2 * bound_t / period
@@ -250,8 +256,16 @@ def test_reference_parse_and_compare():
     assert Reference.parse("1.47 ± 34.99") == Reference(1.47, 34.99, None)
     with pytest.raises(ValueError, match="not a reference"):
         Reference.parse("460.5 ± ")
-    measured = Oscillation(mean=441.0, amplitude=4.9, frequency=4.5, periods=12, start=9.5,
-                           end=9.73, period_change=1e-4, level=441.0)
+    measured = Oscillation(
+        mean=441.0,
+        amplitude=4.9,
+        frequency=4.5,
+        periods=12,
+        start=9.5,
+        end=9.73,
+        period_change=1e-4,
+        level=441.0,
+    )
     result = compare(measured, ref, Tolerance(mean=0.02, amplitude=0.15, frequency=0.03))
     assert result["mean"].relative == pytest.approx(441.0 / 439.45 - 1)  # +0.35 %: passes 2 %
     assert result["mean"].passed is True

@@ -47,11 +47,21 @@ def test_models_come_from_the_outlet_section():
         return config.from_dict({"fluid": {"outlet": section}}).fluid.outlet
 
     assert outlets.from_config(outlet({})) is None  # traction-free, the default
-    assert outlets.from_config(outlet({"kind": "resistance", "resistance": 2e5,
-                                       "reference_pressure": 10})) == outlets.Resistance(2e5, 10)
-    wk = outlets.from_config(outlet({"kind": "windkessel", "proximal_resistance": 1e5,
-                                     "distal_resistance": 1e6, "compliance": 1e-8,
-                                     "initial_pressure": 50, "reference_pressure": 5}))
+    assert outlets.from_config(
+        outlet({"kind": "resistance", "resistance": 2e5, "reference_pressure": 10})
+    ) == outlets.Resistance(2e5, 10)
+    wk = outlets.from_config(
+        outlet(
+            {
+                "kind": "windkessel",
+                "proximal_resistance": 1e5,
+                "distal_resistance": 1e6,
+                "compliance": 1e-8,
+                "initial_pressure": 50,
+                "reference_pressure": 5,
+            }
+        )
+    )
     assert wk == outlets.Windkessel(1e5, 1e6, 1e-8, 50, 5)
 
 
@@ -87,15 +97,23 @@ def test_windkessel_follows_its_ode_at_the_order_of_the_scheme(order):
 
 def channel_solver(inlet: dict, outlet: dict, scheme: str = "steady", density: float = 1060.0):
     """The 2 cm × 7 mm channel (1 mm cells), the given inlet and outlet sections, no-slip walls."""
-    case = config.from_dict({
-        "geometry": {"kind": "channel"}, "structure": {"mode": "rigid"},
-        "mesh": {"size": 1e-3, "local_size": 1e-3},
-        "fluid": {"density": density, "rheology": {"model": "newtonian",
-                                                   "viscosity": VISCOSITY},
-                  "inlet": inlet, "outlet": outlet}})
+    case = config.from_dict(
+        {
+            "geometry": {"kind": "channel"},
+            "structure": {"mode": "rigid"},
+            "mesh": {"size": 1e-3, "local_size": 1e-3},
+            "fluid": {
+                "density": density,
+                "rheology": {"model": "newtonian", "viscosity": VISCOSITY},
+                "inlet": inlet,
+                "outlet": outlet,
+            },
+        }
+    )
     part = mesh.restrict(mesh.build(case, MPI.COMM_WORLD), Region.FLUID)
-    boundaries = fluid.boundary_conditions(case.fluid, (INLET, OUTLET, WALL),
-                                           moving_interface=False)
+    boundaries = fluid.boundary_conditions(
+        case.fluid, (INLET, OUTLET, WALL), moving_interface=False
+    )
     return fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid, boundaries, scheme=scheme)
 
 
@@ -107,8 +125,10 @@ def mean_pressure(solver: fluid.FluidSolver, tag: int) -> float:
     """∫ p ds / ∫ ds over the boundary ``tag``."""
     ds = ufl.Measure("ds", domain=solver.mesh, subdomain_data=solver.facet_tags)
     one = dolfinx.fem.Constant(solver.mesh, 1.0)
-    integral, length = (solver.comm.allreduce(dolfinx.fem.assemble_scalar(dolfinx.fem.form(f)))
-                        for f in (solver.p * ds(tag), one * ds(tag)))
+    integral, length = (
+        solver.comm.allreduce(dolfinx.fem.assemble_scalar(dolfinx.fem.form(f)))
+        for f in (solver.p * ds(tag), one * ds(tag))
+    )
     return integral / length
 
 
@@ -120,8 +140,9 @@ def test_resistance_outlet_pressure_is_reference_plus_r_times_q(resistance):
     """A velocity inlet fixes Q = Ū H; the outlet's pressure is P_ref + R Q at the converged
     solution, in as many Newton iterations for R = 10⁹ as for 10³ (the rank-one Jacobian term
     keeps Newton's convergence: a lagged Q would diverge for R above the channel's)."""
-    solver = channel_solver(VELOCITY_INLET, {"kind": "resistance", "resistance": resistance,
-                                             "reference_pressure": 10.0})
+    solver = channel_solver(
+        VELOCITY_INLET, {"kind": "resistance", "resistance": resistance, "reference_pressure": 10.0}
+    )
     result = solver.step(0.0, 1.0)
     assert result.converged and result.iterations <= 2, result
     Q = outlet_flow_rate(solver)
@@ -137,9 +158,11 @@ def test_resistance_adds_to_the_channels_poiseuille_resistance():
     with R_ch = 12 μ L / H³ the channel's (per unit depth), and P_in − P = R_ch Q (ρ = 1: the
     steady solve from rest of tests/test_fluid.py's pressure-driven channel)."""
     P_in, P_ref, R = 3.0, 1.0, 5000.0
-    solver = channel_solver({"kind": "pressure", "formula": str(P_in)},
-                            {"kind": "resistance", "resistance": R, "reference_pressure": P_ref},
-                            density=1.0)
+    solver = channel_solver(
+        {"kind": "pressure", "formula": str(P_in)},
+        {"kind": "resistance", "resistance": R, "reference_pressure": P_ref},
+        density=1.0,
+    )
     result = solver.step(0.0, 1.0)
     assert result.converged, result
     R_channel = 12 * VISCOSITY * LENGTH / HEIGHT**3
@@ -151,8 +174,14 @@ def test_resistance_adds_to_the_channels_poiseuille_resistance():
     assert mean_pressure(solver, OUTLET) == pytest.approx(P, rel=1e-6)
 
 
-WINDKESSEL = {"kind": "windkessel", "proximal_resistance": 1e5, "distal_resistance": 1e6,
-              "compliance": 2e-8, "initial_pressure": 300.0, "reference_pressure": 20.0}
+WINDKESSEL = {
+    "kind": "windkessel",
+    "proximal_resistance": 1e5,
+    "distal_resistance": 1e6,
+    "compliance": 2e-8,
+    "initial_pressure": 300.0,
+    "reference_pressure": 20.0,
+}
 
 
 def windkessel_error(scheme: str, dt: float, end: float = 0.04) -> float:
@@ -169,7 +198,8 @@ def windkessel_error(scheme: str, dt: float, end: float = 0.04) -> float:
         assert Q == pytest.approx(0.05 * HEIGHT, rel=1e-9)
         values = solver.outlet_values()
         assert values["outlet_pressure"] == pytest.approx(
-            values["windkessel_pressure"] + model.proximal_resistance * Q, rel=1e-12)
+            values["windkessel_pressure"] + model.proximal_resistance * Q, rel=1e-12
+        )
     return abs(values["windkessel_pressure"] - rcr_exact(end, model, 0.05 * HEIGHT))
 
 
@@ -196,11 +226,19 @@ def test_steady_windkessel_outlet_is_at_its_steady_pressure():
 def discharge(backflow_stabilization: float, steps: int) -> tuple[list, list, str]:
     """The channel with its inlet at 0 Pa and a Windkessel charged to P_0 = 5 kPa, BDF2, dt 1 ms:
     P_c and Q after each step until one fails (then its message)."""
-    solver = channel_solver({"kind": "pressure", "formula": "0"},
-                            {**WINDKESSEL, "proximal_resistance": 1e4, "distal_resistance": 1e5,
-                             "compliance": 1e-7, "initial_pressure": 5000.0,
-                             "reference_pressure": 0.0,
-                             "backflow_stabilization": backflow_stabilization}, scheme="bdf2")
+    solver = channel_solver(
+        {"kind": "pressure", "formula": "0"},
+        {
+            **WINDKESSEL,
+            "proximal_resistance": 1e4,
+            "distal_resistance": 1e5,
+            "compliance": 1e-7,
+            "initial_pressure": 5000.0,
+            "reference_pressure": 0.0,
+            "backflow_stabilization": backflow_stabilization,
+        },
+        scheme="bdf2",
+    )
     pressures, flows = [5000.0], []
     for k in range(1, steps + 1):
         result = solver.step(k * 1e-3, 1e-3)
@@ -232,11 +270,16 @@ def test_a_discharging_windkessel_drives_backflow_stably():
 
 
 WINDKESSEL_RUN = [
-    "fluid.inlet.kind=parabolic_velocity", "fluid.inlet.mean_velocity=0.05",
-    "fluid.inlet.ramp_time=0", "fluid.outlet.kind=windkessel",
-    "fluid.outlet.proximal_resistance=1e5", "fluid.outlet.distal_resistance=1e6",
-    "fluid.outlet.compliance=1e-8", "fluid.outlet.initial_pressure=100",
-    "time.schedule=[{until: 0.002, dt: 0.001}, {until: 0.004, dt: 0.0005}]"]
+    "fluid.inlet.kind=parabolic_velocity",
+    "fluid.inlet.mean_velocity=0.05",
+    "fluid.inlet.ramp_time=0",
+    "fluid.outlet.kind=windkessel",
+    "fluid.outlet.proximal_resistance=1e5",
+    "fluid.outlet.distal_resistance=1e6",
+    "fluid.outlet.compliance=1e-8",
+    "fluid.outlet.initial_pressure=100",
+    "time.schedule=[{until: 0.002, dt: 0.001}, {until: 0.004, dt: 0.0005}]",
+]
 
 
 def fsi_run(out: Path, overrides, restart: Path | None = None) -> int:
@@ -286,21 +329,39 @@ def test_a_windkessel_added_at_a_restart_starts_from_its_initial_pressure(shared
         assert "starts from its initial_pressure at t = 0.002 s" in fsi_log.text
 
 
-@pytest.mark.parametrize("setting,key,expected", [
-    ("fluid.outlet={kind: resistance, resistance: -1}", "fluid.outlet.resistance", ">= 0"),
-    ("fluid.outlet={kind: windkessel, compliance: 0}", "fluid.outlet.compliance", "positive"),
-    ("fluid.outlet={kind: windkessel, compliance: -1e-8}", "fluid.outlet.compliance",
-     "positive"),
-    ("fluid.outlet={kind: windkessel, distal_resistance: 0}", "fluid.outlet.distal_resistance",
-     "positive"),
-    ("fluid.outlet={kind: windkessel, proximal_resistance: -5}",
-     "fluid.outlet.proximal_resistance", ">= 0"),
-    ("fluid.outlet={kind: windkessel, initial_pressure: .inf}",
-     "fluid.outlet.initial_pressure", "finite"),
-    ("fluid.outlet={kind: rcr}", "fluid.outlet.kind", "'windkessel'"),
-    ("fluid.outlet={kind: resistance, compliance: 1}", "fluid.outlet.compliance",
-     "one of the keys"),
-])
+@pytest.mark.parametrize(
+    "setting,key,expected",
+    [
+        ("fluid.outlet={kind: resistance, resistance: -1}", "fluid.outlet.resistance", ">= 0"),
+        ("fluid.outlet={kind: windkessel, compliance: 0}", "fluid.outlet.compliance", "positive"),
+        (
+            "fluid.outlet={kind: windkessel, compliance: -1e-8}",
+            "fluid.outlet.compliance",
+            "positive",
+        ),
+        (
+            "fluid.outlet={kind: windkessel, distal_resistance: 0}",
+            "fluid.outlet.distal_resistance",
+            "positive",
+        ),
+        (
+            "fluid.outlet={kind: windkessel, proximal_resistance: -5}",
+            "fluid.outlet.proximal_resistance",
+            ">= 0",
+        ),
+        (
+            "fluid.outlet={kind: windkessel, initial_pressure: .inf}",
+            "fluid.outlet.initial_pressure",
+            "finite",
+        ),
+        ("fluid.outlet={kind: rcr}", "fluid.outlet.kind", "'windkessel'"),
+        (
+            "fluid.outlet={kind: resistance, compliance: 1}",
+            "fluid.outlet.compliance",
+            "one of the keys",
+        ),
+    ],
+)
 def test_bad_outlet_settings_exit_2_naming_the_key(setting, key, expected, capsys):
     status = cli.main(["check", CHANNEL, "--set", setting])
     err = MPI.COMM_WORLD.bcast(capsys.readouterr().err if MPI.COMM_WORLD.rank == 0 else None)

@@ -47,12 +47,30 @@ def test_a_mesh_build_writes_nothing_outside_out(shared_tmp):
         cwd.mkdir()
         before = stat(SYSTEM_PREFERENCES)
         done = subprocess.run(
-            [sys.executable, "-m", "fsi", "mesh", str(ROOT / "configs/channel_poiseuille.yaml"),
-             "--out", str(out)], cwd=cwd, env=fresh_process_env(home), capture_output=True,
-            text=True, timeout=300)
-        result = (done.returncode, done.stderr, sorted(str(p) for p in home.rglob("*")),
-                  sorted(str(p) for p in cwd.rglob("*")), before, stat(SYSTEM_PREFERENCES),
-                  (out / "mesh.json").is_file())
+            [
+                sys.executable,
+                "-m",
+                "fsi",
+                "mesh",
+                str(ROOT / "configs/channel_poiseuille.yaml"),
+                "--out",
+                str(out),
+            ],
+            cwd=cwd,
+            env=fresh_process_env(home),
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+        result = (
+            done.returncode,
+            done.stderr,
+            sorted(str(p) for p in home.rglob("*")),
+            sorted(str(p) for p in cwd.rglob("*")),
+            before,
+            stat(SYSTEM_PREFERENCES),
+            (out / "mesh.json").is_file(),
+        )
     code, stderr, in_home, in_cwd, before, after, meshed = comm.bcast(result, root=0)
     assert code == 0, stderr
     assert meshed

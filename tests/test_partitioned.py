@@ -15,8 +15,11 @@ import pytest
 from fsi import cli, config, io, simulation
 
 CASE = "configs/stenosis_moving_newtonian.yaml"
-SHORT = ["time.end=0.003", "time.schedule=[{until: 0.003, dt: 0.001}]",
-         "coupling.acceleration=aitken"]  # the relaxation column is Aitken's ω
+SHORT = [
+    "time.end=0.003",
+    "time.schedule=[{until: 0.003, dt: 0.001}]",
+    "coupling.acceleration=aitken",
+]  # the relaxation column is Aitken's ω
 MODES = ("fixed_wall", "moving_wall")
 
 
@@ -34,8 +37,12 @@ def runs():
     """Both modes run once through the CLI, in a folder shared by the ranks."""
     comm = MPI.COMM_WORLD
     path = Path(comm.bcast(tempfile.mkdtemp(prefix="fsi-test-") if comm.rank == 0 else None))
-    codes = {mode: cli.main(["run", CASE, "--out", str(path / mode),
-                             *sets([f"structure.mode={mode}", *SHORT])]) for mode in MODES}
+    codes = {
+        mode: cli.main(
+            ["run", CASE, "--out", str(path / mode), *sets([f"structure.mode={mode}", *SHORT])]
+        )
+        for mode in MODES
+    }
     yield {mode: (codes[mode], path / mode) for mode in MODES}
     comm.barrier()
     if comm.rank == 0:
@@ -108,8 +115,7 @@ def test_parallel_run_equals_serial_run(runs, shared_tmp):
         assert a["coupling_iterations"] == b["coupling_iterations"]
         # Only round-off differs (the LU's order of operations; measured < 1e-9): the coupling
         # stops at 1e-6, so 1e-6 relative is the honest bound.
-        for key in ("peak_velocity", "peak_pressure", "peak_displacement", "max_sss",
-                    "relaxation"):
+        for key in ("peak_velocity", "peak_pressure", "peak_displacement", "max_sss", "relaxation"):
             assert a[key] == pytest.approx(b[key], rel=1e-6), key
 
 
@@ -118,8 +124,9 @@ def test_coupling_failure_exits_3_and_keeps_the_finished_rows(shared_tmp, fsi_lo
     stay at rest and the first iteration converges. Step 2 pushes and one iteration is allowed."""
     out = shared_tmp / "fails"
     inlet = "fluid.inlet={kind: pressure_table, table: [[0, 0], [0.001, 0], [0.002, 1000]]}"
-    code = cli.main(["run", CASE, "--out", str(out),
-                     *sets([*SHORT, inlet, "coupling.max_iterations=1"])])
+    code = cli.main(
+        ["run", CASE, "--out", str(out), *sets([*SHORT, inlet, "coupling.max_iterations=1"])]
+    )
     assert code == 3
     rows = io.read_metrics(out / "metrics.csv")
     assert [r["step"] for r in rows] == [1]
@@ -133,9 +140,15 @@ def test_mesh_quality_guard_exits_3(shared_tmp, fsi_log):
     """With a (deliberately) strict guard the moving wall's second step squeezes a fluid cell
     below 99.8 % of its area (step 1: ≥ 99.9 % measured; step 2: 99.5 %)."""
     out = shared_tmp / "squeezed"
-    code = cli.main(["run", CASE, "--out", str(out),
-                     *sets(["structure.mode=moving_wall", *SHORT,
-                            "mesh_motion.min_jacobian_ratio=0.998"])])
+    code = cli.main(
+        [
+            "run",
+            CASE,
+            "--out",
+            str(out),
+            *sets(["structure.mode=moving_wall", *SHORT, "mesh_motion.min_jacobian_ratio=0.998"]),
+        ]
+    )
     assert code == 3
     assert [r["step"] for r in io.read_metrics(out / "metrics.csv")] == [1]
     assert "mesh_motion.min_jacobian_ratio = 0.998" in fsi_log.text

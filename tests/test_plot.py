@@ -90,8 +90,7 @@ def test_a_structure_field_is_drawn_warped(run_dir):
     reference, _ = mesh(h5)
     eta = stored(h5, "eta", 0.003)[:, :2]
     assert np.abs(eta).max() > 1e-6
-    np.testing.assert_allclose(snapshot.coordinates, reference + 100.0 * eta, rtol=0,
-                               atol=1e-15)
+    np.testing.assert_allclose(snapshot.coordinates, reference + 100.0 * eta, rtol=0, atol=1e-15)
     sss = stored(h5, "sss", 0.003).reshape(-1)
     assert snapshot.center == "cell" and snapshot.values.max() == sss.max()
     # The structure's default is its reference shape.
@@ -115,16 +114,18 @@ def test_a_region_keeps_only_its_cells(run_dir):
     assert np.all(tags[snapshot.cells] == 3.0)
     assert len(snapshot.cells) == np.count_nonzero(tags == 3.0)
     np.testing.assert_array_equal(snapshot.triangles, triangles[tags == 3.0])
-    np.testing.assert_array_equal(snapshot.values,
-                                  stored(h5, "sss", 0.002).reshape(-1)[tags == 3.0])
+    np.testing.assert_array_equal(
+        snapshot.values, stored(h5, "sss", 0.002).reshape(-1)[tags == 3.0]
+    )
     if MPI.COMM_WORLD.rank == 0:
         assert is_png(out)
 
 
 def test_streamlines_are_drawn_over_a_fluid_field(run_dir):
     plain = draw(run_dir, "velocity", "--field", "velocity", "--time", "0.003")
-    lines = draw(run_dir, "velocity-streamlines", "--field", "velocity", "--time", "0.003",
-                 "--streamlines")
+    lines = draw(
+        run_dir, "velocity-streamlines", "--field", "velocity", "--time", "0.003", "--streamlines"
+    )
     snapshot = plot.read_field(run_dir, "velocity", 0.003)
     flow = plot.streamline_field(snapshot)
     u = stored(run_dir / "fields.restart2.h5", "velocity", 0.003)
@@ -146,59 +147,79 @@ def test_the_nearest_stored_time_is_taken_and_said(run_dir, capsys):
     draw(run_dir, "beyond", "--field", "pressure", "--time", "0.0038")
     if MPI.COMM_WORLD.rank == 0:
         assert "pressure is stored at t = 0.003 s, the nearest to --time 0.0038" in (
-            capsys.readouterr().out)
+            capsys.readouterr().out
+        )
 
 
-@pytest.mark.parametrize("times, t, expected", [
-    ([0.0, 0.001, 0.002], 0.0012, (1, 0.001)),
-    ([0.0, 0.001, 0.003], 0.0025, (2, 0.002)),
-    ([0.0, 0.001, 0.002], -0.001, (0, 0.001)),
-    ([0.0, 0.001, 0.002], 0.003, (2, 0.001)),
-    ([0.5], 0.5, (0, 0.0)),
-])
+@pytest.mark.parametrize(
+    "times, t, expected",
+    [
+        ([0.0, 0.001, 0.002], 0.0012, (1, 0.001)),
+        ([0.0, 0.001, 0.003], 0.0025, (2, 0.002)),
+        ([0.0, 0.001, 0.002], -0.001, (0, 0.001)),
+        ([0.0, 0.001, 0.002], 0.003, (2, 0.001)),
+        ([0.5], 0.5, (0, 0.0)),
+    ],
+)
 def test_pick_time(times, t, expected):
     i, step = plot.pick_time(times, t, "f.xdmf")
     assert (i, step) == (expected[0], pytest.approx(expected[1]))
 
 
-@pytest.mark.parametrize("times, t", [([0.0, 0.001], 0.0021), ([0.0, 0.001], -0.0011),
-                                      ([0.5], 0.5001)])
+@pytest.mark.parametrize(
+    "times, t", [([0.0, 0.001], 0.0021), ([0.0, 0.001], -0.0011), ([0.5], 0.5001)]
+)
 def test_pick_time_refuses_a_time_outside_the_stored_range(times, t):
     with pytest.raises(plot.PlotError, match=r"--time .*outside the times stored in f\.xdmf"):
         plot.pick_time(times, t, "f.xdmf")
 
 
 BAD = [
-    (["--field", "nope", "--time", "0.001"],
-     "--field nope: {run} has no such field (fields.xdmf has mesh_displacement, pressure, "
-     "shear_rate, velocity, viscosity, wall_shear_stress; solid.xdmf has eta, max_principal, "
-     "region, sss, von_mises)"),
-    (["--field", "sss", "--time", "0.001", "--region", "fluid"],
-     "--region fluid: 'sss' is a structure field (solid.xdmf): use --region wall, cap, lipid "
-     "or flag"),
-    (["--field", "velocity", "--time", "0.001", "--region", "cap"],
-     "--region cap: 'velocity' is a fluid field (fields.xdmf): use --region fluid"),
-    (["--field", "velocity", "--time", "0.0041"],
-     "--time 0.0041: outside the times stored in {run}/fields.xdmf, fields.restart2.xdmf "
-     "(0 to 0.003 s)"),
-    (["--field", "velocity", "--time", "-0.0011"],
-     "--time -0.0011: outside the times stored in {run}/fields.xdmf, fields.restart2.xdmf "
-     "(0 to 0.003 s)"),
-    (["--field", "sss", "--time", "0.001", "--region", "flag"],
-     "--region flag: no flag cells in {run}/solid.xdmf"),
-    (["--field", "pressure", "--time", "0.001", "--component", "x"],
-     "--component x: 'pressure' is a scalar field"),
-    (["--field", "sss", "--time", "0.001", "--streamlines"],
-     "--streamlines: draws the fluid velocity over a fluid field, but 'sss' is a structure "
-     "field (solid.xdmf)"),
+    (
+        ["--field", "nope", "--time", "0.001"],
+        "--field nope: {run} has no such field (fields.xdmf has mesh_displacement, pressure, "
+        "shear_rate, velocity, viscosity, wall_shear_stress; solid.xdmf has eta, max_principal, "
+        "region, sss, von_mises)",
+    ),
+    (
+        ["--field", "sss", "--time", "0.001", "--region", "fluid"],
+        "--region fluid: 'sss' is a structure field (solid.xdmf): use --region wall, cap, lipid "
+        "or flag",
+    ),
+    (
+        ["--field", "velocity", "--time", "0.001", "--region", "cap"],
+        "--region cap: 'velocity' is a fluid field (fields.xdmf): use --region fluid",
+    ),
+    (
+        ["--field", "velocity", "--time", "0.0041"],
+        "--time 0.0041: outside the times stored in {run}/fields.xdmf, fields.restart2.xdmf "
+        "(0 to 0.003 s)",
+    ),
+    (
+        ["--field", "velocity", "--time", "-0.0011"],
+        "--time -0.0011: outside the times stored in {run}/fields.xdmf, fields.restart2.xdmf "
+        "(0 to 0.003 s)",
+    ),
+    (
+        ["--field", "sss", "--time", "0.001", "--region", "flag"],
+        "--region flag: no flag cells in {run}/solid.xdmf",
+    ),
+    (
+        ["--field", "pressure", "--time", "0.001", "--component", "x"],
+        "--component x: 'pressure' is a scalar field",
+    ),
+    (
+        ["--field", "sss", "--time", "0.001", "--streamlines"],
+        "--streamlines: draws the fluid velocity over a fluid field, but 'sss' is a structure "
+        "field (solid.xdmf)",
+    ),
     (["--field", "sss", "--time", "nan"], "--time nan: not a finite number"),
     (["--field", "sss", "--time", "0.001", "--warp", "inf"], "--warp inf: not a finite number"),
 ]
 
 
 @pytest.mark.parametrize("options, message", BAD)
-def test_bad_input_is_refused_with_one_line_and_nothing_written(run_dir, options, message,
-                                                                capsys):
+def test_bad_input_is_refused_with_one_line_and_nothing_written(run_dir, options, message, capsys):
     out = run_dir.parent / "refused" / "bad.png"
     assert cli.main(["plot", str(run_dir), *options, "--out", str(out)]) == 2
     err = capsys.readouterr().err
@@ -210,12 +231,18 @@ def test_bad_input_is_refused_with_one_line_and_nothing_written(run_dir, options
 def test_a_missing_or_foreign_folder_and_a_bad_out_are_refused(run_dir, capsys):
     out = run_dir.parent / "refused" / "bad.png"
     missing = run_dir.parent / "missing"
-    cases = [([str(missing), "--out", str(out)], f"{missing}: no such folder"),
-             ([str(run_dir / "checkpoint"), "--out", str(out)],
-              f"{run_dir / 'checkpoint'}: no fields.xdmf or solid.xdmf (not a folder written "
-              "by fsi run)"),
-             ([str(run_dir), "--out", str(out.with_suffix(".jpg"))],
-              f"--out {out.with_suffix('.jpg')}: the picture's file name must end in .png")]
+    cases = [
+        ([str(missing), "--out", str(out)], f"{missing}: no such folder"),
+        (
+            [str(run_dir / "checkpoint"), "--out", str(out)],
+            f"{run_dir / 'checkpoint'}: no fields.xdmf or solid.xdmf (not a folder written "
+            "by fsi run)",
+        ),
+        (
+            [str(run_dir), "--out", str(out.with_suffix(".jpg"))],
+            f"--out {out.with_suffix('.jpg')}: the picture's file name must end in .png",
+        ),
+    ]
     for arguments, message in cases:
         assert cli.main(["plot", *arguments, "--field", "velocity", "--time", "0"]) == 2
         if MPI.COMM_WORLD.rank == 0:

@@ -14,8 +14,12 @@ import pytest
 
 from fsi import cli, config, io, report, units
 
-SHORT = ["structure.mode=rigid", "time.end=0.004", "time.schedule=[{until: 0.004, dt: 0.001}]",
-         "output.report_times=[0.002, 0.004]"]
+SHORT = [
+    "structure.mode=rigid",
+    "time.end=0.004",
+    "time.schedule=[{until: 0.004, dt: 0.001}]",
+    "output.report_times=[0.002, 0.004]",
+]
 
 
 @pytest.fixture(scope="module")
@@ -24,8 +28,18 @@ def run_dir():
     comm = MPI.COMM_WORLD
     path = Path(comm.bcast(tempfile.mkdtemp(prefix="fsi-test-") if comm.rank == 0 else None))
     out = path / "rigid"
-    assert cli.main(["run", "configs/stenosis_fixed_newtonian.yaml", "--out", str(out),
-                     *sum((["--set", s] for s in SHORT), [])]) == 0
+    assert (
+        cli.main(
+            [
+                "run",
+                "configs/stenosis_fixed_newtonian.yaml",
+                "--out",
+                str(out),
+                *sum((["--set", s] for s in SHORT), []),
+            ]
+        )
+        == 0
+    )
     yield out
     comm.barrier()
     if comm.rank == 0:
@@ -41,7 +55,8 @@ def test_tables_hold_the_rows_at_the_report_times(run_dir, capsys):
     assert table.startswith(f"| Peak velocity ({unit.name}) | t = 0.002 s | t = 0.004 s |")
     cells = table.splitlines()[2].split("|")[2:-1]
     assert [float(c) for c in cells] == [
-        pytest.approx(unit.scale * by_t[t]["peak_velocity"], rel=1e-3) for t in (0.002, 0.004)]
+        pytest.approx(unit.scale * by_t[t]["peak_velocity"], rel=1e-3) for t in (0.002, 0.004)
+    ]
     # A time with no step is shown as '–', not interpolated.
     assert report.value_at(rows, 0.0025, "peak_velocity") is None
     assert "| 4 | 0.004 |" in report.effort_table([run])
@@ -112,11 +127,13 @@ def copy_with_metrics(run_dir: Path, copy: Path, change) -> Path:
 
 def set_cell(line: int, column: str, value: bytes):
     """A change of metrics.csv: the cell of ``column`` in line ``line`` (1: the header)."""
+
     def change(lines: list[bytes]) -> list[bytes]:
         header = lines[0].decode().rstrip("\r\n").split(",")
         cells = lines[line - 1].rstrip(b"\r\n").split(b",")
         cells[header.index(column)] = value
         return lines[: line - 1] + [b",".join(cells) + b"\r\n"] + lines[line:]
+
     return change
 
 
@@ -129,24 +146,35 @@ def test_a_row_cut_short_at_the_end_is_left_out(run_dir, shared_tmp, capsys, fsi
     assert cli.main(["report", str(cut), "--times", "0.002", "0.004"]) == 0
     if comm.rank == 0:
         out = capsys.readouterr().out
-        row = next(line for line in out.splitlines() if line.startswith("| cut (")
-                   and "| 3 |" in line)  # the solver effort: 3 steps
+        row = next(
+            line for line in out.splitlines() if line.startswith("| cut (") and "| 3 |" in line
+        )  # the solver effort: 3 steps
         assert "| 0.003 |" in row
         assert f"{cut / 'metrics.csv'}: line 5 is cut short" in fsi_log.text
 
 
-@pytest.mark.parametrize("change, expected", [
-    (set_cell(3, "peak_velocity", b"1.2.3"), "line 3: peak_velocity: '1.2.3' is not a finite "
-     "number"),
-    (set_cell(4, "peak_pressure", b"nan"), "line 4: peak_pressure: 'nan' is not a finite number"),
-    (set_cell(3, "step", b"2.5"), "line 3: step: '2.5' is not a step number (1, 2, ...)"),
-    (set_cell(3, "t", b""), "line 3: t: empty"),
-    (set_cell(2, "dt", b"0.001,7"), "line 2: "),  # one cell too many
-    (set_cell(4, "max_wss", b"\xff\xfe"), "line 4: not UTF-8 text"),
-    (lambda lines: lines[:2] + [lines[2][:12] + b"\r\n"] + lines[3:], "line 3: "),
-    (lambda lines: [lines[0].replace(b"step,", b"steps,")] + lines[1:],
-     "line 1: no 'step' column (not a metrics table)"),
-])
+@pytest.mark.parametrize(
+    "change, expected",
+    [
+        (
+            set_cell(3, "peak_velocity", b"1.2.3"),
+            "line 3: peak_velocity: '1.2.3' is not a finite number",
+        ),
+        (
+            set_cell(4, "peak_pressure", b"nan"),
+            "line 4: peak_pressure: 'nan' is not a finite number",
+        ),
+        (set_cell(3, "step", b"2.5"), "line 3: step: '2.5' is not a step number (1, 2, ...)"),
+        (set_cell(3, "t", b""), "line 3: t: empty"),
+        (set_cell(2, "dt", b"0.001,7"), "line 2: "),  # one cell too many
+        (set_cell(4, "max_wss", b"\xff\xfe"), "line 4: not UTF-8 text"),
+        (lambda lines: lines[:2] + [lines[2][:12] + b"\r\n"] + lines[3:], "line 3: "),
+        (
+            lambda lines: [lines[0].replace(b"step,", b"steps,")] + lines[1:],
+            "line 1: no 'step' column (not a metrics table)",
+        ),
+    ],
+)
 def test_a_damaged_metrics_table_is_refused(run_dir, shared_tmp, capsys, change, expected):
     """Exit 2 with one line naming the file and the line, no traceback."""
     damaged = copy_with_metrics(run_dir, shared_tmp / "damaged", change)
@@ -171,45 +199,53 @@ def test_a_damaged_summary_is_refused(run_dir, shared_tmp, capsys):
 # Units and scales
 
 
-@pytest.mark.parametrize("quantity, values, unit, shown", [
-    ("stress", [300.0, -12.0], "Pa", 300.0),
-    ("stress", [300.0, 17.0e3], "kPa", 17.0),
-    ("stress", [-2.5e3, 10.0], "kPa", 2.5),  # the magnitude decides
-    ("stress", [2.0e6], "MPa", 2.0),
-    ("stress", [0.5], "Pa", 0.5),  # below 1 in every unit: the smallest
-    ("stress", [], "Pa", None),
-    ("pressure", [1200.0], "kPa", 1.2),
-    ("displacement", [3.0e-4], "µm", 300.0),
-    ("displacement", [5.0e-6, 1.5e-3], "mm", 1.5),
-    ("displacement", [1.0e-9], "µm", 1.0e-3),
-    ("velocity", [0.3], "cm/s", 30.0),
-    ("velocity", [1.2], "m/s", 1.2),
-    ("length", [0.004], "mm", 4.0),
-    ("flow_rate", [2.0e-5], "cm²/s", 0.2),
-    ("count", [7.0], "", 7.0),
-])
-def test_the_unit_is_the_largest_one_the_largest_value_is_at_least_1_in(quantity, values, unit,
-                                                                         shown):
+@pytest.mark.parametrize(
+    "quantity, values, unit, shown",
+    [
+        ("stress", [300.0, -12.0], "Pa", 300.0),
+        ("stress", [300.0, 17.0e3], "kPa", 17.0),
+        ("stress", [-2.5e3, 10.0], "kPa", 2.5),  # the magnitude decides
+        ("stress", [2.0e6], "MPa", 2.0),
+        ("stress", [0.5], "Pa", 0.5),  # below 1 in every unit: the smallest
+        ("stress", [], "Pa", None),
+        ("pressure", [1200.0], "kPa", 1.2),
+        ("displacement", [3.0e-4], "µm", 300.0),
+        ("displacement", [5.0e-6, 1.5e-3], "mm", 1.5),
+        ("displacement", [1.0e-9], "µm", 1.0e-3),
+        ("velocity", [0.3], "cm/s", 30.0),
+        ("velocity", [1.2], "m/s", 1.2),
+        ("length", [0.004], "mm", 4.0),
+        ("flow_rate", [2.0e-5], "cm²/s", 0.2),
+        ("count", [7.0], "", 7.0),
+    ],
+)
+def test_the_unit_is_the_largest_one_the_largest_value_is_at_least_1_in(
+    quantity, values, unit, shown
+):
     chosen = units.choose_unit(quantity, values)
     assert chosen.name == unit
     if shown is not None:
-        assert chosen.scale * max(values, key=abs) == pytest.approx(math.copysign(shown, max(
-            values, key=abs)))
+        assert chosen.scale * max(values, key=abs) == pytest.approx(
+            math.copysign(shown, max(values, key=abs))
+        )
 
 
-@pytest.mark.parametrize("series, scale", [
-    ([[300.0, 280.0]], "linear"),  # one run
-    ([[300.0, 150.0], [1700.0, 900.0]], "linear"),  # within 10×
-    ([[1.0], [10.0]], "linear"),  # exactly 10×
-    ([[1.0], [10.01]], "log"),
-    ([[300.0, 150.0], [17.0e3, 9.0e3]], "log"),  # fixed vs moving wall SSS
-    ([[300.0, 150.0], [17.0e3, -9.0e3]], "panels"),  # a value ≤ 0: no log axis
-    ([[0.0, 0.0], [0.004, 0.002]], "panels"),  # no recirculation beside 4 mm of it
-    ([[-0.5, 0.2], [-0.4, 0.1]], "linear"),
-    ([[0.0], [0.0]], "linear"),
-    ([[], [17.0e3]], "linear"),  # a run without the column does not count
-    ([], "linear"),
-])
+@pytest.mark.parametrize(
+    "series, scale",
+    [
+        ([[300.0, 280.0]], "linear"),  # one run
+        ([[300.0, 150.0], [1700.0, 900.0]], "linear"),  # within 10×
+        ([[1.0], [10.0]], "linear"),  # exactly 10×
+        ([[1.0], [10.01]], "log"),
+        ([[300.0, 150.0], [17.0e3, 9.0e3]], "log"),  # fixed vs moving wall SSS
+        ([[300.0, 150.0], [17.0e3, -9.0e3]], "panels"),  # a value ≤ 0: no log axis
+        ([[0.0, 0.0], [0.004, 0.002]], "panels"),  # no recirculation beside 4 mm of it
+        ([[-0.5, 0.2], [-0.4, 0.1]], "linear"),
+        ([[0.0], [0.0]], "linear"),
+        ([[], [17.0e3]], "linear"),  # a run without the column does not count
+        ([], "linear"),
+    ],
+)
 def test_the_scale_is_linear_log_or_panels_from_the_magnitudes(series, scale):
     assert report.choose_scale(series) == scale
 
@@ -243,9 +279,11 @@ def study_columns(stress: float, displacement: float, recirculation: float) -> d
         "outlet_flow_rate": lambda t: 1.8e-5 * pulse(t),
         "max_von_mises": lambda t: 1.7 * stress * (0.05 + pulse(t)),
         "max_principal": lambda t: 1.2 * stress * (0.05 + pulse(t)),
-        **{f"max_{name}_{region}": (lambda t, f=f: f * stress * (0.05 + pulse(t)))
-           for name in ("sss", "von_mises", "principal")
-           for region, f in (("wall", 0.4), ("lipid", 0.3), ("cap", 0.9))},
+        **{
+            f"max_{name}_{region}": (lambda t, f=f: f * stress * (0.05 + pulse(t)))
+            for name in ("sss", "von_mises", "principal")
+            for region, f in (("wall", 0.4), ("lipid", 0.3), ("cap", 0.9))
+        },
         # the cap's and the lipid's SSS cross: the plaque's maximum is each in turn
         "max_sss_cap": lambda t: stress * pulse(t),
         "max_sss_lipid": lambda t: 0.5 * stress * (1.0 - pulse(t)),
@@ -263,8 +301,9 @@ def synthetic_run(folder: Path, case: config.Case, columns: dict, finished: bool
         writer.writerow(["step", "t", "dt", *columns])
         for step in range(1, STEPS + 1):
             t = step * DT
-            writer.writerow([step, repr(t), repr(DT), *(repr(value(t))
-                                                        for value in columns.values())])
+            writer.writerow(
+                [step, repr(t), repr(DT), *(repr(value(t)) for value in columns.values())]
+            )
     if finished:
         (folder / "summary.json").write_text(json.dumps({"steps": STEPS}))
     return folder
@@ -285,10 +324,14 @@ def folder(shared_tmp) -> Path:
 
 @pytest.fixture
 def fixed_and_moving(folder) -> list[Path]:
-    return [synthetic_run(folder / "fixed", stenosis_case("fixed_wall"),
-                          study_columns(300.0, 5.0e-6, 0.0)),
-            synthetic_run(folder / "moving", stenosis_case("moving_wall"),
-                          study_columns(17.0e3, 2.3e-4, 0.004))]
+    return [
+        synthetic_run(
+            folder / "fixed", stenosis_case("fixed_wall"), study_columns(300.0, 5.0e-6, 0.0)
+        ),
+        synthetic_run(
+            folder / "moving", stenosis_case("moving_wall"), study_columns(17.0e3, 2.3e-4, 0.004)
+        ),
+    ]
 
 
 def captions(report_md: str) -> dict[str, str]:
@@ -297,7 +340,7 @@ def captions(report_md: str) -> dict[str, str]:
     found = {}
     for line, after in zip(lines, lines[1:]):
         if line.startswith("![") and line.endswith(".png)"):
-            name = line[line.index("](") + 2:-1]
+            name = line[line.index("](") + 2 : -1]
             assert line == f"![{name}]({name})" and after.startswith(f"*{name}*: ")
             found[name] = after
     return found
@@ -308,8 +351,15 @@ def test_every_plot_is_written_for_a_fixed_and_a_moving_wall(fixed_and_moving, f
     written = report.write(runs, folder / "report")
     names = [path.name for path in written]
     assert names == ["report.md"] + [f"{figure.name}.png" for figure in report.FIGURES]
-    assert {"max_sss.png", "max_sss_plaque.png", "max_principal_cap.png", "peak_pressure.png",
-            "wall_shear_stress.png", "inlet_pressure.png", "flow_rate.png"} <= set(names)
+    assert {
+        "max_sss.png",
+        "max_sss_plaque.png",
+        "max_principal_cap.png",
+        "peak_pressure.png",
+        "wall_shear_stress.png",
+        "inlet_pressure.png",
+        "flow_rate.png",
+    } <= set(names)
     for path in written[1:]:
         assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     text = written[0].read_text()
@@ -317,13 +367,22 @@ def test_every_plot_is_written_for_a_fixed_and_a_moving_wall(fixed_and_moving, f
     assert list(found) == names[1:]  # every PNG, in order, with a caption line
     # 300 Pa beside 17 kPa, all positive: a log axis; signed WSS and no recirculation beside
     # 4 mm of it: one panel per run; velocities alike: linear.
-    for name in ("max_sss.png", "max_sss_plaque.png", "max_principal_cap.png",
-                 "peak_displacement.png"):
+    for name in (
+        "max_sss.png",
+        "max_sss_plaque.png",
+        "max_principal_cap.png",
+        "peak_displacement.png",
+    ):
         assert "Log y-axis: the runs' magnitudes differ by more than 10×." in found[name]
     for name in ("wall_shear_stress.png", "recirculation_length.png"):
         assert "One panel per run (each its own y-range)" in found[name]
-    for name in ("peak_velocity.png", "peak_pressure.png", "coupling_iterations.png",
-                 "flow_rate.png", "inlet_pressure.png"):
+    for name in (
+        "peak_velocity.png",
+        "peak_pressure.png",
+        "coupling_iterations.png",
+        "flow_rate.png",
+        "inlet_pressure.png",
+    ):
         assert "Log y-axis" not in found[name] and "One panel" not in found[name]
     # The tables in readable units: µm, kPa, cm/s, with 4 significant digits.
     markdown = report.markdown(runs, [0.0025, 0.005])
@@ -348,8 +407,9 @@ def test_the_inlet_waveform_is_plotted_for_pressure_inlets_only(folder):
     columns = {"peak_velocity": lambda t: 0.2}
     pulse_a = synthetic_run(folder / "a", stenosis_case("rigid"), columns)
     pulse_b = synthetic_run(folder / "b", stenosis_case("rigid"), columns, finished=False)
-    formula = synthetic_run(folder / "c", stenosis_case("rigid", formula="800*sin(pi*t/0.01)**2"),
-                            columns)
+    formula = synthetic_run(
+        folder / "c", stenosis_case("rigid", formula="800*sin(pi*t/0.01)**2"), columns
+    )
     velocity = synthetic_run(folder / "d", config.load("configs/turek_hron_cfd1.yaml"), columns)
     runs = [report.load_run(path) for path in (pulse_a, velocity, pulse_b, formula)]
     groups = report.inlet_pressure_groups(runs)
@@ -371,13 +431,22 @@ def test_old_runs_without_the_new_columns_still_report(fixed_and_moving, folder,
     """A stopped run written before peak_pressure, the WSS, the flow rates and the per-region
     stresses existed: '–' in Table 2, left out of those plots, which are not written when no
     run has them."""
-    old_columns = {k: v for k, v in study_columns(300.0, 5.0e-6, 0.0).items()
-                   if k in ("peak_velocity", "peak_displacement", "max_sss",
-                            "coupling_iterations", "wall_time_s")}
+    old_columns = {
+        k: v
+        for k, v in study_columns(300.0, 5.0e-6, 0.0).items()
+        if k
+        in ("peak_velocity", "peak_displacement", "max_sss", "coupling_iterations", "wall_time_s")
+    }
     old = synthetic_run(folder / "old", stenosis_case("fixed_wall"), old_columns, finished=False)
     written = {p.name for p in report.write([report.load_run(old)], folder / "alone")}
-    assert written == {"report.md", "max_sss.png", "peak_velocity.png", "peak_displacement.png",
-                       "coupling_iterations.png", "inlet_pressure.png"}
+    assert written == {
+        "report.md",
+        "max_sss.png",
+        "peak_velocity.png",
+        "peak_displacement.png",
+        "coupling_iterations.png",
+        "inlet_pressure.png",
+    }
     text = (folder / "alone" / "report.md").read_text()
     assert "| old (fixed_wall, newtonian, coarse) | – | – | – | – | – |" in text  # Table 2
     assert "| old (fixed_wall, newtonian, coarse) | 40 (stopped) | 0.01 |" in text

@@ -36,11 +36,15 @@ from fsi import checkpoint, cli, config, simulation
 RIGID = "configs/stenosis_fixed_newtonian.yaml"
 COUPLED = "configs/stenosis_moving_newtonian.yaml"
 # BDF2 with dt 1 ms then 0.5 ms: the restart after step 2 needs dt_previous and u^{n-1}.
-RIGID_SET = ["structure.mode=rigid",
-             "time.schedule=[{until: 0.002, dt: 0.001}, {until: 0.004, dt: 0.0005}]"]
+RIGID_SET = [
+    "structure.mode=rigid",
+    "time.schedule=[{until: 0.002, dt: 0.001}, {until: 0.004, dt: 0.0005}]",
+]
 COUPLED_SET = ["time.schedule=[{until: 0.002, dt: 0.001}]"]
-ACCELERATIONS = {"aitken": ["coupling.acceleration=aitken"],
-                 "iqn-ils": ["coupling.acceleration=iqn-ils", "coupling.iqn_reuse=2"]}
+ACCELERATIONS = {
+    "aitken": ["coupling.acceleration=aitken"],
+    "iqn-ils": ["coupling.acceleration=iqn-ils", "coupling.iqn_reuse=2"],
+}
 SERIAL = MPI.COMM_WORLD.size == 1
 
 
@@ -82,10 +86,15 @@ def stored(run: Path) -> dict[str, tuple]:
     for name in meta["files"]:
         with np.load(folder / name) as data:
             files.append({k: data[k] for k in data.files})
-    return {key: (None, files[0][key]) if layout is None else
-            (np.concatenate([f[f"keys.{layout}"] for f in files]),
-             np.concatenate([f[key] for f in files]))
-            for key, layout in meta["layouts"].items()}
+    return {
+        key: (None, files[0][key])
+        if layout is None
+        else (
+            np.concatenate([f[f"keys.{layout}"] for f in files]),
+            np.concatenate([f[key] for f in files]),
+        )
+        for key, layout in meta["layouts"].items()
+    }
 
 
 def differences(a: Path, b: Path) -> dict[str, float]:
@@ -134,8 +143,10 @@ def rigid():
     comm = MPI.COMM_WORLD
     path = Path(comm.bcast(tempfile.mkdtemp(prefix="fsi-test-") if comm.rank == 0 else None))
     straight, split = path / "straight", path / "split"
-    codes = [fsi_run(RIGID, straight, [*RIGID_SET, "time.end=0.004"]),
-             fsi_run(RIGID, split, [*RIGID_SET, "time.end=0.002"])]
+    codes = [
+        fsi_run(RIGID, straight, [*RIGID_SET, "time.end=0.004"]),
+        fsi_run(RIGID, split, [*RIGID_SET, "time.end=0.002"]),
+    ]
     before = (split / "fields.xdmf").read_text()
     codes.append(fsi_run(RIGID, split, [*RIGID_SET, "time.end=0.004"], restart=split))
     yield {"codes": codes, "straight": straight, "split": split, "fields_before": before}
@@ -176,8 +187,7 @@ def test_checkpoints_every_n_steps_and_at_the_end(shared_tmp, monkeypatch):
 
     monkeypatch.setattr(checkpoint, "write", spy)
     out = shared_tmp / "every"
-    assert fsi_run(RIGID, out, [*RIGID_SET, "time.end=0.0025",
-                                "output.checkpoint_every=2"]) == 0
+    assert fsi_run(RIGID, out, [*RIGID_SET, "time.end=0.0025", "output.checkpoint_every=2"]) == 0
     assert written == [2, 3]
     assert step_of(out) == 3
     assert summary(out)["checkpoint"] == str(out / "checkpoint")
@@ -198,9 +208,11 @@ def test_a_checkpoint_restarts_on_another_number_of_ranks(rigid, shared_tmp):
     mine = rows(alone)
     problems = [] if [r["step"] for r in mine] == [r["step"] for r in reference] else ["steps"]
     for x, y in zip(mine, reference):  # another partition: round-off only (see the top)
-        problems += [(x["step"], key, x[key], y[key]) for key in
-                     ("peak_velocity", "peak_pressure", "max_wss", "min_wss")
-                     if float(x[key]) != pytest.approx(float(y[key]), rel=1e-9)]
+        problems += [
+            (x["step"], key, x[key], y[key])
+            for key in ("peak_velocity", "peak_pressure", "max_wss", "min_wss")
+            if float(x[key]) != pytest.approx(float(y[key]), rel=1e-9)
+        ]
     assert not any(comm.allgather(problems)), comm.allgather(problems)  # every rank ran alone
 
 
@@ -216,13 +228,21 @@ def coupled():
     runs = {}
     for name, overrides in ACCELERATIONS.items():
         straight, first, second = (path / name / n for n in ("straight", "first", "second"))
-        codes = [fsi_run(COUPLED, straight, [*COUPLED_SET, *overrides, "time.end=0.002"]),
-                 fsi_run(COUPLED, first, [*COUPLED_SET, *overrides, "time.end=0.001"])]
+        codes = [
+            fsi_run(COUPLED, straight, [*COUPLED_SET, *overrides, "time.end=0.002"]),
+            fsi_run(COUPLED, first, [*COUPLED_SET, *overrides, "time.end=0.001"]),
+        ]
         first_state = stored(first)
-        codes.append(fsi_run(COUPLED, second, [*COUPLED_SET, *overrides, "time.end=0.002"],
-                             restart=first))
-        runs[name] = {"codes": codes, "straight": straight, "first": first, "second": second,
-                      "first_state": first_state}
+        codes.append(
+            fsi_run(COUPLED, second, [*COUPLED_SET, *overrides, "time.end=0.002"], restart=first)
+        )
+        runs[name] = {
+            "codes": codes,
+            "straight": straight,
+            "first": first,
+            "second": second,
+            "first_state": first_state,
+        }
     yield runs
     comm.barrier()
     if comm.rank == 0:
@@ -237,8 +257,13 @@ def test_coupled_restart_continues_like_the_uninterrupted_run(coupled, accelerat
     assert_same_rows(run["second"], run["straight"])
     assert_same_state(run["second"], run["straight"])
     s, r = summary(run["straight"]), summary(run["second"])
-    for key in ("steps", "coupling_iterations", "max_coupling_iterations",
-                "solid_newton_iterations", "newton_iterations"):
+    for key in (
+        "steps",
+        "coupling_iterations",
+        "max_coupling_iterations",
+        "solid_newton_iterations",
+        "newton_iterations",
+    ):
         assert r[key] == s[key], key
     # What step 2 reuses was in the checkpoint: Aitken's ω; IQN-ILS: step 1's columns.
     saved = run["first_state"]
@@ -251,14 +276,18 @@ def test_coupled_restart_continues_like_the_uninterrupted_run(coupled, accelerat
         assert columns.shape[2] >= 3  # step 1 takes ≥ 4 iterations (measured 6)
 
 
-@pytest.mark.parametrize("failure, checkpointed", [
-    # The mesh guard raises inside the coupling iteration of step 2 (solvers not restored).
-    ("mesh_motion.min_jacobian_ratio=0.998", 1),
-    # One coupling iteration is too few for step 1: the checkpoint is the initial state.
-    ("coupling.max_iterations=1", 0),
-])
-def test_failed_step_is_checkpointed_and_a_restart_finishes_it(coupled, shared_tmp, fsi_log,
-                                                               failure, checkpointed):
+@pytest.mark.parametrize(
+    "failure, checkpointed",
+    [
+        # The mesh guard raises inside the coupling iteration of step 2 (solvers not restored).
+        ("mesh_motion.min_jacobian_ratio=0.998", 1),
+        # One coupling iteration is too few for step 1: the checkpoint is the initial state.
+        ("coupling.max_iterations=1", 0),
+    ],
+)
+def test_failed_step_is_checkpointed_and_a_restart_finishes_it(
+    coupled, shared_tmp, fsi_log, failure, checkpointed
+):
     out = shared_tmp / "failed"
     overrides = [*COUPLED_SET, *ACCELERATIONS["aitken"], "time.end=0.002"]
     assert fsi_run(COUPLED, out, [*overrides, failure]) == 3
@@ -302,13 +331,15 @@ def copy_checkpoint(rigid, shared_tmp) -> Path:
     return source
 
 
-@pytest.mark.parametrize("overrides, expected", [
-    (["mesh.level=fine"], "mesh.level: the checkpoint has 'coarse', the configuration 'fine'"),
-    (["structure.mode=moving_wall"], "structure.mode: the checkpoint has 'rigid'"),
-    (["geometry.stenosis_degree=0.6"], "geometry.stenosis_degree: the checkpoint has 0.5"),
-])
-def test_a_checkpoint_of_another_setup_is_refused(rigid, shared_tmp, capsys, overrides,
-                                                  expected):
+@pytest.mark.parametrize(
+    "overrides, expected",
+    [
+        (["mesh.level=fine"], "mesh.level: the checkpoint has 'coarse', the configuration 'fine'"),
+        (["structure.mode=moving_wall"], "structure.mode: the checkpoint has 'rigid'"),
+        (["geometry.stenosis_degree=0.6"], "geometry.stenosis_degree: the checkpoint has 0.5"),
+    ],
+)
+def test_a_checkpoint_of_another_setup_is_refused(rigid, shared_tmp, capsys, overrides, expected):
     out = shared_tmp / "refused"
     split = rigid["split"]
     assert fsi_run(RIGID, out, [*RIGID_SET, "time.end=0.004", *overrides], restart=split) == 2
@@ -368,6 +399,7 @@ def edit_json(**changes):
     def edit(source: Path) -> None:
         path = source / "checkpoint" / "checkpoint.json"
         path.write_text(json.dumps({**json.loads(path.read_text()), **changes}))
+
     return edit
 
 
@@ -379,15 +411,18 @@ def edit_array(key: str, change, rank: int = 0):
         arrays[key] = change(arrays[key])
         with path.open("wb") as f:
             np.savez(f, **arrays)
+
     return edit
 
 
 def edit_metrics(change):
     """``change`` maps the lines of metrics.csv (header first, with their line ends) to new
     ones."""
+
     def edit(source: Path) -> None:
         path = source / "metrics.csv"
         path.write_bytes(b"".join(change(path.read_bytes().splitlines(keepends=True))))
+
     return edit
 
 
@@ -398,45 +433,75 @@ def with_nan(a: np.ndarray) -> np.ndarray:
 
 
 def listing(folder: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
-            if p.is_file()}
+    return {
+        str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()
+    }
 
 
 # The split run's checkpoint: step 6, t = 4 ms, dt = 0.5 ms; metrics.csv has steps 1–6 at
 # t = 1, 2, 2.5, 3, 3.5, 4 ms (step n on line n + 1).
-@pytest.mark.parametrize("edit, expected", [
-    (edit_json(step="6"), JSON + ": step: expected a whole number >= 0, got '6'"),
-    (edit_json(step=-1), JSON + ": step: expected a whole number >= 0, got -1"),
-    (edit_json(step=6.0), JSON + ": step: expected a whole number >= 0, got 6.0"),
-    (edit_json(t=-0.004), JSON + ": t: expected a finite time >= 0 (0 at step 0), got -0.004"),
-    (edit_json(t=float("nan")), JSON + ": t: expected a finite time >= 0 (0 at step 0), got nan"),
-    (edit_json(step=0), JSON + ": t: expected a finite time >= 0 (0 at step 0), got 0.004"),
-    (edit_json(dt=0.0), JSON + ": dt: expected null or a finite step > 0, got 0.0"),
-    (edit_json(dt=float("inf")), JSON + ": dt: expected null or a finite step > 0, got inf"),
-    (edit_json(files=["../rank0000.npz"]), JSON + ": files: expected rank0000.npz to "),
-    # Step and time that contradict metrics.csv.
-    (edit_json(step=4), JSON + ": t: the checkpoint has 0.004, but " + METRICS + " line 5 "
-     "(step 4) has t = 0.003"),
-    (edit_json(t=0.0041), JSON + ": t: the checkpoint has 0.0041, but " + METRICS + " line 7 "
-     "(step 6) has t = 0.004"),
-    (edit_json(dt=0.001), JSON + ": dt: the checkpoint has 0.001, but " + METRICS + " line 7 "
-     "(step 6) has dt = 0.0005"),
-    (edit_json(step=9), METRICS + ": no row of steps 7-9: the table was cut short or damaged, "
-     "and a restart from step 9 keeps its rows 1 to 9"),
-    # The arrays.
-    (edit_array("fluid.U", with_nan, rank=LAST),
-     f"{{source}}/checkpoint/{checkpoint.rank_file(LAST)}: fluid.U: non-finite values"),
-    (edit_array("fluid.time", lambda a: a * np.inf),
-     "{source}/checkpoint/rank0000.npz: fluid.time: non-finite values"),
-    (edit_array("fluid.time", lambda a: 2 * a),
-     "{source}/checkpoint/rank0000.npz: fluid.time: 0.008, but checkpoint.json's t is 0.004"),
-    (edit_array("fluid.dt_previous", lambda a: a.astype("U8")),
-     "{source}/checkpoint/rank0000.npz: fluid.dt_previous: expected numbers"),
-    (edit_array("fluid.u_n", lambda a: a[1:]),
-     "{source}/checkpoint/rank0000.npz: array 'fluid.u_n' has shape "),
-])
-def test_a_damaged_or_edited_checkpoint_is_refused_before_writing(rigid, shared_tmp, capsys,
-                                                                  edit, expected):
+@pytest.mark.parametrize(
+    "edit, expected",
+    [
+        (edit_json(step="6"), JSON + ": step: expected a whole number >= 0, got '6'"),
+        (edit_json(step=-1), JSON + ": step: expected a whole number >= 0, got -1"),
+        (edit_json(step=6.0), JSON + ": step: expected a whole number >= 0, got 6.0"),
+        (edit_json(t=-0.004), JSON + ": t: expected a finite time >= 0 (0 at step 0), got -0.004"),
+        (
+            edit_json(t=float("nan")),
+            JSON + ": t: expected a finite time >= 0 (0 at step 0), got nan",
+        ),
+        (edit_json(step=0), JSON + ": t: expected a finite time >= 0 (0 at step 0), got 0.004"),
+        (edit_json(dt=0.0), JSON + ": dt: expected null or a finite step > 0, got 0.0"),
+        (edit_json(dt=float("inf")), JSON + ": dt: expected null or a finite step > 0, got inf"),
+        (edit_json(files=["../rank0000.npz"]), JSON + ": files: expected rank0000.npz to "),
+        # Step and time that contradict metrics.csv.
+        (
+            edit_json(step=4),
+            JSON + ": t: the checkpoint has 0.004, but " + METRICS + " line 5 "
+            "(step 4) has t = 0.003",
+        ),
+        (
+            edit_json(t=0.0041),
+            JSON + ": t: the checkpoint has 0.0041, but " + METRICS + " line 7 "
+            "(step 6) has t = 0.004",
+        ),
+        (
+            edit_json(dt=0.001),
+            JSON + ": dt: the checkpoint has 0.001, but " + METRICS + " line 7 "
+            "(step 6) has dt = 0.0005",
+        ),
+        (
+            edit_json(step=9),
+            METRICS + ": no row of steps 7-9: the table was cut short or damaged, "
+            "and a restart from step 9 keeps its rows 1 to 9",
+        ),
+        # The arrays.
+        (
+            edit_array("fluid.U", with_nan, rank=LAST),
+            f"{{source}}/checkpoint/{checkpoint.rank_file(LAST)}: fluid.U: non-finite values",
+        ),
+        (
+            edit_array("fluid.time", lambda a: a * np.inf),
+            "{source}/checkpoint/rank0000.npz: fluid.time: non-finite values",
+        ),
+        (
+            edit_array("fluid.time", lambda a: 2 * a),
+            "{source}/checkpoint/rank0000.npz: fluid.time: 0.008, but checkpoint.json's t is 0.004",
+        ),
+        (
+            edit_array("fluid.dt_previous", lambda a: a.astype("U8")),
+            "{source}/checkpoint/rank0000.npz: fluid.dt_previous: expected numbers",
+        ),
+        (
+            edit_array("fluid.u_n", lambda a: a[1:]),
+            "{source}/checkpoint/rank0000.npz: array 'fluid.u_n' has shape ",
+        ),
+    ],
+)
+def test_a_damaged_or_edited_checkpoint_is_refused_before_writing(
+    rigid, shared_tmp, capsys, edit, expected
+):
     source = copy_checkpoint(rigid, shared_tmp)
     if MPI.COMM_WORLD.rank == 0:
         edit(source)
@@ -453,26 +518,43 @@ def drop(*steps: int):
     return edit_metrics(lambda lines: [x for i, x in enumerate(lines) if i not in steps])
 
 
-@pytest.mark.parametrize("edit, expected", [
-    # Cut short after step 3, or a row lost: the gap is named, nothing is kept or written.
-    (edit_metrics(lambda lines: lines[:4]), METRICS + ": no row of steps 4-6: the table was cut "
-     "short or damaged, and a restart from step 6 keeps its rows 1 to 6"),
-    (edit_metrics(lambda lines: lines[:4] + [lines[4][:9]]), METRICS + ": no row of steps 4-6"),
-    (drop(2), METRICS + ": no row of step 2: "),
-    (drop(1, 2, 3, 4, 5, 6), METRICS + ": no row of steps 1-6: "),
-    (lambda source: (source / "metrics.csv").unlink(),
-     METRICS + ": missing; a restart from step 6 keeps its rows 1 to 6"),
-    (edit_metrics(lambda lines: lines[:4] + [lines[3]] + lines[4:]),
-     METRICS + ": line 5: step 3 where step 4 belongs"),
-    (edit_metrics(lambda lines: lines[:2] + [lines[2].replace(b",0.002,", b",0.0o2,")]
-                  + lines[3:]),
-     METRICS + ": line 3: t: '0.0o2' is not a finite number (a restart from step 6 keeps its "
-     "rows 1 to 6)"),
-    (edit_metrics(lambda lines: lines[:3] + [b"4,0.003\r\n"] + lines[5:]),
-     METRICS + ": line 4: 2 cells, the header has "),
-])
-def test_a_restart_refuses_a_damaged_metrics_table_and_keeps_it(rigid, shared_tmp, capsys, edit,
-                                                                expected):
+@pytest.mark.parametrize(
+    "edit, expected",
+    [
+        # Cut short after step 3, or a row lost: the gap is named, nothing is kept or written.
+        (
+            edit_metrics(lambda lines: lines[:4]),
+            METRICS + ": no row of steps 4-6: the table was cut "
+            "short or damaged, and a restart from step 6 keeps its rows 1 to 6",
+        ),
+        (edit_metrics(lambda lines: lines[:4] + [lines[4][:9]]), METRICS + ": no row of steps 4-6"),
+        (drop(2), METRICS + ": no row of step 2: "),
+        (drop(1, 2, 3, 4, 5, 6), METRICS + ": no row of steps 1-6: "),
+        (
+            lambda source: (source / "metrics.csv").unlink(),
+            METRICS + ": missing; a restart from step 6 keeps its rows 1 to 6",
+        ),
+        (
+            edit_metrics(lambda lines: lines[:4] + [lines[3]] + lines[4:]),
+            METRICS + ": line 5: step 3 where step 4 belongs",
+        ),
+        (
+            edit_metrics(
+                lambda lines: lines[:2] + [lines[2].replace(b",0.002,", b",0.0o2,")] + lines[3:]
+            ),
+            METRICS
+            + ": line 3: t: '0.0o2' is not a finite number (a restart from step 6 keeps its "
+            "rows 1 to 6)",
+        ),
+        (
+            edit_metrics(lambda lines: lines[:3] + [b"4,0.003\r\n"] + lines[5:]),
+            METRICS + ": line 4: 2 cells, the header has ",
+        ),
+    ],
+)
+def test_a_restart_refuses_a_damaged_metrics_table_and_keeps_it(
+    rigid, shared_tmp, capsys, edit, expected
+):
     """metrics.csv must hold rows 1 to k, complete, each once, for a restart from step k to
     keep; otherwise exit 2 before anything is written (restarting in the run's own folder: not
     a byte of it changes)."""
@@ -516,14 +598,20 @@ def test_a_checkpoint_is_replaced_atomically(shared_tmp):
     if comm.rank == 0:  # the run folder: its metrics.csv has the rows a restart keeps
         out.mkdir()
         (out / "metrics.csv").write_text(
-            "step,t,dt\n" + "".join(f"{k},{1e-3 * k},0.001\n" for k in (1, 2, 3)))
+            "step,t,dt\n" + "".join(f"{k},{1e-3 * k},0.001\n" for k in (1, 2, 3))
+        )
     comm.barrier()
     # One row per rank, keyed by the rank: after reading, each rank finds its own value.
     layouts = {"x": checkpoint.Layout("ranks", np.array([[float(comm.rank)]]), 1, 1)}
 
     def save(step: int) -> None:
-        checkpoint.write(out, comm, {"x": np.array([step + comm.rank / 10])}, layouts,
-                         checkpoint.metadata(case, comm, step, 1e-3 * step, 1e-3))
+        checkpoint.write(
+            out,
+            comm,
+            {"x": np.array([step + comm.rank / 10])},
+            layouts,
+            checkpoint.metadata(case, comm, step, 1e-3 * step, 1e-3),
+        )
 
     def load() -> list:
         """(run folder right, step, value) of every rank: the asserts stay collective."""
@@ -555,8 +643,13 @@ def test_a_checkpoint_is_replaced_atomically(shared_tmp):
     assert load() == expected(2)
     # A non-finite value is never written.
     with pytest.raises(checkpoint.CheckpointError, match="non-finite x"):
-        checkpoint.write(out, comm, {"x": np.array([np.nan])}, layouts,
-                         checkpoint.metadata(case, comm, 3, 3e-3, 1e-3))
+        checkpoint.write(
+            out,
+            comm,
+            {"x": np.array([np.nan])},
+            layouts,
+            checkpoint.metadata(case, comm, 3, 3e-3, 1e-3),
+        )
     assert load() == expected(2)
     assert listing() == [["checkpoint.previous", "metrics.csv"]] * comm.size
 
@@ -612,5 +705,6 @@ def test_coupling_memory_carries_over_through_its_arrays(acceleration):
     fresh[1].load_state(checkpoint.subset("p.", saved))
     expected, repeated, without = (step(*pair, 0.3) for pair in ((acc, predictor), again, fresh))
     assert len(expected) == len(repeated) and all(
-        np.array_equal(a, b) for a, b in zip(expected, repeated))
+        np.array_equal(a, b) for a, b in zip(expected, repeated)
+    )
     assert len(without) != len(expected) or not np.array_equal(without[1], expected[1])

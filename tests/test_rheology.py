@@ -17,7 +17,8 @@ MODELS = ["newtonian", "carreau", "carreau_yasuda", "cross", "power_law", "casso
 
 def law_of(model: str, **parameters) -> rheology.ViscosityLaw:
     return rheology.from_config(
-        config.from_dict({"fluid": {"rheology": {"model": model, **parameters}}}).fluid.rheology)
+        config.from_dict({"fluid": {"rheology": {"model": model, **parameters}}}).fluid.rheology
+    )
 
 
 def test_defaults_build_the_right_laws():
@@ -34,8 +35,9 @@ def test_carreau_values_and_limits():
     law = law_of("carreau")
     # μ(s) by hand at s = 1/λ: μ∞ + (μ0 − μ∞) 2^((n−1)/2)
     s = 1 / 10.03
-    assert law.mu(s) == pytest.approx(0.0032 + (0.0456 - 0.0032) * 2 ** ((0.344 - 1) / 2),
-                                      rel=1e-14)
+    assert law.mu(s) == pytest.approx(
+        0.0032 + (0.0456 - 0.0032) * 2 ** ((0.344 - 1) / 2), rel=1e-14
+    )
     assert law.mu(0.0) == pytest.approx(0.0456, rel=1e-14)
     assert law.mu(1e9) == pytest.approx(0.0032, rel=1e-4)
     values = law.mu(np.logspace(-3, 4, 50))
@@ -45,8 +47,14 @@ def test_carreau_values_and_limits():
 
 def test_carreau_yasuda_with_a_2_is_carreau_and_cross_limits():
     s = np.logspace(-3, 4, 30)
-    cy = law_of("carreau_yasuda", mu_0=0.0456, mu_inf=0.0032, relaxation_time=10.03,
-                power_index=0.344, yasuda_exponent=2.0)
+    cy = law_of(
+        "carreau_yasuda",
+        mu_0=0.0456,
+        mu_inf=0.0032,
+        relaxation_time=10.03,
+        power_index=0.344,
+        yasuda_exponent=2.0,
+    )
     assert np.allclose(cy.mu(s), law_of("carreau").mu(s), rtol=1e-14, atol=0)
     cross = law_of("cross")
     assert cross.mu(0.0) == pytest.approx(0.0364, rel=1e-14)
@@ -80,8 +88,9 @@ def test_casson_regularisation():
     assert np.allclose(law.mu(s), (np.sqrt(mu_c) + np.sqrt(tau_y / s)) ** 2, rtol=1e-12, atol=0)
     # the stress μ s → τy (the yield stress) as s → 0⁺ … only after the regularisation's scale
     # 1/m: check the Casson stress √τ = √τy + √(μc s) at s = 10 (e^(−√1000) negligible)
-    assert np.sqrt(law.mu(10.0) * 10.0) == pytest.approx(np.sqrt(tau_y) + np.sqrt(mu_c * 10),
-                                                        rel=1e-12)
+    assert np.sqrt(law.mu(10.0) * 10.0) == pytest.approx(
+        np.sqrt(tau_y) + np.sqrt(mu_c * 10), rel=1e-12
+    )
 
 
 @pytest.mark.parametrize("model", MODELS)
@@ -97,8 +106,9 @@ def test_ufl_and_numpy_agree_and_shear_rate_of_simple_shear(model):
     s = metrics.shear_rate_field(u)
     assert np.allclose(s.x.array, gamma, rtol=1e-12, atol=0)
     mu = metrics.viscosity_field(u, law)
-    assert np.allclose(mu.x.array, law.mu(np.sqrt(gamma**2 + rheology.SHEAR_RATE_EPSILON**2)),
-                       rtol=1e-12, atol=0)
+    assert np.allclose(
+        mu.x.array, law.mu(np.sqrt(gamma**2 + rheology.SHEAR_RATE_EPSILON**2)), rtol=1e-12, atol=0
+    )
 
 
 def test_shear_rate_is_regularised_at_rest():
@@ -116,19 +126,30 @@ def test_shear_rate_is_regularised_at_rest():
     assert np.isfinite(jacobian.array).all()
 
 
-@pytest.mark.parametrize("text,key,expected", [
-    ("{model: carreau_yasuda, yasuda_exponent: 0}", "fluid.rheology.yasuda_exponent", "positive"),
-    ("{model: carreau_yasuda, mu_0: -1}", "fluid.rheology.mu_0", "positive"),
-    ("{model: cross, exponent: -1.45}", "fluid.rheology.exponent", "positive"),
-    ("{model: cross, relaxation_time: 0}", "fluid.rheology.relaxation_time", "positive"),
-    ("{model: power_law, shear_rate_floor: 0}", "fluid.rheology.shear_rate_floor", "positive"),
-    ("{model: power_law, consistency: -0.017}", "fluid.rheology.consistency", "positive"),
-    ("{model: power_law, power_index: '0.7'}", "fluid.rheology.power_index", "a number"),
-    ("{model: casson, yield_stress: -0.005}", "fluid.rheology.yield_stress", "positive"),
-    ("{model: casson, regularization: 0}", "fluid.rheology.regularization", "positive"),
-    ("{model: casson, viscosity: 0.0035, mu_0: 0.05}", "fluid.rheology.mu_0", "one of the keys"),
-    ("{model: bingham}", "fluid.rheology.model", "'casson'"),
-])
+@pytest.mark.parametrize(
+    "text,key,expected",
+    [
+        (
+            "{model: carreau_yasuda, yasuda_exponent: 0}",
+            "fluid.rheology.yasuda_exponent",
+            "positive",
+        ),
+        ("{model: carreau_yasuda, mu_0: -1}", "fluid.rheology.mu_0", "positive"),
+        ("{model: cross, exponent: -1.45}", "fluid.rheology.exponent", "positive"),
+        ("{model: cross, relaxation_time: 0}", "fluid.rheology.relaxation_time", "positive"),
+        ("{model: power_law, shear_rate_floor: 0}", "fluid.rheology.shear_rate_floor", "positive"),
+        ("{model: power_law, consistency: -0.017}", "fluid.rheology.consistency", "positive"),
+        ("{model: power_law, power_index: '0.7'}", "fluid.rheology.power_index", "a number"),
+        ("{model: casson, yield_stress: -0.005}", "fluid.rheology.yield_stress", "positive"),
+        ("{model: casson, regularization: 0}", "fluid.rheology.regularization", "positive"),
+        (
+            "{model: casson, viscosity: 0.0035, mu_0: 0.05}",
+            "fluid.rheology.mu_0",
+            "one of the keys",
+        ),
+        ("{model: bingham}", "fluid.rheology.model", "'casson'"),
+    ],
+)
 def test_bad_rheology_is_refused_naming_the_key(text, key, expected):
     with pytest.raises(config.ConfigError) as error:
         config.from_dict(config_reader.parse_yaml(f"fluid: {{rheology: {text}}}"), "case.yaml")
@@ -146,6 +167,8 @@ def test_rheology_round_trips_through_yaml(tmp_path):
 
 def test_every_configured_model_has_a_law():
     """The registry knows each ``fluid.rheology.model`` tag the schema admits, and no other."""
-    tags = {typing.get_args(typing.get_type_hints(option)["model"])[0]
-            for option in typing.get_args(config.Rheology)}
+    tags = {
+        typing.get_args(typing.get_type_hints(option)["model"])[0]
+        for option in typing.get_args(config.Rheology)
+    }
     assert set(rheology.LAWS) == tags

@@ -20,8 +20,16 @@ def test_rigid_run_writes_the_contract_files(shared_tmp):
     assert cli.main(["run", CASE, "--out", str(out), *sum((["--set", s] for s in SHORT), [])]) == 0
     rows = io.read_metrics(out / "metrics.csv")
     assert [r["step"] for r in rows] == [1, 2, 3, 4]
-    for column in ("step", "t", "dt", "peak_velocity", "peak_pressure", "peak_displacement",
-                   "coupling_iterations", "wall_time_s"):
+    for column in (
+        "step",
+        "t",
+        "dt",
+        "peak_velocity",
+        "peak_pressure",
+        "peak_displacement",
+        "coupling_iterations",
+        "wall_time_s",
+    ):
         assert column in rows[0]
     assert rows[-1]["t"] == pytest.approx(0.004)
     # The pulse (peak 1200 Pa at t = 2.5 ms) accelerates the blood: velocity grows while it acts.
@@ -70,15 +78,23 @@ def test_serial_and_parallel_runs_agree(shared_tmp):
         assert a["peak_pressure"] == pytest.approx(b["peak_pressure"], rel=1e-8)
 
 
-@pytest.mark.parametrize("config_file, overrides, message", [
-    # The interface maps pair P2 nodes of the fluid and the structure.
-    (CASE, ["structure.degree=3"], "needs structure.degree 2"),
-])
-def test_unsupported_coupled_cases_are_refused_before_any_work(shared_tmp, capsys, config_file,
-                                                               overrides, message):
+@pytest.mark.parametrize(
+    "config_file, overrides, message",
+    [
+        # The interface maps pair P2 nodes of the fluid and the structure.
+        (CASE, ["structure.degree=3"], "needs structure.degree 2"),
+    ],
+)
+def test_unsupported_coupled_cases_are_refused_before_any_work(
+    shared_tmp, capsys, config_file, overrides, message
+):
     out = shared_tmp / "refused"
-    assert cli.main(["run", config_file, "--out", str(out),
-                     *sum((["--set", s] for s in overrides), [])]) == 2
+    assert (
+        cli.main(
+            ["run", config_file, "--out", str(out), *sum((["--set", s] for s in overrides), [])]
+        )
+        == 2
+    )
     assert not out.exists()
     if MPI.COMM_WORLD.rank == 0:
         assert message in capsys.readouterr().err
@@ -90,9 +106,14 @@ def test_rigid_stenosis_stays_stable_after_the_pulse(shared_tmp):
     lets tangential velocity in. The study's normal-flow inlet (docs/boundary-conditions.md)
     keeps the decaying flow decaying."""
     out = shared_tmp / "stable"
-    overrides = ["structure.mode=rigid", "time.end=0.06",
-                 "time.schedule=[{until: 0.005, dt: 5.0e-4}, {until: 0.06, dt: 1.0e-3}]"]
-    assert cli.main(["run", CASE, "--out", str(out), *sum((["--set", s] for s in overrides), [])]) == 0
+    overrides = [
+        "structure.mode=rigid",
+        "time.end=0.06",
+        "time.schedule=[{until: 0.005, dt: 5.0e-4}, {until: 0.06, dt: 1.0e-3}]",
+    ]
+    assert (
+        cli.main(["run", CASE, "--out", str(out), *sum((["--set", s] for s in overrides), [])]) == 0
+    )
     rows = io.read_metrics(out / "metrics.csv")
     after = [r["peak_velocity"] for r in rows if r["t"] >= 0.01]
     assert rows[-1]["t"] == pytest.approx(0.06)
@@ -104,8 +125,12 @@ def test_structure_alone_under_the_inlet_pressure(shared_tmp):
     peaks = {}
     for mode in ("fixed_wall", "moving_wall"):
         out = shared_tmp / mode
-        overrides = [f"structure.mode={mode}", "structure.interface_load=inlet_pressure",
-                     "time.end=0.003", "time.schedule=[{until: 0.003, dt: 5.0e-4}]"]
+        overrides = [
+            f"structure.mode={mode}",
+            "structure.interface_load=inlet_pressure",
+            "time.end=0.003",
+            "time.schedule=[{until: 0.003, dt: 5.0e-4}]",
+        ]
         args = ["run", CASE, "--out", str(out), *sum((["--set", s] for s in overrides), [])]
         assert cli.main(args) == 0
         rows = io.read_metrics(out / "metrics.csv")
@@ -118,11 +143,16 @@ def test_structure_alone_under_the_inlet_pressure(shared_tmp):
     assert 0 < peaks["fixed_wall"] < peaks["moving_wall"] / 100
 
 
-@pytest.mark.parametrize("overrides,expected", [
-    (["structure.mode=rigid", "structure.interface_load=none"], "no structure to load"),
-    (["fluid.inlet={kind: parabolic_velocity}", "structure.interface_load=inlet_pressure"],
-     "needs a traction inlet"),
-])
+@pytest.mark.parametrize(
+    "overrides,expected",
+    [
+        (["structure.mode=rigid", "structure.interface_load=none"], "no structure to load"),
+        (
+            ["fluid.inlet={kind: parabolic_velocity}", "structure.interface_load=inlet_pressure"],
+            "needs a traction inlet",
+        ),
+    ],
+)
 def test_interface_load_needs_a_structure_and_a_pressure(overrides, expected):
     with pytest.raises(config.ConfigError, match=expected):
         config.load(CASE, overrides)

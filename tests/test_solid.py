@@ -31,17 +31,28 @@ from geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 TIGHT = SolverSettings(rtol=1e-13, atol=1e-15, max_iterations=30)
 
 
-def rectangle(length: float, height: float, nx: int, ny: int, region: Region = Region.FLAG,
-              comm: MPI.Comm = MPI.COMM_WORLD) -> mesh.TaggedMesh:
+def rectangle(
+    length: float,
+    height: float,
+    nx: int,
+    ny: int,
+    region: Region = Region.FLAG,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+) -> mesh.TaggedMesh:
     """[0, length] × [0, height] in one region; x = 0 clamped, x = length the interface, the
     rest exterior."""
-    msh = dolfinx.mesh.create_rectangle(comm, [np.array([0.0, 0.0]), np.array([length, height])],
-                                        [nx, ny], dolfinx.mesh.CellType.triangle)
+    msh = dolfinx.mesh.create_rectangle(
+        comm,
+        [np.array([0.0, 0.0]), np.array([length, height])],
+        [nx, ny],
+        dolfinx.mesh.CellType.triangle,
+    )
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim - 1, tdim)
     n_cells = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
-    cell_tags = dolfinx.mesh.meshtags(msh, tdim, np.arange(n_cells, dtype=np.int32),
-                                      np.full(n_cells, int(region), dtype=np.int32))
+    cell_tags = dolfinx.mesh.meshtags(
+        msh, tdim, np.arange(n_cells, dtype=np.int32), np.full(n_cells, int(region), dtype=np.int32)
+    )
     sides = [
         (Boundary.CLAMPED, lambda x: np.isclose(x[0], 0.0)),
         (Boundary.INTERFACE, lambda x: np.isclose(x[0], length)),
@@ -84,32 +95,62 @@ def value_at_point(V, f: dolfinx.fem.Function, point) -> np.ndarray:
 # Configuration
 
 
-@pytest.mark.parametrize("text,key,words", [
-    ("structure: {time_integration: {scheme: euler}}", "structure.time_integration.scheme",
-     "'generalized_alpha', 'newmark', 'quasi_static'"),
-    ("structure: {time_integration: {spectral_radius: 1.5}}",
-     "structure.time_integration.spectral_radius", "[0, 1]"),
-    ("structure: {time_integration: {spectral_radius: -0.1}}",
-     "structure.time_integration.spectral_radius", "[0, 1]"),
-    ("structure: {time_integration: {scheme: newmark, spectral_radius: 0.5}}",
-     "structure.time_integration.spectral_radius", "one of the keys scheme"),
-    ("structure: {cap: {law: ogden}}", "structure.cap.law", "'svk', 'neo_hookean'"),
-    ("structure: {body_force: [0, -2, 0]}", "structure.body_force", "two numbers"),
-    ("structure: {body_force: 2}", "structure.body_force", "a list of number"),
-    ("structure: {degree: 0}", "structure.degree", "[1, 3]"),
-    ("structure: {flag: {poisson_ratio: 0.5}}", "structure.flag.poisson_ratio", "(-1.0, 0.5)"),
-    ("structure: {wall: {viscous_relaxation_time: -1.0e-4}}",
-     "structure.wall.viscous_relaxation_time", "a number >= 0 (s)"),
-    ("structure: {cap: {viscous_relaxation_time: fast}}", "structure.cap.viscous_relaxation_time",
-     "a number"),
-    ("structure: {support: {stiffness: -1.0e6}}", "structure.support.stiffness",
-     "a number >= 0 (Pa/m)"),
-    ("structure: {support: {damping: -10}}", "structure.support.damping",
-     "a number >= 0 (Pa s/m)"),
-    ("structure: {support: {friction: 1}}", "structure.support.friction",
-     "one of the keys stiffness, damping"),
-    ("structure: {support: 1.0e6}", "structure.support", "a mapping"),
-])
+@pytest.mark.parametrize(
+    "text,key,words",
+    [
+        (
+            "structure: {time_integration: {scheme: euler}}",
+            "structure.time_integration.scheme",
+            "'generalized_alpha', 'newmark', 'quasi_static'",
+        ),
+        (
+            "structure: {time_integration: {spectral_radius: 1.5}}",
+            "structure.time_integration.spectral_radius",
+            "[0, 1]",
+        ),
+        (
+            "structure: {time_integration: {spectral_radius: -0.1}}",
+            "structure.time_integration.spectral_radius",
+            "[0, 1]",
+        ),
+        (
+            "structure: {time_integration: {scheme: newmark, spectral_radius: 0.5}}",
+            "structure.time_integration.spectral_radius",
+            "one of the keys scheme",
+        ),
+        ("structure: {cap: {law: ogden}}", "structure.cap.law", "'svk', 'neo_hookean'"),
+        ("structure: {body_force: [0, -2, 0]}", "structure.body_force", "two numbers"),
+        ("structure: {body_force: 2}", "structure.body_force", "a list of number"),
+        ("structure: {degree: 0}", "structure.degree", "[1, 3]"),
+        ("structure: {flag: {poisson_ratio: 0.5}}", "structure.flag.poisson_ratio", "(-1.0, 0.5)"),
+        (
+            "structure: {wall: {viscous_relaxation_time: -1.0e-4}}",
+            "structure.wall.viscous_relaxation_time",
+            "a number >= 0 (s)",
+        ),
+        (
+            "structure: {cap: {viscous_relaxation_time: fast}}",
+            "structure.cap.viscous_relaxation_time",
+            "a number",
+        ),
+        (
+            "structure: {support: {stiffness: -1.0e6}}",
+            "structure.support.stiffness",
+            "a number >= 0 (Pa/m)",
+        ),
+        (
+            "structure: {support: {damping: -10}}",
+            "structure.support.damping",
+            "a number >= 0 (Pa s/m)",
+        ),
+        (
+            "structure: {support: {friction: 1}}",
+            "structure.support.friction",
+            "one of the keys stiffness, damping",
+        ),
+        ("structure: {support: 1.0e6}", "structure.support", "a mapping"),
+    ],
+)
 def test_structure_config_errors_name_the_key(text, key, words):
     with pytest.raises(config.ConfigError) as error:
         config.from_dict(config_reader.parse_yaml(text), "case.yaml")
@@ -123,9 +164,12 @@ def test_structure_config_defaults_and_partial_materials():
     assert s.body_force == (0.0, 0.0) and s.degree == 2
     assert (s.flag.density, s.flag.young_modulus, s.flag.poisson_ratio) == (1000, 1.4e6, 0.4)
     # A partial mapping keeps the region's own defaults (not the plaque's).
-    s = config.from_dict(config_reader.parse_yaml(
-        "structure: {wall: {density: 1100}, flag: {young_modulus: 5.6e6},"
-        " time_integration: {scheme: newmark}, body_force: [0, -2]}")).structure
+    s = config.from_dict(
+        config_reader.parse_yaml(
+            "structure: {wall: {density: 1100}, flag: {young_modulus: 5.6e6},"
+            " time_integration: {scheme: newmark}, body_force: [0, -2]}"
+        )
+    ).structure
     assert s.wall.young_modulus == 4e6 and s.wall.density == 1100
     assert (s.flag.density, s.flag.young_modulus, s.flag.poisson_ratio) == (1000, 5.6e6, 0.4)
     assert s.time_integration.scheme == "newmark" and s.body_force == (0.0, -2.0)
@@ -133,11 +177,15 @@ def test_structure_config_defaults_and_partial_materials():
     assert config.from_dict(config.to_dict(case)) == case
     # Damping is off unless asked for, per region and for the support separately.
     s = config.from_dict({}).structure
-    assert all(getattr(s, r).viscous_relaxation_time == 0.0
-               for r in ("wall", "cap", "lipid", "flag"))
+    assert all(
+        getattr(s, r).viscous_relaxation_time == 0.0 for r in ("wall", "cap", "lipid", "flag")
+    )
     assert (s.support.stiffness, s.support.damping) == (0.0, 0.0)
-    case = config.from_dict(config_reader.parse_yaml(
-        "structure: {wall: {viscous_relaxation_time: 3.0e-4}, support: {damping: 100}}"))
+    case = config.from_dict(
+        config_reader.parse_yaml(
+            "structure: {wall: {viscous_relaxation_time: 3.0e-4}, support: {damping: 100}}"
+        )
+    )
     s = case.structure
     assert s.wall.viscous_relaxation_time == 3e-4 and s.wall.young_modulus == 4e6
     assert s.cap.viscous_relaxation_time == 0.0
@@ -158,8 +206,11 @@ def test_stress_is_the_derivative_of_the_energy_and_linearises_to_hooke(law_name
     H = np.array([[0.3, -0.7], [0.4, 0.2]])
 
     def norm2(expr) -> float:
-        return dolfinx.fem.assemble_scalar(dolfinx.fem.form(ufl.inner(expr, expr) * ufl.dx(
-            domain=msh, metadata={"quadrature_degree": 0})))
+        return dolfinx.fem.assemble_scalar(
+            dolfinx.fem.form(
+                ufl.inner(expr, expr) * ufl.dx(domain=msh, metadata={"quadrature_degree": 0})
+            )
+        )
 
     F = ufl.variable(ufl.Identity(2) + ufl.as_matrix(H.tolist()))
     P = materials.first_piola(law, F)
@@ -217,8 +268,13 @@ def _tagged_lengths(tagged: mesh.TaggedMesh, boundary: Boundary) -> float:
 
 def test_structure_submesh_carries_the_parents_tags(stenosis):
     _, tagged, domain = stenosis
-    for b in (Boundary.INTERFACE, Boundary.CLAMPED, Boundary.EXTERIOR, Boundary.CAP_LIPID,
-              Boundary.PLAQUE_BASE):
+    for b in (
+        Boundary.INTERFACE,
+        Boundary.CLAMPED,
+        Boundary.EXTERIOR,
+        Boundary.CAP_LIPID,
+        Boundary.PLAQUE_BASE,
+    ):
         parent, sub = _tagged_lengths(tagged, b), _tagged_lengths(domain, b)
         assert parent > 0 and sub == pytest.approx(parent, rel=1e-13), b
     for b in (Boundary.INLET, Boundary.OUTLET, Boundary.RIGID_WALL):
@@ -226,9 +282,14 @@ def test_structure_submesh_carries_the_parents_tags(stenosis):
     dx_parent = ufl.Measure("dx", domain=tagged.mesh, subdomain_data=tagged.cell_tags)
     dx_sub = ufl.Measure("dx", domain=domain.mesh, subdomain_data=domain.cell_tags)
     for r in STRUCTURE_REGIONS:
-        areas = [domain.comm.allreduce(dolfinx.fem.assemble_scalar(dolfinx.fem.form(
-            dolfinx.fem.Constant(m, 1.0) * dx(int(r))))) for m, dx in
-            ((tagged.mesh, dx_parent), (domain.mesh, dx_sub))]
+        areas = [
+            domain.comm.allreduce(
+                dolfinx.fem.assemble_scalar(
+                    dolfinx.fem.form(dolfinx.fem.Constant(m, 1.0) * dx(int(r)))
+                )
+            )
+            for m, dx in ((tagged.mesh, dx_parent), (domain.mesh, dx_sub))
+        ]
         assert areas[0] > 0 and areas[1] == pytest.approx(areas[0], rel=1e-13), r
 
 
@@ -238,8 +299,10 @@ def test_structure_submesh_carries_the_parents_tags(stenosis):
 
 def _affine(A: np.ndarray, c: np.ndarray):
     """η(X) = (A − I) X + c, as value(x, t) for PrescribedDisplacement."""
+
     def value(x, t=0.0):
         return (A - np.eye(2)) @ x[:2] + c[:, None]
+
     return value
 
 
@@ -263,8 +326,9 @@ def test_patch_test_reproduces_a_homogeneous_deformation(stenosis, law_name):
     m = Material(law=law_name, density=1200.0, young_modulus=1.6e6, poisson_ratio=0.45)
     A, c = np.array([[1.1, 0.2], [-0.1, 0.95]]), np.array([1e-4, -2e-4])
     bcs = solid.SolidBoundaryConditions(dirichlet=(solid.PrescribedDisplacement(_affine(A, c)),))
-    s = solid.SolidSolver(domain, {r: m for r in STRUCTURE_REGIONS}, bcs,
-                          NewmarkFamily.quasi_static(), solver=TIGHT)
+    s = solid.SolidSolver(
+        domain, {r: m for r in STRUCTURE_REGIONS}, bcs, NewmarkFamily.quasi_static(), solver=TIGHT
+    )
     result = s.step(1.0, 1.0)
     assert result.converged, result
     exact = dolfinx.fem.Function(s.V)
@@ -277,8 +341,10 @@ def test_patch_test_reproduces_a_homogeneous_deformation(stenosis, law_name):
     values = owned(s.stress.sigma).reshape(-1, 2, 2)
     stress_error = global_max(s.comm, values - sigma) / np.abs(sigma).max()
     assert stress_error < 1e-10  # measured 2.0e-12 (svk), 2.9e-12 (nh)
-    print(f"patch {law_name}: displacement {error:.2e}, stress {stress_error:.2e}, "
-          f"{result.iterations} Newton iterations")
+    print(
+        f"patch {law_name}: displacement {error:.2e}, stress {stress_error:.2e}, "
+        f"{result.iterations} Newton iterations"
+    )
 
 
 @pytest.mark.parametrize("law_name", ["svk", "neo_hookean"])
@@ -296,8 +362,7 @@ def test_large_rigid_rotation_is_stress_free(law_name):
         return R @ X - X
 
     bcs = solid.SolidBoundaryConditions(dirichlet=(solid.PrescribedDisplacement(rotation),))
-    s = solid.SolidSolver(domain, {Region.FLAG: m}, bcs, NewmarkFamily.quasi_static(),
-                          solver=TIGHT)
+    s = solid.SolidSolver(domain, {Region.FLAG: m}, bcs, NewmarkFamily.quasi_static(), solver=TIGHT)
     for k in (1, 2, 3):
         result = s.step(float(k), 1.0)
         assert result.converged, result
@@ -330,33 +395,48 @@ def test_manufactured_solution_converges_at_the_p2_rates():
     law = materials.StVenantKirchhoff(lmbda, mu)
 
     def exact_ufl(x):
-        return ufl.as_vector([0.02 * ufl.sin(ufl.pi * x[0]) * ufl.cos(ufl.pi * x[1] / 2),
-                              0.01 * x[0] ** 2 * ufl.sin(ufl.pi * x[1])])
+        return ufl.as_vector(
+            [
+                0.02 * ufl.sin(ufl.pi * x[0]) * ufl.cos(ufl.pi * x[1] / 2),
+                0.01 * x[0] ** 2 * ufl.sin(ufl.pi * x[1]),
+            ]
+        )
 
     def exact_np(x, t=0.0):
-        return np.stack([0.02 * np.sin(np.pi * x[0]) * np.cos(np.pi * x[1] / 2),
-                         0.01 * x[0] ** 2 * np.sin(np.pi * x[1])])
+        return np.stack(
+            [
+                0.02 * np.sin(np.pi * x[0]) * np.cos(np.pi * x[1] / 2),
+                0.01 * x[0] ** 2 * np.sin(np.pi * x[1]),
+            ]
+        )
 
     def source(x):
         F = ufl.Identity(2) + ufl.grad(exact_ufl(x))
         return -ufl.div(materials.first_piola(law, F))
 
     m = Material(density=1200.0, young_modulus=1.6e6, poisson_ratio=0.45)
-    bcs = solid.SolidBoundaryConditions(dirichlet=(solid.PrescribedDisplacement(exact_np),),
-                                        source=source)
+    bcs = solid.SolidBoundaryConditions(
+        dirichlet=(solid.PrescribedDisplacement(exact_np),), source=source
+    )
     errors = []
     for n in (4, 8, 16):
         domain = rectangle(1.0, 1.0, n, n, region=Region.CAP)
-        s = solid.SolidSolver(domain, {Region.CAP: m}, bcs, NewmarkFamily.quasi_static(),
-                              solver=TIGHT)
+        s = solid.SolidSolver(
+            domain, {Region.CAP: m}, bcs, NewmarkFamily.quasi_static(), solver=TIGHT
+        )
         result = s.step(1.0, 1.0)
         assert result.converged, result
         x = ufl.SpatialCoordinate(domain.mesh)
         e = s.eta - exact_ufl(x)
         dx = ufl.dx(domain=domain.mesh, metadata={"quadrature_degree": 8})
-        errors.append([math.sqrt(s.comm.allreduce(dolfinx.fem.assemble_scalar(
-            dolfinx.fem.form(form * dx)))) for form in (ufl.inner(e, e),
-                                                         ufl.inner(ufl.grad(e), ufl.grad(e)))])
+        errors.append(
+            [
+                math.sqrt(
+                    s.comm.allreduce(dolfinx.fem.assemble_scalar(dolfinx.fem.form(form * dx)))
+                )
+                for form in (ufl.inner(e, e), ufl.inner(ufl.grad(e), ufl.grad(e)))
+            ]
+        )
     errors = np.array(errors)
     rates = np.log2(errors[:-1] / errors[1:])
     print(f"MMS errors (L2, H1) {errors.tolist()}, rates {rates.tolist()}")
@@ -373,12 +453,16 @@ BEAM = (0.35, 0.02, 24, 2)  # the flag's length and thickness, P2 cells along an
 FIRST_PERIOD = 0.93  # s, Euler–Bernoulli estimate for this cantilever (plane strain)
 
 
-def _cantilever(scheme: NewmarkFamily, settings: SolverSettings = TIGHT,
-                material: Material = FLAG, support: solid.Support | None = None
-                ) -> solid.SolidSolver:
+def _cantilever(
+    scheme: NewmarkFamily,
+    settings: SolverSettings = TIGHT,
+    material: Material = FLAG,
+    support: solid.Support | None = None,
+) -> solid.SolidSolver:
     domain = rectangle(*BEAM)
-    bcs = solid.SolidBoundaryConditions(dirichlet=(solid.Clamp((Boundary.CLAMPED,)),),
-                                        support=support)
+    bcs = solid.SolidBoundaryConditions(
+        dirichlet=(solid.Clamp((Boundary.CLAMPED,)),), support=support
+    )
     return solid.SolidSolver(domain, {Region.FLAG: material}, bcs, scheme, solver=settings)
 
 
@@ -399,8 +483,10 @@ def test_trapezoidal_newmark_conserves_energy_of_a_large_free_vibration():
         s.advance()
         drift = max(drift, abs(sum(s.energies()) - energy0) / energy0)
         tip = max(tip, s.max_displacement())
-    print(f"energy: E0 {energy0:.6e} J/m, max relative drift {drift:.2e}, max |eta| {tip:.3f} m,"
-          f" Newton iterations {min(iterations)}-{max(iterations)}")
+    print(
+        f"energy: E0 {energy0:.6e} J/m, max relative drift {drift:.2e}, max |eta| {tip:.3f} m,"
+        f" Newton iterations {min(iterations)}-{max(iterations)}"
+    )
     assert tip > 0.1  # a large, geometrically nonlinear motion
     # Measured 7e-15. (With the plain midpoint stress P(F_mid) instead, the same run gains 34 %
     # of its energy in 10 steps and blows up after 1.7 periods: Simo & Tarnow's example.)
@@ -448,16 +534,18 @@ def test_generalized_alpha_damps_a_mode_as_its_spectral_radius_predicts():
     principal = eigenvalues[np.argmax(np.abs(eigenvalues.imag))]
     rho_theory = abs(principal)
     steps_per_period = 2 * math.pi / abs(np.angle(principal))
-    print(f"generalized-alpha: omega {omega:.4f} rad/s, dt {dt:.4e} s, trajectory error "
-          f"{trajectory_error:.2e}, rho per step {rho_measured:.8f} (theory {rho_theory:.8f}), "
-          f"(relative {rho_measured / rho_theory - 1:.1e}), amplitude per period "
-          f"{rho_measured ** steps_per_period:.6f} "
-          f"(theory {rho_theory ** steps_per_period:.6f})")
+    print(
+        f"generalized-alpha: omega {omega:.4f} rad/s, dt {dt:.4e} s, trajectory error "
+        f"{trajectory_error:.2e}, rho per step {rho_measured:.8f} (theory {rho_theory:.8f}), "
+        f"(relative {rho_measured / rho_theory - 1:.1e}), amplitude per period "
+        f"{rho_measured**steps_per_period:.6f} "
+        f"(theory {rho_theory**steps_per_period:.6f})"
+    )
     assert abs(omega / (2 * math.pi / FIRST_PERIOD) - 1) < 0.05  # the beam-theory estimate
     # Linear response of a pure mode: A's recurrence to ~the nonlinear fraction; measured 1e-9.
     assert trajectory_error < 1e-6
     assert rho_measured == pytest.approx(rho_theory, rel=1e-6)  # measured 5e-12
-    assert rho_theory ** steps_per_period < 0.95  # the decay is real: 7.2 % per period
+    assert rho_theory**steps_per_period < 0.95  # the decay is real: 7.2 % per period
 
 
 def _first_mode(s: solid.SolidSolver, material: Material = FLAG) -> tuple[PETSc.Vec, float]:
@@ -472,8 +560,9 @@ def _first_mode(s: solid.SolidSolver, material: Material = FLAG) -> tuple[PETSc.
         return ufl.sym(ufl.grad(u))
 
     dx = ufl.dx(domain=V.mesh, metadata={"quadrature_degree": 4})
-    k = dolfinx.fem.form((lmbda * ufl.tr(eps(du)) * ufl.tr(eps(deta))
-                          + 2 * mu * ufl.inner(eps(du), eps(deta))) * dx)
+    k = dolfinx.fem.form(
+        (lmbda * ufl.tr(eps(du)) * ufl.tr(eps(deta)) + 2 * mu * ufl.inner(eps(du), eps(deta))) * dx
+    )
     m = dolfinx.fem.form(material.density * ufl.inner(du, deta) * dx)
     K = dolfinx.fem.petsc.assemble_matrix(k, bcs=s._homogeneous)
     K.assemble()
@@ -541,9 +630,11 @@ def test_checkpoint_restore_repeats_a_step_and_rates_follow_newmark(damped):
     the support, which depend on η̇_n: it is in the state); the interface velocity is the
     trapezoidal rule's v_{n+1} = 2 (η_{n+1} − η_n)/dt − v_n."""
     if damped:
-        s = _cantilever(NewmarkFamily.newmark(),
-                        material=dataclasses.replace(FLAG, viscous_relaxation_time=0.01),
-                        support=solid.Support(stiffness=1e4, damping=100.0))
+        s = _cantilever(
+            NewmarkFamily.newmark(),
+            material=dataclasses.replace(FLAG, viscous_relaxation_time=0.01),
+            support=solid.Support(stiffness=1e4, damping=100.0),
+        )
     else:
         s = _cantilever(NewmarkFamily.newmark())
     traction = np.tile([0.0, -1000.0], (len(s.interface_dofs), 1))
@@ -583,10 +674,12 @@ def test_a_failed_solve_is_reported_and_leaves_the_state_intact():
 
 
 def _pulse_case(mode: str):
-    return config.from_dict({
-        "structure": {"mode": mode, "interface_load": "inlet_pressure"},
-        "time": {"end": 0.005, "schedule": [{"until": 0.005, "dt": 0.001}]},
-    })
+    return config.from_dict(
+        {
+            "structure": {"mode": mode, "interface_load": "inlet_pressure"},
+            "time": {"end": 0.005, "schedule": [{"until": 0.005, "dt": 0.001}]},
+        }
+    )
 
 
 @pytest.mark.parametrize("mode", ["fixed_wall", "moving_wall"])
@@ -605,36 +698,47 @@ def test_structure_only_run_under_the_pulse_pressure(mode):
         wall = max(wall, s.max_displacement([Region.WALL]))
         cap_von_mises = max(cap_von_mises, s.stress.region_maxima()["cap"].max_von_mises)
     elapsed = time.perf_counter() - start
-    assert max(r["peak_pressure"] for r in rows) == pytest.approx(1200 * (1 + math.cos(
-        math.pi * 0.2)) / 2)  # the pulse at t = 2 ms and 3 ms, the steps nearest its peak
-    assert all(math.isfinite(r["peak_displacement"]) and math.isfinite(r["max_sss"])
-               for r in rows)
+    assert max(r["peak_pressure"] for r in rows) == pytest.approx(
+        1200 * (1 + math.cos(math.pi * 0.2)) / 2
+    )  # the pulse at t = 2 ms and 3 ms, the steps nearest its peak
+    assert all(math.isfinite(r["peak_displacement"]) and math.isfinite(r["max_sss"]) for r in rows)
     assert 1e-7 < cap < 1e-3  # m: the plaque moves, by far less than its 1.75 mm height
     if mode == "fixed_wall":
         assert wall == 0.0
     else:
         assert wall > 0.1 * cap
     assert max(r["max_sss"] for r in rows) > 0 and cap_von_mises > 0
-    print(f"{mode}: peak |eta| {max(r['peak_displacement'] for r in rows):.4e} m, cap "
-          f"{cap:.4e} m, wall {wall:.4e} m, max SSS {max(r['max_sss'] for r in rows):.1f} Pa, "
-          f"peak cap von Mises {cap_von_mises:.1f} Pa, "
-          f"Newton {[r['newton_iterations'] for r in rows]}, {elapsed:.2f} s")
+    print(
+        f"{mode}: peak |eta| {max(r['peak_displacement'] for r in rows):.4e} m, cap "
+        f"{cap:.4e} m, wall {wall:.4e} m, max SSS {max(r['max_sss'] for r in rows):.1f} Pa, "
+        f"peak cap von Mises {cap_von_mises:.1f} Pa, "
+        f"Newton {[r['newton_iterations'] for r in rows]}, {elapsed:.2f} s"
+    )
 
 
 def test_one_rank_equals_all_ranks(stenosis):
     """The moving-wall structure under 1 kPa gives the same peak displacement and stresses on
     every rank count (the comparison is against a serial solve on COMM_SELF)."""
     case, tagged, _ = stenosis
-    quasi = config.from_dict({"structure": {"mode": "moving_wall",
-                                            "time_integration": {"scheme": "quasi_static"}}})
+    quasi = config.from_dict(
+        {"structure": {"mode": "moving_wall", "time_integration": {"scheme": "quasi_static"}}}
+    )
     results = []
     for comm, mesh_ in ((MPI.COMM_WORLD, tagged), (MPI.COMM_SELF, None)):
         s = solid.build(quasi, mesh_, comm, pressure=lambda t: 1000.0)
         assert s.step(1.0, 1.0).converged
         s.stress.update()
         m = s.stress.region_maxima()
-        results.append([s.max_displacement(), *(getattr(m[r], f) for r in ("wall", "cap", "lipid")
-                        for f in ("max_von_mises", "max_principal", "max_abs_shear"))])
+        results.append(
+            [
+                s.max_displacement(),
+                *(
+                    getattr(m[r], f)
+                    for r in ("wall", "cap", "lipid")
+                    for f in ("max_von_mises", "max_principal", "max_abs_shear")
+                ),
+            ]
+        )
     assert results[0][0] > 0
     assert np.allclose(results[0], results[1], rtol=1e-9, atol=0)
 
@@ -644,14 +748,18 @@ def test_one_rank_equals_all_ranks(stenosis):
 
 
 def _flag_case(name: str, *overrides: str):
-    return config.load(f"configs/turek_hron_{name}.yaml",
-                       ["structure.body_force=[0, -2]", *overrides])
+    return config.load(
+        f"configs/turek_hron_{name}.yaml", ["structure.body_force=[0, -2]", *overrides]
+    )
 
 
-@pytest.mark.parametrize("name,overrides,reference", [
-    ("csm1", (), (-7.187e-3, -66.10e-3)),
-    ("csm2", ("structure.flag.young_modulus=5.6e6",), (-0.469e-3, -16.97e-3)),  # μs = 2 MPa
-])
+@pytest.mark.parametrize(
+    "name,overrides,reference",
+    [
+        ("csm1", (), (-7.187e-3, -66.10e-3)),
+        ("csm2", ("structure.flag.young_modulus=5.6e6",), (-0.469e-3, -16.97e-3)),  # μs = 2 MPa
+    ],
+)
 def test_turek_hron_csm_static_tip_displacement(name, overrides, reference):
     """The flag under gravity 2 m/s², one quasi-static solve from rest on the coarse mesh
     (4 P2 cells across the flag): the displacement of point A within 1 % of the reference."""
@@ -663,9 +771,11 @@ def test_turek_hron_csm_static_tip_displacement(name, overrides, reference):
     assert result.converged, result
     u = value_at_point(s.V, s.eta, turek_hron.point_a(case.geometry))
     error = u / np.array(reference) - 1
-    print(f"{name}: u(A) = ({u[0] * 1e3:.4f}, {u[1] * 1e3:.3f}) mm, errors "
-          f"({error[0] * 100:+.2f} %, {error[1] * 100:+.2f} %), {s.V.dofmap.index_map.size_global}"
-          f" nodes, {result.iterations} Newton iterations, {elapsed:.2f} s")
+    print(
+        f"{name}: u(A) = ({u[0] * 1e3:.4f}, {u[1] * 1e3:.3f}) mm, errors "
+        f"({error[0] * 100:+.2f} %, {error[1] * 100:+.2f} %), {s.V.dofmap.index_map.size_global}"
+        f" nodes, {result.iterations} Newton iterations, {elapsed:.2f} s"
+    )
     # Measured -0.21 %/-0.12 % (CSM1) and -0.22 %/-0.10 % (CSM2), like Featflow's coarse levels.
     assert np.all(np.abs(error) < 0.01)
 
@@ -719,14 +829,18 @@ def test_turek_hron_csm3_oscillation():
         mean, amplitude, frequency = _last_period(t, u[:, k])
         ref = reference[k]
         errors = [mean / ref[0] - 1, amplitude / ref[1] - 1, frequency / ref[2] - 1]
-        print(f"CSM3 {name}(A) = {mean:.3f} ± {amplitude:.3f} mm [{frequency:.4f} Hz]; reference"
-              f" {ref[0]} ± {ref[1]} [{ref[2]}]; errors "
-              + ", ".join(f"{e * 100:+.2f} %" for e in errors))
+        print(
+            f"CSM3 {name}(A) = {mean:.3f} ± {amplitude:.3f} mm [{frequency:.4f} Hz]; reference"
+            f" {ref[0]} ± {ref[1]} [{ref[2]}]; errors "
+            + ", ".join(f"{e * 100:+.2f} %" for e in errors)
+        )
         assert np.all(np.abs(errors) < 0.02)
     drift = np.abs(energy).max() / kinetic_max
-    print(f"CSM3: {len(iterations)} steps, Newton {np.mean(iterations):.2f} per step "
-          f"({min(iterations)}-{max(iterations)}), energy drift {drift:.1e} of the peak kinetic "
-          f"energy, {elapsed:.1f} s")
+    print(
+        f"CSM3: {len(iterations)} steps, Newton {np.mean(iterations):.2f} per step "
+        f"({min(iterations)}-{max(iterations)}), energy drift {drift:.1e} of the peak kinetic "
+        f"energy, {elapsed:.1f} s"
+    )
     assert drift < 1e-6
 
 
@@ -761,8 +875,17 @@ def test_coupled_solid_drives_dirichlet_neumann_iterations():
     dt, iterations = 0.05, []
     for n in (1, 2, 3):
         coupled.begin_step(n * dt, dt)
-        result = coupling.couple_step(Spring(), coupled, acceleration, predictor, comm,
-                                      tolerance=1e-10, max_iterations=50, step=n, t=n * dt)
+        result = coupling.couple_step(
+            Spring(),
+            coupled,
+            acceleration,
+            predictor,
+            comm,
+            tolerance=1e-10,
+            max_iterations=50,
+            step=n,
+            t=n * dt,
+        )
         iterations.append(result.iterations)
         x = result.displacement
         # Committed: η_n at the interface is x̃, and the load it carries is the spring's at the
@@ -775,8 +898,11 @@ def test_coupled_solid_drives_dirichlet_neumann_iterations():
     assert all(2 < i < 50 for i in iterations)  # measured 7, 6, 6
 
 
-@pytest.mark.parametrize("scheme", [NewmarkFamily.newmark(), NewmarkFamily.generalized_alpha(0.3)],
-                         ids=["newmark", "generalized_alpha"])
+@pytest.mark.parametrize(
+    "scheme",
+    [NewmarkFamily.newmark(), NewmarkFamily.generalized_alpha(0.3)],
+    ids=["newmark", "generalized_alpha"],
+)
 def test_free_fall_is_integrated_exactly(scheme):
     """An unconstrained body under gravity: the consistent initial acceleration is g and every
     Newmark-family scheme integrates the constant acceleration exactly, η = g t²/2."""
@@ -805,8 +931,13 @@ def test_mixed_laws_agree_with_svk_in_the_linear_limit(stenosis):
     bcs = solid.SolidBoundaryConditions(dirichlet=(solid.Clamp(),), pressure=lambda t: 1e-3)
     peaks = []
     for cap in (svk, Material(law="neo_hookean", young_modulus=1.6e6)):
-        s = solid.SolidSolver(domain, {Region.WALL: wall, Region.CAP: cap, Region.LIPID: svk},
-                              bcs, NewmarkFamily.quasi_static(), solver=TIGHT)
+        s = solid.SolidSolver(
+            domain,
+            {Region.WALL: wall, Region.CAP: cap, Region.LIPID: svk},
+            bcs,
+            NewmarkFamily.quasi_static(),
+            solver=TIGHT,
+        )
         assert s.step(1.0, 1.0).converged
         peaks.append(s.max_displacement())
         s.stress.update()
@@ -858,9 +989,11 @@ def test_damping_is_off_by_default_and_the_elastic_forms_are_unchanged():
     s = _cantilever(NewmarkFamily.newmark())
     assert s.viscous is None and s._support is None
     damped = solid.SolidSolver(
-        rectangle(*BEAM), {Region.FLAG: dataclasses.replace(FLAG, viscous_relaxation_time=1e-3)},
+        rectangle(*BEAM),
+        {Region.FLAG: dataclasses.replace(FLAG, viscous_relaxation_time=1e-3)},
         solid.SolidBoundaryConditions(support=solid.Support(damping=1.0)),
-        NewmarkFamily.newmark())
+        NewmarkFamily.newmark(),
+    )
     assert damped.viscous is not None and damped._support is not None
 
 
@@ -899,7 +1032,8 @@ def test_kelvin_voigt_stress_is_objective_and_linearises_to_tau_times_hooke():
     rate = (H + H.T) / 2
     hooke = tau * (lmbda * np.trace(rate) * np.eye(2) + 2 * mu * rate)
     assert norm(kv.second_piola(ufl.Identity(2), matrix(H)) - matrix(hooke)) < 1e-14 * norm(
-        matrix(hooke))
+        matrix(hooke)
+    )
 
 
 def test_kelvin_voigt_discrete_rate_is_objective_for_finite_rotation_steps():
@@ -921,8 +1055,7 @@ def test_kelvin_voigt_discrete_rate_is_objective_for_finite_rotation_steps():
         return stretch * (R @ X) - X
 
     bcs = solid.SolidBoundaryConditions(dirichlet=(solid.PrescribedDisplacement(motion),))
-    s = solid.SolidSolver(domain, {Region.FLAG: m}, bcs, NewmarkFamily.quasi_static(),
-                          solver=TIGHT)
+    s = solid.SolidSolver(domain, {Region.FLAG: m}, bcs, NewmarkFamily.quasi_static(), solver=TIGHT)
     residual = dolfinx.fem.form(s.residual_form)
 
     def reactions() -> float:
@@ -962,9 +1095,13 @@ def test_kelvin_voigt_damps_a_mode_at_the_ratio_omega_tau_over_two():
     tau = 0.015
     material = dataclasses.replace(FLAG, viscous_relaxation_time=tau)
     bcs = solid.SolidBoundaryConditions(dirichlet=(solid.Clamp((Boundary.CLAMPED,)),))
-    s = solid.SolidSolver(rectangle(*BEAM), {Region.FLAG: material}, bcs,
-                          NewmarkFamily.newmark(),
-                          solver=SolverSettings(rtol=1e-11, atol=1e-16, max_iterations=10))
+    s = solid.SolidSolver(
+        rectangle(*BEAM),
+        {Region.FLAG: material},
+        bcs,
+        NewmarkFamily.newmark(),
+        solver=SolverSettings(rtol=1e-11, atol=1e-16, max_iterations=10),
+    )
     phi, omega = _first_mode(s)
     zeta = omega * tau / 2
 
@@ -985,11 +1122,13 @@ def test_kelvin_voigt_damps_a_mode_at_the_ratio_omega_tau_over_two():
     discrete = _trapezoidal_root(zeta, omega, dt)
     decay, omega_d = _rates(root, dt)
     exact_decay, exact_omega_d = zeta * omega, omega * math.sqrt(1 - zeta**2)
-    print(f"Kelvin-Voigt: omega {omega:.4f} rad/s, tau {tau} s, zeta {zeta:.5f}; decay rate "
-          f"{decay:.5f} 1/s (theory {exact_decay:.5f}, {decay / exact_decay - 1:+.2%}), "
-          f"damped frequency {omega_d:.5f} rad/s (theory {exact_omega_d:.5f}, "
-          f"{omega_d / exact_omega_d - 1:+.2%}), step factor vs trapezoidal theory "
-          f"{abs(root / discrete - 1):.1e}")
+    print(
+        f"Kelvin-Voigt: omega {omega:.4f} rad/s, tau {tau} s, zeta {zeta:.5f}; decay rate "
+        f"{decay:.5f} 1/s (theory {exact_decay:.5f}, {decay / exact_decay - 1:+.2%}), "
+        f"damped frequency {omega_d:.5f} rad/s (theory {exact_omega_d:.5f}, "
+        f"{omega_d / exact_omega_d - 1:+.2%}), step factor vs trapezoidal theory "
+        f"{abs(root / discrete - 1):.1e}"
+    )
     assert 0.04 < zeta < 0.06
     assert abs(root / discrete - 1) < 1e-6  # measured 8.7e-12
     assert decay == pytest.approx(exact_decay, rel=0.01)  # measured −0.39 %
@@ -1008,18 +1147,21 @@ def test_kelvin_voigt_energy_leaves_only_through_the_viscous_work():
     tau = 0.01
     material = dataclasses.replace(FLAG, viscous_relaxation_time=tau)
     bcs = solid.SolidBoundaryConditions(dirichlet=(solid.Clamp((Boundary.CLAMPED,)),))
-    s = solid.SolidSolver(rectangle(*BEAM), {Region.FLAG: material}, bcs,
-                          NewmarkFamily.newmark(), solver=TIGHT)
+    s = solid.SolidSolver(
+        rectangle(*BEAM), {Region.FLAG: material}, bcs, NewmarkFamily.newmark(), solver=TIGHT
+    )
     L = BEAM[0]
     s.set_initial_conditions(v0=lambda x: np.stack([0 * x[0], 1.2 * (x[0] / L) ** 2]))
     energy0 = sum(s.energies())
     dt = FIRST_PERIOD / 25
     lmbda, mu = materials.lame(FLAG.young_modulus, FLAG.poisson_ratio)
     identity = ufl.Identity(2)
-    dE = (materials.green_lagrange(identity + ufl.grad(s.eta))
-          - materials.green_lagrange(identity + ufl.grad(s.eta_n)))
-    work = dolfinx.fem.form(tau * (lmbda * ufl.tr(dE) ** 2 + 2 * mu * ufl.inner(dE, dE)) / dt
-                            * s.dx)
+    dE = materials.green_lagrange(identity + ufl.grad(s.eta)) - materials.green_lagrange(
+        identity + ufl.grad(s.eta_n)
+    )
+    work = dolfinx.fem.form(
+        tau * (lmbda * ufl.tr(dE) ** 2 + 2 * mu * ufl.inner(dE, dE)) / dt * s.dx
+    )
     dissipated, drift, tip, steps_losing = 0.0, 0.0, 0.0, 0
     previous = energy0
     for n in range(1, 51):
@@ -1031,8 +1173,10 @@ def test_kelvin_voigt_energy_leaves_only_through_the_viscous_work():
         previous = energy
         drift = max(drift, abs(energy + dissipated - energy0) / energy0)
         tip = max(tip, s.max_displacement())
-    print(f"Kelvin-Voigt energy: E0 {energy0:.6e} J/m, left {energy / energy0:.3f}, dissipated "
-          f"{dissipated / energy0:.3f}, balance error {drift:.1e}, max |eta| {tip:.3f} m")
+    print(
+        f"Kelvin-Voigt energy: E0 {energy0:.6e} J/m, left {energy / energy0:.3f}, dissipated "
+        f"{dissipated / energy0:.3f}, balance error {drift:.1e}, max |eta| {tip:.3f} m"
+    )
     assert tip > 0.1  # geometrically nonlinear
     assert energy < 0.6 * energy0 and steps_losing == 50
     assert drift < 1e-9  # measured 1e-14
@@ -1060,8 +1204,7 @@ def test_tissue_support_is_a_mass_spring_damper():
     domain = rectangle(L, h, 8, 2)  # the exterior: y = 0 and y = h
     bcs = solid.SolidBoundaryConditions(dirichlet=(), support=solid.Support(k_s, c_s))
     stiff = dataclasses.replace(FLAG, young_modulus=1.4e9)
-    s = solid.SolidSolver(domain, {Region.FLAG: stiff}, bcs, NewmarkFamily.newmark(),
-                          solver=TIGHT)
+    s = solid.SolidSolver(domain, {Region.FLAG: stiff}, bcs, NewmarkFamily.newmark(), solver=TIGHT)
     mass, A = FLAG.density * L * h, 2 * L
     omega0 = math.sqrt(k_s * A / mass)
     zeta = c_s * A / (2 * mass * omega0)
@@ -1073,7 +1216,7 @@ def test_tissue_support_is_a_mass_spring_damper():
     per_period, periods = 40, 2
     dt = 2 * math.pi / omega0 / per_period
     # The trapezoidal rule on (x, ẋ): z_{n+1} = (I − dt B/2)⁻¹ (I + dt B/2) z_n.
-    B = np.array([[0.0, 1.0], [-omega0**2, -2 * zeta * omega0]])
+    B = np.array([[0.0, 1.0], [-(omega0**2), -2 * zeta * omega0]])
     step = np.linalg.solve(np.eye(2) - dt / 2 * B, np.eye(2) + dt / 2 * B)
     t, x, z, discrete_x = [0.0], [0.0], np.array([0.0, v0]), [0.0]
     for n in range(1, per_period * periods + 1):
@@ -1091,12 +1234,14 @@ def test_tissue_support_is_a_mass_spring_damper():
     decay, frequency = _rates(root, dt)
     discrete = _trapezoidal_root(zeta, omega0, dt)
     predicted = _trapezoidal_errors(zeta, omega0 * dt)
-    print(f"support: omega0 {omega0:.3f} rad/s, zeta {zeta:.3f}; decay rate {decay:.5f} 1/s "
-          f"(ODE {zeta * omega0:.5f}, {decay / (zeta * omega0) - 1:+.3%}, trapezoidal rule's "
-          f"{predicted[0]:+.3%}), frequency {frequency:.5f} rad/s (ODE {omega_d:.5f}, "
-          f"{frequency / omega_d - 1:+.3%}, trapezoidal rule's {predicted[1]:+.3%}), trajectory "
-          f"{trajectory:.2%} of the amplitude from the ODE's, {discrete_trajectory:.1e} from the "
-          f"scheme's; step factor vs the scheme's {abs(root / discrete - 1):.1e}")
+    print(
+        f"support: omega0 {omega0:.3f} rad/s, zeta {zeta:.3f}; decay rate {decay:.5f} 1/s "
+        f"(ODE {zeta * omega0:.5f}, {decay / (zeta * omega0) - 1:+.3%}, trapezoidal rule's "
+        f"{predicted[0]:+.3%}), frequency {frequency:.5f} rad/s (ODE {omega_d:.5f}, "
+        f"{frequency / omega_d - 1:+.3%}, trapezoidal rule's {predicted[1]:+.3%}), trajectory "
+        f"{trajectory:.2%} of the amplitude from the ODE's, {discrete_trajectory:.1e} from the "
+        f"scheme's; step factor vs the scheme's {abs(root / discrete - 1):.1e}"
+    )
     assert discrete_trajectory < 1e-6  # measured 1.8e-8
     assert abs(root / discrete - 1) < 1e-6  # measured 6.3e-10
     assert decay == pytest.approx(zeta * omega0, rel=0.015)  # measured −0.61 %
@@ -1115,10 +1260,16 @@ def test_tissue_support_acts_on_the_free_wall_only(stenosis, fsi_log):
     peaks = {}
     for mode in ("fixed_wall", "moving_wall"):
         for stiffness in (0.0, 1.0e10):
-            case = config.from_dict({"structure": {
-                "mode": mode, "time_integration": {"scheme": "quasi_static"},
-                "support": {"stiffness": stiffness, "damping": 1.0e3},
-                "wall": {"viscous_relaxation_time": 1e-4}}})
+            case = config.from_dict(
+                {
+                    "structure": {
+                        "mode": mode,
+                        "time_integration": {"scheme": "quasi_static"},
+                        "support": {"stiffness": stiffness, "damping": 1.0e3},
+                        "wall": {"viscous_relaxation_time": 1e-4},
+                    }
+                }
+            )
             s = solid.build(case, tagged, pressure=lambda t: 1000.0)
             assert s.step(1.0, 1.0).converged
             peaks[mode, stiffness] = (s.max_displacement(), s.max_displacement([Region.WALL]))

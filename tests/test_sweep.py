@@ -46,15 +46,18 @@ def test_values_split_at_commas_outside_brackets_and_quotes():
     assert sweep.split_values("0.4, 0.5") == ["0.4", "0.5"]
     assert sweep.split_values("[bottom],[bottom, top]") == ["[bottom]", "[bottom, top]"]
     assert sweep.split_values("{model: carreau, n: 0.5},'a,b'") == [
-        "{model: carreau, n: 0.5}", "'a,b'"]
+        "{model: carreau, n: 0.5}",
+        "'a,b'",
+    ]
 
 
 def test_folder_names_are_readable_and_safe():
-    assert sweep.folder_name([("geometry.stenosis_degree", "0.5"),
-                              ("geometry.cap_thickness", "5.0e-4")]) == (
-        "geometry.stenosis_degree=0.5,geometry.cap_thickness=5.0e-4")
+    assert sweep.folder_name(
+        [("geometry.stenosis_degree", "0.5"), ("geometry.cap_thickness", "5.0e-4")]
+    ) == ("geometry.stenosis_degree=0.5,geometry.cap_thickness=5.0e-4")
     assert sweep.folder_name([("geometry.plaque_sides", "[bottom, top]")]) == (
-        "geometry.plaque_sides=bottom_top")
+        "geometry.plaque_sides=bottom_top"
+    )
     assert "/" not in sweep.folder_name([("name", "a/../b")])
 
 
@@ -71,22 +74,25 @@ def test_a_sweep_tables_its_runs_and_a_rerun_skips_them(shared_tmp, capsys):
     assert "sweep 2/2: geometry.stenosis_degree=0.5, geometry.cap_thickness=5.0e-4: done in" in err
 
     table = read_table(out)
-    assert [(r["geometry.stenosis_degree"], r["geometry.cap_thickness"], r["status"])
-            for r in table] == [("0.4", "5.0e-4", "done"), ("0.5", "5.0e-4", "done")]
+    assert [
+        (r["geometry.stenosis_degree"], r["geometry.cap_thickness"], r["status"]) for r in table
+    ] == [("0.4", "5.0e-4", "done"), ("0.5", "5.0e-4", "done")]
     for row, degree in zip(table, ("0.4", "0.5"), strict=True):
         run = out / f"geometry.stenosis_degree={degree},geometry.cap_thickness=5.0e-4"
         summary = json.loads((run / "summary.json").read_text())
         metrics = io.read_metrics(run / "metrics.csv")
         assert summary["end_time_s"] == pytest.approx(0.0005) and len(metrics) == 2
         expected = {
-            "min_tawss": summary["min_tawss"], "max_osi": summary["max_osi"],
+            "min_tawss": summary["min_tawss"],
+            "max_osi": summary["max_osi"],
             "max_principal_cap": max(r["max_principal_cap"] for r in metrics),
             "max_sss": max(r["max_sss"] for r in metrics),
             "min_wss": min(r["min_wss"] for r in metrics),
             "max_wss": max(r["max_wss"] for r in metrics),
             "max_recirculation_length": max(r["recirculation_length"] for r in metrics),
             "peak_displacement": max(r["peak_displacement"] for r in metrics),
-            "peak_inlet_flow_rate": max(r["inlet_flow_rate"] for r in metrics)}
+            "peak_inlet_flow_rate": max(r["inlet_flow_rate"] for r in metrics),
+        }
         for name, value in expected.items():  # the CSV keeps 10 significant digits
             assert float(row[name]) == pytest.approx(value, rel=1e-9, abs=0), name
         assert float(row["max_principal_cap"]) > 0 and float(row["peak_displacement"]) > 0
@@ -123,22 +129,28 @@ def test_a_longer_time_end_resumes_each_run_from_its_checkpoint(shared_tmp, caps
     for viscosity in ("0.0035", "0.004"):
         run = out / f"fluid.rheology.viscosity={viscosity}"
         assert [r["step"] for r in io.read_metrics(run / "metrics.csv")] == [1, 2, 3]
-        assert json.loads((run / "summary.json").read_text())["end_time_s"] == pytest.approx(
-            0.003)
+        assert json.loads((run / "summary.json").read_text())["end_time_s"] == pytest.approx(0.003)
     table = read_table(out)
     assert [r["status"] for r in table] == ["done", "done"]
     # A rigid channel has no structure: its structure's columns are empty, not 0.
-    assert all(r["max_principal_cap"] == r["max_sss"] == r["peak_displacement"] == ""
-               for r in table)
+    assert all(
+        r["max_principal_cap"] == r["max_sss"] == r["peak_displacement"] == "" for r in table
+    )
     assert all(float(r["peak_inlet_flow_rate"]) > 0 for r in table)
     # The thicker blood flows less under the same pressure.
     assert float(table[1]["peak_inlet_flow_rate"]) < float(table[0]["peak_inlet_flow_rate"])
 
     # What is not this run is started afresh: another schedule to the same end, another key.
-    for changed, why in [("time.schedule=[{until: 0.1, dt: 5.0e-4}]",
-                          "started afresh (it ran to time.end with another schedule)"),
-                         ("fluid.density=1000",
-                          "started afresh (its folder holds a run with another fluid.density)")]:
+    for changed, why in [
+        (
+            "time.schedule=[{until: 0.1, dt: 5.0e-4}]",
+            "started afresh (it ran to time.end with another schedule)",
+        ),
+        (
+            "fluid.density=1000",
+            "started afresh (its folder holds a run with another fluid.density)",
+        ),
+    ]:
         assert sweep_main(CHANNEL, out, *vary, *longer, "--set", changed, "-n") == 0
         said = MPI.COMM_WORLD.bcast(capsys.readouterr().out, root=0)
         assert said.count(f"would be {why}") == 2, said
@@ -146,8 +158,16 @@ def test_a_longer_time_end_resumes_each_run_from_its_checkpoint(shared_tmp, caps
 
 def test_a_failed_run_is_recorded_and_the_sweep_goes_on(shared_tmp, capsys):
     out = shared_tmp / "sweep"
-    status = sweep_main(CHANNEL, out, "--vary", "fluid.solver.max_iterations=1,25",
-                        "--set", "time.end=0.002", "--set", "time.retries=0")
+    status = sweep_main(
+        CHANNEL,
+        out,
+        "--vary",
+        "fluid.solver.max_iterations=1,25",
+        "--set",
+        "time.end=0.002",
+        "--set",
+        "time.retries=0",
+    )
     assert status == 3
     first, second = read_table(out)
     assert first["status"].startswith("failed: solve failed: fluid step to t = 0.001 s")
@@ -161,8 +181,14 @@ def test_a_stop_signal_stops_the_run_and_the_sweep_which_resumes(shared_tmp, cap
     step): the run stops after its step with a checkpoint, the sweep after it (exit 138),
     with the table so far and the command that resumes it; that command finishes the sweep."""
     out = shared_tmp / "sweep"
-    options = ["--vary", "fluid.rheology.viscosity=0.0035,0.004",
-               "--set", "time.end=10", "--set", "time.schedule=[{until: 10, dt: 0.001}]"]
+    options = [
+        "--vary",
+        "fluid.rheology.viscosity=0.0035,0.004",
+        "--set",
+        "time.end=10",
+        "--set",
+        "time.schedule=[{until: 10, dt: 0.001}]",
+    ]
     first = out / "fluid.rheology.viscosity=0.0035" / "metrics.csv"
 
     def signal_after_a_step() -> None:
@@ -181,8 +207,10 @@ def test_a_stop_signal_stops_the_run_and_the_sweep_which_resumes(shared_tmp, cap
     err = rank0_stderr(capsys)
     assert "Traceback" not in err
     assert "sweep 1/2: fluid.rheology.viscosity=0.0035: stopped after" in err
-    resume = (f"fsi sweep {CHANNEL} --out {out} --vary fluid.rheology.viscosity=0.0035,0.004 "
-              "--set time.end=10 --set 'time.schedule=[{until: 10, dt: 0.001}]'")
+    resume = (
+        f"fsi sweep {CHANNEL} --out {out} --vary fluid.rheology.viscosity=0.0035,0.004 "
+        "--set time.end=10 --set 'time.schedule=[{until: 10, dt: 0.001}]'"
+    )
     assert f"To resume it, run\n  {resume}" in err
     assert [r["status"] for r in read_table(out)] == ["stopped", "pending"]
     last = int(max(r["step"] for r in io.read_metrics(first)))
@@ -192,7 +220,8 @@ def test_a_stop_signal_stops_the_run_and_the_sweep_which_resumes(shared_tmp, cap
     shorter = [*options[:2], "--set", f"time.end={round((last + 2) * 0.001, 6)}", *options[4:]]
     assert sweep_main(CHANNEL, out, *shorter) == 0
     assert f"viscosity=0.0035: resumed from its checkpoint at t = {last * 0.001:.6g} s" in (
-        rank0_stderr(capsys))
+        rank0_stderr(capsys)
+    )
     assert [r["step"] for r in io.read_metrics(first)] == list(range(1, last + 3))
     assert [r["status"] for r in read_table(out)] == ["done", "done"]
 
@@ -208,8 +237,9 @@ def test_a_stop_between_runs_ends_the_sweep_before_the_next(shared_tmp, capsys):
         started.append(run.index)
         return 0, ""
 
-    status = sweep.execute(runs, variations, out, run_one, lambda: signal.SIGTERM,
-                           ["fsi", "sweep", "..."])
+    status = sweep.execute(
+        runs, variations, out, run_one, lambda: signal.SIGTERM, ["fsi", "sweep", "..."]
+    )
     assert status == 128 + signal.SIGTERM and started == []
     assert [r["status"] for r in read_table(out)] == ["pending", "pending"]
     assert "To resume it, run\n  fsi sweep ..." in rank0_stderr(capsys)
@@ -220,38 +250,70 @@ def test_a_stop_between_runs_ends_the_sweep_before_the_next(shared_tmp, capsys):
 
 
 BAD = [
-    (["--vary", "geometry.stenosis_degree=0.4,1.5"],
-     "--vary geometry.stenosis_degree=1.5: geometry.stenosis_degree: expected a number in "
-     "(0.0, 1.0), got 1.5"),
-    (["--vary", "geometry.stenosis_degre=0.4"], "--vary geometry.stenosis_degre=0.4: "
-     "geometry.stenosis_degre: expected one of the keys"),
-    (["--vary", "geometry.cap_thickness=5e-4,0.004"],
-     "--vary geometry.cap_thickness=0.004: geometry.cap_thickness: expected less than the "
-     "plaque height"),
-    (["--vary", "geometry.stenosis_degree=0.2", "--vary", "geometry.cap_thickness=5e-4"],
-     "--vary geometry.stenosis_degree=0.2, geometry.cap_thickness=5e-4: geometry.lipid_length"),
-    (["--vary", "structure.degree=2,1"], "--vary structure.degree=1: structure.degree: the "
-     "coupling pairs"),
-    (["--vary", "geometry.stenosis_degree=0.4", "--vary", "geometry.stenosis_degree=0.5"],
-     "--vary geometry.stenosis_degree: given twice (list all its values in one --vary)"),
-    (["--vary", "geometry.stenosis_degree="],
-     "--vary geometry.stenosis_degree: no values (expected geometry.stenosis_degree=value1,"),
-    (["--vary", "geometry.stenosis_degree=0.4,,0.5"],
-     "--vary geometry.stenosis_degree: an empty value in '0.4,,0.5'"),
-    (["--vary", "geometry.stenosis_degree=0.4,0.4"],
-     "--vary geometry.stenosis_degree: the value '0.4' is given twice"),
-    (["--vary", "geometry.stenosis_degree=0.4,0.40"],
-     "--vary: geometry.stenosis_degree=0.4 and geometry.stenosis_degree=0.40 are the same case"),
+    (
+        ["--vary", "geometry.stenosis_degree=0.4,1.5"],
+        "--vary geometry.stenosis_degree=1.5: geometry.stenosis_degree: expected a number in "
+        "(0.0, 1.0), got 1.5",
+    ),
+    (
+        ["--vary", "geometry.stenosis_degre=0.4"],
+        "--vary geometry.stenosis_degre=0.4: geometry.stenosis_degre: expected one of the keys",
+    ),
+    (
+        ["--vary", "geometry.cap_thickness=5e-4,0.004"],
+        "--vary geometry.cap_thickness=0.004: geometry.cap_thickness: expected less than the "
+        "plaque height",
+    ),
+    (
+        ["--vary", "geometry.stenosis_degree=0.2", "--vary", "geometry.cap_thickness=5e-4"],
+        "--vary geometry.stenosis_degree=0.2, geometry.cap_thickness=5e-4: geometry.lipid_length",
+    ),
+    (
+        ["--vary", "structure.degree=2,1"],
+        "--vary structure.degree=1: structure.degree: the coupling pairs",
+    ),
+    (
+        ["--vary", "geometry.stenosis_degree=0.4", "--vary", "geometry.stenosis_degree=0.5"],
+        "--vary geometry.stenosis_degree: given twice (list all its values in one --vary)",
+    ),
+    (
+        ["--vary", "geometry.stenosis_degree="],
+        "--vary geometry.stenosis_degree: no values (expected geometry.stenosis_degree=value1,",
+    ),
+    (
+        ["--vary", "geometry.stenosis_degree=0.4,,0.5"],
+        "--vary geometry.stenosis_degree: an empty value in '0.4,,0.5'",
+    ),
+    (
+        ["--vary", "geometry.stenosis_degree=0.4,0.4"],
+        "--vary geometry.stenosis_degree: the value '0.4' is given twice",
+    ),
+    (
+        ["--vary", "geometry.stenosis_degree=0.4,0.40"],
+        "--vary: geometry.stenosis_degree=0.4 and geometry.stenosis_degree=0.40 are the same case",
+    ),
     (["--vary", "stenosis_degree"], "--vary 'stenosis_degree': expected key.path=value1,"),
-    (["--vary", "geometry.stenosis_degree=0.4", "--set", "geometry.stenosis_degree=0.5"],
-     "--vary geometry.stenosis_degree: also given with --set: vary it or set it, not both"),
-    (["--vary", "geometry.stenosis_degree=0.4", "--set", "geometry={stenosis_degree: 0.5}"],
-     "--vary geometry.stenosis_degree: also given with --set (as part of geometry)"),
-    (["--vary", "name=" + ",".join(f"n{i}" for i in range(40)),
-      "--vary", "fluid.density=" + ",".join(str(1000 + i) for i in range(40))],
-     "--vary: 40 x 40 = 1600 runs; a sweep runs at most 1000"),
-    (["--vary", "geometry.stenosis_degree=0.4", "--set", "fluid.density=-1"],
-     "--set: fluid.density: expected a positive number"),
+    (
+        ["--vary", "geometry.stenosis_degree=0.4", "--set", "geometry.stenosis_degree=0.5"],
+        "--vary geometry.stenosis_degree: also given with --set: vary it or set it, not both",
+    ),
+    (
+        ["--vary", "geometry.stenosis_degree=0.4", "--set", "geometry={stenosis_degree: 0.5}"],
+        "--vary geometry.stenosis_degree: also given with --set (as part of geometry)",
+    ),
+    (
+        [
+            "--vary",
+            "name=" + ",".join(f"n{i}" for i in range(40)),
+            "--vary",
+            "fluid.density=" + ",".join(str(1000 + i) for i in range(40)),
+        ],
+        "--vary: 40 x 40 = 1600 runs; a sweep runs at most 1000",
+    ),
+    (
+        ["--vary", "geometry.stenosis_degree=0.4", "--set", "fluid.density=-1"],
+        "--set: fluid.density: expected a positive number",
+    ),
 ]
 
 

@@ -17,15 +17,18 @@ def test_study_schedule():
 
 
 def test_segments_end_exactly_and_runs_restart():
-    time = config.Time(end=0.05, schedule=(config.TimeSegment(0.0101, 1e-3),
-                                           config.TimeSegment(0.1, 7e-3)))
+    time = config.Time(
+        end=0.05, schedule=(config.TimeSegment(0.0101, 1e-3), config.TimeSegment(0.1, 7e-3))
+    )
     s = list(steps(time))
     assert any(x.t == 0.0101 for x in s)
     assert s[-1].t == 0.05
     assert all(x.dt > 0 for x in s)
     # Restarting from step k gives the same remaining steps.
     k = 5
-    assert [(x.index, x.t) for x in steps(time, s[k].t, s[k].index)] == [(x.index, x.t) for x in s[k + 1:]]
+    assert [(x.index, x.t) for x in steps(time, s[k].t, s[k].index)] == [
+        (x.index, x.t) for x in s[k + 1 :]
+    ]
 
 
 @pytest.mark.parametrize("order", [1, 2])

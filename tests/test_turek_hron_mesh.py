@@ -7,17 +7,23 @@ from mpi4py import MPI
 
 import numpy as np
 import pytest
+from mesh_checks import boundary_vertices
 
 from fsi import cli, compat, config, config_reader, mesh
 from geometry import turek_hron
 from geometry.tags import Boundary, Region
-from mesh_checks import boundary_vertices
 
 CONFIGS = [f"configs/turek_hron_{name}.yaml" for name in
            ("cfd1", "cfd2", "cfd3", "csm1", "csm2", "csm3", "fsi1", "fsi3")]  # fmt: skip
 TH_REGIONS = (Region.FLUID, Region.FLAG)
-TH_BOUNDARIES = (Boundary.INLET, Boundary.OUTLET, Boundary.RIGID_WALL, Boundary.OBSTACLE,
-                 Boundary.INTERFACE, Boundary.CLAMPED)
+TH_BOUNDARIES = (
+    Boundary.INLET,
+    Boundary.OUTLET,
+    Boundary.RIGID_WALL,
+    Boundary.OBSTACLE,
+    Boundary.INTERFACE,
+    Boundary.CLAMPED,
+)
 assert (turek_hron.REGIONS, turek_hron.BOUNDARIES) == (TH_REGIONS, TH_BOUNDARIES)
 
 

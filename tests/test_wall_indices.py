@@ -42,8 +42,10 @@ def read_indices(run: Path) -> tuple[list[str], list[dict]]:
     """wall_indices.csv's header and rows (numbers as floats, empty cells as NaN)."""
     with (run / "wall_indices.csv").open(newline="") as f:
         reader = csv.DictReader(f)
-        rows = [{k: v if k in ("wall", "side") else float(v or "nan") for k, v in r.items()}
-                for r in reader]
+        rows = [
+            {k: v if k in ("wall", "side") else float(v or "nan") for k, v in r.items()}
+            for r in reader
+        ]
         return reader.fieldnames, rows
 
 
@@ -138,10 +140,13 @@ def test_state_continues_like_the_uninterrupted_accumulator():
 
 def test_write_table_writes_nan_as_an_empty_cell_and_infinity_as_inf(shared_tmp):
     path = shared_tmp / "table.csv"
-    io.write_table(MPI.COMM_WORLD, path, ["a", "b", "c", "d"],
-                   [["x", 1.0 / 3.0, math.nan, math.inf], ["y", 2, 0.5, -1e-30]])
-    assert path.read_text().splitlines() == ["a,b,c,d", "x,0.3333333333,,inf",
-                                             "y,2,0.5,-1e-30"]
+    io.write_table(
+        MPI.COMM_WORLD,
+        path,
+        ["a", "b", "c", "d"],
+        [["x", 1.0 / 3.0, math.nan, math.inf], ["y", 2, 0.5, -1e-30]],
+    )
+    assert path.read_text().splitlines() == ["a,b,c,d", "x,0.3333333333,,inf", "y,2,0.5,-1e-30"]
     assert not (shared_tmp / "table.csv.partial").exists()
 
 
@@ -155,9 +160,13 @@ def pressure_channel(pressure: str, schedule: str, end: float) -> list[str]:
     in P2/P1: test_open_boundaries), τ_w = G H/2 on both walls. Without the outlet's backflow
     term, which would change the traction where P < 0 drives the blood in through the outlet
     (the do-nothing form alone is exact for developed flow either way)."""
-    return ["time.scheme=steady", f"time.schedule={schedule}", f"time.end={end}",
-            f"fluid.inlet={{kind: pressure, formula: '{pressure}'}}",
-            "fluid.outlet.backflow_stabilization=0"]
+    return [
+        "time.scheme=steady",
+        f"time.schedule={schedule}",
+        f"time.end={end}",
+        f"fluid.inlet={{kind: pressure, formula: '{pressure}'}}",
+        "fluid.outlet.backflow_stabilization=0",
+    ]
 
 
 def test_steady_poiseuille_has_the_exact_tawss_and_osi_zero(shared_tmp):
@@ -166,8 +175,7 @@ def test_steady_poiseuille_has_the_exact_tawss_and_osi_zero(shared_tmp):
     relative (the Newton tolerance), OSI = 0 exactly, RRT = 1/TAWSS. The CSV: its columns,
     a row per sample (two per wall facet) sorted by wall, side and x, in metres and pascals."""
     out = shared_tmp / "steady"
-    assert fsi_run(CHANNEL, out, pressure_channel(
-        "0.6", "[{until: 0.003, dt: 0.001}]", 0.003)) == 0
+    assert fsi_run(CHANNEL, out, pressure_channel("0.6", "[{until: 0.003, dt: 0.001}]", 0.003)) == 0
     header, rows = read_indices(out)
     assert header == ["wall", "side", "x", "y", "TAWSS", "OSI", "RRT"]
     exact = 30.0 * H / 2
@@ -199,7 +207,8 @@ def test_oscillating_poiseuille_has_osi_one_half_with_the_true_step_sizes(shared
     out = shared_tmp / "oscillating"
     pressure = "0.6 * sin(2 * pi * t / 0.01)"
     overrides = pressure_channel(
-        pressure, "[{until: 0.01, dt: 0.000625}, {until: 0.02, dt: 0.00125}]", 0.02)
+        pressure, "[{until: 0.01, dt: 0.000625}, {until: 0.02, dt: 0.00125}]", 0.02
+    )
     assert fsi_run(CHANNEL, out, overrides) == 0
     schedule = list(steps(config.load(CHANNEL, overrides).time))
     t = np.array([s.t for s in schedule])
@@ -232,8 +241,10 @@ def channel_runs():
     comm = MPI.COMM_WORLD
     path = Path(comm.bcast(tempfile.mkdtemp(prefix="fsi-test-") if comm.rank == 0 else None))
     straight, split, stopped = path / "straight", path / "split", path / "stopped"
-    codes = [fsi_run(CHANNEL, straight, [*RESTART_SET, "time.end=0.004"]),
-             fsi_run(CHANNEL, split, [*RESTART_SET, "time.end=0.002"])]
+    codes = [
+        fsi_run(CHANNEL, straight, [*RESTART_SET, "time.end=0.004"]),
+        fsi_run(CHANNEL, split, [*RESTART_SET, "time.end=0.002"]),
+    ]
     first = read_indices(split)[1]
     codes.append(fsi_run(CHANNEL, split, [*RESTART_SET, "time.end=0.004"], restart=split))
     polls = []
@@ -245,8 +256,14 @@ def channel_runs():
     case = config.load(CHANNEL, [*RESTART_SET, "time.end=0.004"])
     with pytest.raises(simulation.Interrupted) as stop:
         simulation.run(case, stopped, comm, stop_requested=stop_after_step_2)
-    yield {"codes": codes, "straight": straight, "split": split, "stopped": stopped,
-           "first": first, "stopped_at": stop.value.step}
+    yield {
+        "codes": codes,
+        "straight": straight,
+        "split": split,
+        "stopped": stopped,
+        "first": first,
+        "stopped_at": stop.value.step,
+    }
     comm.barrier()
     if comm.rank == 0:
         shutil.rmtree(path, ignore_errors=True)
@@ -280,7 +297,8 @@ def test_a_stopped_run_has_the_indices_of_its_checkpoint(channel_runs):
 
 
 def test_a_checkpoint_written_before_the_indices_existed_restarts_them_from_its_time(
-        channel_runs, shared_tmp, fsi_log):
+    channel_runs, shared_tmp, fsi_log
+):
     """A checkpoint of an earlier version has no ``wall_indices.*`` arrays (nor their keys):
     the restart goes on, with a warning, and averages from the restart's time only, so the
     indices of steps 3–4 equal those of the uninterrupted run's steps 3–4 alone."""
@@ -293,8 +311,11 @@ def test_a_checkpoint_written_before_the_indices_existed_restarts_them_from_its_
         shutil.copy(channel_runs["stopped"] / "metrics.csv", old / "metrics.csv")
         for rank_file in (old / "checkpoint").glob("rank*.npz"):
             with np.load(rank_file) as data:
-                arrays = {k: data[k] for k in data.files
-                          if not k.startswith(("wall_indices.", "keys.wall_samples"))}
+                arrays = {
+                    k: data[k]
+                    for k in data.files
+                    if not k.startswith(("wall_indices.", "keys.wall_samples"))
+                }
             with rank_file.open("wb") as f:
                 np.savez(f, **arrays)
     comm.barrier()
@@ -317,8 +338,10 @@ def test_moving_wall_samples_keep_their_reference_coordinates(shared_tmp):
     the wall, the state and wall_indices.csv give each at its reference coordinates (where it
     was when the stepper was built), and the summary has the lumen's extremes."""
     comm = MPI.COMM_WORLD
-    case = config.load("configs/stenosis_moving_newtonian.yaml",
-                       ["time.schedule=[{until: 0.001, dt: 0.001}]", "time.end=0.001"])
+    case = config.load(
+        "configs/stenosis_moving_newtonian.yaml",
+        ["time.schedule=[{until: 0.001, dt: 0.001}]", "time.end=0.001"],
+    )
     stepper = simulation.CoupledStepper(case, comm)
     outputs = stepper.outputs
     reference = outputs.sampler.reference.copy()
@@ -337,8 +360,10 @@ def test_moving_wall_samples_keep_their_reference_coordinates(shared_tmp):
     assert len(written) == len(everywhere)
     distance, match = cKDTree(everywhere).query(written)  # the CSV keeps 10 digits
     assert distance.max() < 1e-10 and len(set(match)) == len(written)
-    assert {(r["wall"], r["side"]) for r in rows} == {("interface", "lower"),
-                                                      ("rigid_wall", "upper")}
+    assert {(r["wall"], r["side"]) for r in rows} == {
+        ("interface", "lower"),
+        ("rigid_wall", "upper"),
+    }
     summary = stepper.summary()
     assert summary["min_tawss"] > 0 and 0 <= summary["max_osi"] <= 0.5
     assert summary["max_rrt"] >= 1 / max(column(rows, "TAWSS"))
