@@ -350,6 +350,23 @@ class WallIndices:
 # Forces
 
 
+def boundary_measure(
+    mesh: dolfinx.mesh.Mesh,
+    facet_tags: dolfinx.mesh.MeshTags,
+    tags: Sequence[int],
+    quadrature_degree: int,
+) -> ufl.Measure:
+    """ds over the facets tagged with any of ``tags`` (at least one), at ``quadrature_degree``."""
+    ds = ufl.Measure(
+        "ds",
+        domain=mesh,
+        subdomain_data=facet_tags,
+        metadata={"quadrature_degree": quadrature_degree},
+    )
+    tags = [int(t) for t in tags]
+    return sum((ds(t) for t in tags[1:]), ds(tags[0]))
+
+
 def surface_force(
     u: dolfinx.fem.Function,
     p: dolfinx.fem.Function,
@@ -362,14 +379,7 @@ def surface_force(
     normal n_b = −n points into the fluid (Turek–Hron's drag and lift, N/m). The residual-based
     :meth:`fsi.fluid.FluidSolver.boundary_force` is the more accurate variant."""
     mesh = u.function_space.mesh
-    ds = ufl.Measure(
-        "ds",
-        domain=mesh,
-        subdomain_data=facet_tags,
-        metadata={"quadrature_degree": quadrature_degree},
-    )
-    tags = [int(t) for t in tags]
-    measure = sum((ds(t) for t in tags[1:]), ds(tags[0]))
+    measure = boundary_measure(mesh, facet_tags, tags, quadrature_degree)
     traction = -rheology.cauchy_stress(u, p, law) * ufl.FacetNormal(mesh)
     force = [
         dolfinx.fem.assemble_scalar(dolfinx.fem.form(traction[i] * measure))
@@ -393,14 +403,7 @@ def flow_rate_form(
     mesh's current coordinates, so it follows a moving mesh). The default degree 2 integrates
     a P2 velocity exactly on straight facets (n is constant)."""
     mesh = u.function_space.mesh
-    ds = ufl.Measure(
-        "ds",
-        domain=mesh,
-        subdomain_data=facet_tags,
-        metadata={"quadrature_degree": quadrature_degree},
-    )
-    tags = [int(t) for t in tags]
-    measure = sum((ds(t) for t in tags[1:]), ds(tags[0]))
+    measure = boundary_measure(mesh, facet_tags, tags, quadrature_degree)
     return dolfinx.fem.form(ufl.dot(u, ufl.FacetNormal(mesh)) * measure)
 
 
@@ -446,14 +449,7 @@ class BoundaryMean:
     ):
         mesh = f.function_space.mesh
         self.comm = mesh.comm
-        ds = ufl.Measure(
-            "ds",
-            domain=mesh,
-            subdomain_data=facet_tags,
-            metadata={"quadrature_degree": quadrature_degree},
-        )
-        tags = [int(t) for t in tags]
-        measure = sum((ds(t) for t in tags[1:]), ds(tags[0]))
+        measure = boundary_measure(mesh, facet_tags, tags, quadrature_degree)
         self._integral = dolfinx.fem.form(f * measure)
         one = dolfinx.fem.Constant(mesh, PETSc.ScalarType(1.0))
         self._size = dolfinx.fem.form(one * measure)

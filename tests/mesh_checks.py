@@ -1,8 +1,11 @@
 """Checks shared by the mesh tests."""
 
-import dolfinx.mesh
+from mpi4py import MPI
 
-from fsi import compat
+import dolfinx.mesh
+import numpy as np
+
+from fsi import compat, config
 
 
 def boundary_vertices(submesh) -> set[tuple[float, float]]:
@@ -13,3 +16,13 @@ def boundary_vertices(submesh) -> set[tuple[float, float]]:
     nodes = compat.entities_to_geometry(submesh, tdim - 1, facets).ravel()
     local = [tuple(x) for x in submesh.geometry.x[nodes, :2]]
     return set().union(*submesh.comm.allgather(local))
+
+
+def mesh_motion_settings(**kw) -> config.MeshMotion:
+    """The ``mesh_motion`` section with the keys ``kw`` (validated as in a case file)."""
+    return config.from_dict({"mesh_motion": kw}).mesh_motion
+
+
+def global_max(comm: MPI.Comm, a: np.ndarray) -> float:
+    """max |a| over every rank's values."""
+    return comm.allreduce(float(np.abs(a).max(initial=0.0)), op=MPI.MAX)

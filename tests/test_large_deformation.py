@@ -11,6 +11,7 @@ from mpi4py import MPI
 
 import numpy as np
 import pytest
+from mesh_checks import global_max, mesh_motion_settings
 
 from fsi import cli, config, mesh
 from fsi.mesh_motion import MeshMotion, MeshQualityError
@@ -41,14 +42,6 @@ def _reference_geometry(fluid):
     x = fluid.mesh.geometry.x.copy()
     yield
     fluid.mesh.geometry.x[:] = x
-
-
-def settings(**kw) -> config.MeshMotion:
-    return config.from_dict({"mesh_motion": kw}).mesh_motion
-
-
-def global_max(comm: MPI.Comm, a: np.ndarray) -> float:
-    return comm.allreduce(float(np.abs(a).max(initial=0.0)), op=MPI.MAX)
 
 
 def bent_flag(tip: float, samples: int = 4001):
@@ -108,7 +101,10 @@ def test_affine_motion_is_extended_exactly(fluid, method, stiffening):
         return a[:, None] + B @ x[:2]
 
     mm = MeshMotion(
-        fluid, settings(method=method, stiffening=stiffening), moving=FLUID_BOUNDARIES, fixed=()
+        fluid,
+        mesh_motion_settings(method=method, stiffening=stiffening),
+        moving=FLUID_BOUNDARIES,
+        fixed=(),
     )
     mm.set_boundary_function(affine)
     mm.solve()
@@ -128,7 +124,10 @@ def test_stiffened_harmonic_is_not_exact_for_affine_motion(fluid):
     the harmonic extension is not affine (∇·(k B) ≠ 0 across cells of different k)."""
     B = np.array([[0.05, -0.08], [0.06, 0.02]])
     mm = MeshMotion(
-        fluid, settings(method="harmonic", stiffening="jacobian"), moving=FLUID_BOUNDARIES, fixed=()
+        fluid,
+        mesh_motion_settings(method="harmonic", stiffening="jacobian"),
+        moving=FLUID_BOUNDARIES,
+        fixed=(),
     )
     mm.set_boundary_function(lambda x: B @ x[:2])
     mm.solve()
@@ -146,11 +145,11 @@ def test_flag_bent_to_its_fsi2_amplitude(fluid, tip):
     at (0.58, 0.11)), and FSI2's configured extension (elastic, distance stiffening) keeps every
     cell above half its area. Values measured on 1 and 2 ranks."""
     guard = FSI2.mesh_motion.min_jacobian_ratio
-    _, plain, where_plain = bent_min_ratio(fluid, settings(stiffening="none"), tip)
+    _, plain, where_plain = bent_min_ratio(fluid, mesh_motion_settings(stiffening="none"), tip)
     assert plain < 0  # inverted
     assert abs(where_plain[0] - 0.58) < 0.02 and abs(where_plain[1] - CENTRE_Y) < 0.1
 
-    _, default, where_default = bent_min_ratio(fluid, settings(), tip)
+    _, default, where_default = bent_min_ratio(fluid, mesh_motion_settings(), tip)
     expected_default = {0.08: 0.0838, -0.08: 0.0070}[tip]
     assert default == pytest.approx(expected_default, abs=1e-3)
     if tip < 0:
@@ -172,13 +171,15 @@ def test_flag_bent_to_its_fsi2_amplitude(fluid, tip):
 def test_biharmonic_keeps_the_bent_flag_mesh_valid(fluid):
     """The biharmonic extension (unstiffened) also keeps the ±8 cm bend far above the guard."""
     for tip, expected in ((0.08, 0.4857), (-0.08, 0.4663)):
-        _, ratio, _ = bent_min_ratio(fluid, settings(method="biharmonic", stiffening="none"), tip)
+        _, ratio, _ = bent_min_ratio(
+            fluid, mesh_motion_settings(method="biharmonic", stiffening="none"), tip
+        )
         assert ratio == pytest.approx(expected, abs=1e-3)
 
 
 def test_the_guard_stops_the_default_on_the_bent_flag(fluid):
     """Today's default, bent down by 8 cm: update() raises before the mesh moves."""
-    mm = MeshMotion(fluid, settings(), moving=(Boundary.INTERFACE,))
+    mm = MeshMotion(fluid, mesh_motion_settings(), moving=(Boundary.INTERFACE,))
     reference = fluid.mesh.geometry.x.copy()
     with pytest.raises(MeshQualityError, match="collapsed"):
         mm.update(bent_flag(-0.08)(mm.interface_points.T).T)
@@ -188,7 +189,7 @@ def test_the_guard_stops_the_default_on_the_bent_flag(fluid):
 def test_biharmonic_partition_independent(fluid):
     """The biharmonic operator (a product of assembled matrices) on 2 ranks equals the serial
     one: the same min J/J_ref to round-off."""
-    motion = settings(method="biharmonic", stiffening="distance")
+    motion = mesh_motion_settings(method="biharmonic", stiffening="distance")
     _, here, _ = bent_min_ratio(fluid, motion, 0.06)
     serial = mesh.restrict(mesh.build(FSI2, MPI.COMM_SELF), Region.FLUID)
     _, alone, _ = bent_min_ratio(serial, motion, 0.06)
@@ -196,7 +197,7 @@ def test_biharmonic_partition_independent(fluid):
 
 
 def test_biharmonic_is_a_config_choice(capsys):
-    assert settings(method="biharmonic").method == "biharmonic"
+    assert mesh_motion_settings(method="biharmonic").method == "biharmonic"
     status = cli.main(
         [
             "check",

@@ -9,6 +9,7 @@ from petsc4py import PETSc
 
 import numpy as np
 import pytest
+from mesh_checks import global_max, mesh_motion_settings
 
 from fsi import compat, config, mesh
 from fsi.mesh_motion import MeshMotion, MeshQualityError
@@ -48,14 +49,6 @@ def _reference_geometry(fluid):
     fluid.mesh.geometry.x[:] = x
 
 
-def settings(**kw) -> config.MeshMotion:
-    return config.from_dict({"mesh_motion": kw}).mesh_motion
-
-
-def global_max(comm: MPI.Comm, a: np.ndarray) -> float:
-    return comm.allreduce(float(np.abs(a).max(initial=0.0)), op=MPI.MAX)
-
-
 def boundary_nodes(tagged: mesh.TaggedMesh, *boundaries: Boundary) -> np.ndarray:
     nodes = compat.entities_to_geometry(tagged.mesh, 1, tagged.facets(*boundaries))
     return np.unique(nodes.ravel())
@@ -76,7 +69,10 @@ def test_affine_boundary_displacement_is_extended_exactly(fluid, method):
         return a[:, None] + B @ x[:2]
 
     mm = MeshMotion(
-        fluid, settings(method=method, stiffening="none"), moving=FLUID_BOUNDARIES, fixed=()
+        fluid,
+        mesh_motion_settings(method=method, stiffening="none"),
+        moving=FLUID_BOUNDARIES,
+        fixed=(),
     )
     mm.set_boundary_function(affine)
     mm.solve()
@@ -153,7 +149,7 @@ def test_stiffening_keeps_cells_from_inverting(fluid, stiffening, expected):
     f = bump(2e-3)
 
     def min_ratio(tagged, kind):
-        mm = MeshMotion(tagged, settings(stiffening=kind, stiffening_exponent=1.0))
+        mm = MeshMotion(tagged, mesh_motion_settings(stiffening=kind, stiffening_exponent=1.0))
         mm.set_boundary_displacement(f(mm.interface_points.T).T)
         mm.solve()
         return mm.min_jacobian_ratio()[0]
@@ -187,7 +183,7 @@ def test_quality_guard(fluid):
     assert np.array_equal(fluid.mesh.geometry.x, reference)
 
     # Not inverted but below a strict threshold: 1 mm unstiffened gives min J/J_ref = 0.436.
-    strict = MeshMotion(fluid, settings(stiffening="none", min_jacobian_ratio=0.5))
+    strict = MeshMotion(fluid, mesh_motion_settings(stiffening="none", min_jacobian_ratio=0.5))
     strict.set_boundary_displacement(bump(1e-3)(strict.interface_points.T).T)
     strict.solve()
     with pytest.raises(MeshQualityError, match="collapsed") as info:
@@ -200,7 +196,7 @@ def test_mesh_velocity_of_a_linear_motion(fluid, method):
     """d(t) = t f: the extension is linear in the data, so d(t) = t E(f) and both backward Euler
     and variable-step BDF2 give w = E(f) exactly; on the interface w = f."""
     f = bump(3e-4)
-    mm = MeshMotion(fluid, settings(method=method))
+    mm = MeshMotion(fluid, mesh_motion_settings(method=method))
     values = f(mm.interface_points.T).T
     mm.set_boundary_displacement(values)
     extension = mm.solve().x.array.copy()
@@ -227,7 +223,7 @@ def test_solve_reuses_the_matrix_and_its_factorisation(fluid):
     PETSc.Log.begin()
     numeric = PETSc.Log.Event("MatLUFactorNum")
     before = numeric.getPerfInfo()["count"]
-    mm = MeshMotion(fluid, settings(method="elastic"))
+    mm = MeshMotion(fluid, mesh_motion_settings(method="elastic"))
     assert mm._ksp.getOptionsPrefix() == "mesh_"
     assert mm._ksp.getPC().getType() == "lu"
     values = bump(1e-4)(mm.interface_points.T).T
@@ -260,7 +256,7 @@ def test_iterative_solver_from_the_config(fluid):
             }
         },
     ):
-        mm = MeshMotion(fluid, settings(**options))
+        mm = MeshMotion(fluid, mesh_motion_settings(**options))
         values = bump(2e-4)(mm.interface_points.T).T if values is None else values
         mm.set_boundary_displacement(values)
         results.append(mm.solve().x.array.copy())
@@ -297,6 +293,6 @@ def test_config_section():
     s = CASE.mesh_motion
     assert (s.method, s.stiffening, s.min_jacobian_ratio) == ("harmonic", "jacobian", 0.05)
     with pytest.raises(config.ConfigError, match="mesh_motion.min_jacobian_ratio"):
-        settings(min_jacobian_ratio=1.0)
+        mesh_motion_settings(min_jacobian_ratio=1.0)
     with pytest.raises(config.ConfigError, match="mesh_motion.stiffening"):
-        settings(stiffening="laplace")
+        mesh_motion_settings(stiffening="laplace")
