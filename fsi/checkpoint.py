@@ -42,9 +42,10 @@ from mpi4py import MPI
 
 import dolfinx
 import numpy as np
+import yaml
 
 import fsi
-from fsi import compat, config, io
+from fsi import compat, config, config_reader, io
 
 log = logging.getLogger("fsi")
 
@@ -478,6 +479,19 @@ class Checkpoint:
     def continues(self, out: Path) -> bool:
         """Whether a restart into ``out`` continues this checkpoint's own run folder."""
         return self.run_dir.resolve() == Path(out).resolve()
+
+    def changed_mesh_motion(self, case: config.Case) -> list[str]:
+        """The ``mesh_motion`` keys whose values in ``case`` differ from those of the run that
+        wrote the checkpoint (its ``config.yaml``; none if that cannot be read). A restart may
+        change them, but the fluid mesh is then re-extended at the first step and its mesh
+        velocity (and so the forces of that step) carries the jump."""
+        try:
+            written = config_reader.parse_yaml((self.run_dir / "config.yaml").read_text())
+            before = written["mesh_motion"]
+        except (OSError, ValueError, KeyError, TypeError, yaml.YAMLError):
+            return []
+        now = config.to_dict(case)["mesh_motion"]
+        return sorted(k for k in now if before.get(k) != now[k])
 
 
 def locate(path: Path) -> tuple[Path, Path]:

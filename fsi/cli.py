@@ -321,6 +321,13 @@ def run_case(request: RunRequest, case: config.Case) -> RunOutcome:
         return _refused(comm, f"--out: {e}")
     if restart is not None:
         log.info("restarting from %s: step %d, t = %.6g s", restart.path, restart.step, restart.t)
+        changed = restart.changed_mesh_motion(case) if case.structure.mode != "rigid" else []
+        if changed:
+            log.warning(
+                "fsi: warning: %s differ from the run being continued: the fluid mesh is "
+                "re-extended at the first step, whose mesh velocity and forces jump",
+                ", ".join(f"mesh_motion.{k}" for k in changed),
+            )
     try:
         with _StopOnSignal() as stop:
             result = simulation.run(case, request.out, comm, restart, stop)

@@ -276,6 +276,18 @@ def test_coupled_restart_continues_like_the_uninterrupted_run(coupled, accelerat
         assert columns.shape[2] >= 3  # step 1 takes ≥ 4 iterations (measured 6)
 
 
+def test_a_restart_that_changes_the_mesh_motion_warns(coupled, shared_tmp, capsys):
+    """Changing mesh_motion at a restart is allowed, but the re-extended mesh jumps: say so."""
+    first = coupled["aitken"]["first"]
+    overrides = [*COUPLED_SET, *ACCELERATIONS["aitken"], "time.end=0.002"]
+    changed = [*overrides, "mesh_motion.stiffening=distance"]
+    assert fsi_run(COUPLED, shared_tmp / "changed", changed, restart=first) == 0
+    err = stderr(capsys)
+    assert "mesh_motion.stiffening differ from the run being continued" in err
+    assert fsi_run(COUPLED, shared_tmp / "same", overrides, restart=first) == 0
+    assert "differ from the run being continued" not in stderr(capsys)
+
+
 @pytest.mark.parametrize(
     "failure, checkpointed",
     [
