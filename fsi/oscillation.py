@@ -210,7 +210,7 @@ class Difference:
 
     @property
     def passed(self) -> bool | None:
-        return None if self.tolerance is None else abs(self.relative) <= self.tolerance
+        return None if self.tolerance is None else bool(abs(self.relative) <= self.tolerance)
 
 
 def relative_difference(measured: float, reference: float) -> float:
