@@ -37,7 +37,7 @@ def pulse_csv() -> str:
     0.5 ms (Pa-sized so that the channel's flow stays slow and laminar)."""
     t = np.linspace(0.0, PERIOD, 9)
     p = 0.1 + 0.25 * (1 - np.cos(2 * np.pi * t / PERIOD))
-    return "t,P\n" + "".join(f"{a!r},{b!r}\n" for a, b in zip(t, p, strict=True))
+    return "t,P\n" + "".join(f"{float(a)!r},{float(b)!r}\n" for a, b in zip(t, p, strict=True))
 
 
 def pulse_inlet(folder: Path) -> str:
