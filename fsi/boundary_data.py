@@ -59,6 +59,18 @@ def time_function(formula: str) -> typing.Callable[[float], float]:
     too deep to compile). The function returned returns a finite float or raises
     :class:`FormulaError` naming the formula and t; it raises nothing else.
     """
+    tree = _parse_formula(formula)
+    _check_formula_nodes(formula, tree)
+    try:
+        code = compile(tree, "<formula>", "eval")
+    except (ValueError, RecursionError, MemoryError) as e:
+        raise FormulaError(formula, f"cannot be compiled: {_nesting(e)}") from None
+    return _formula_value(formula, code)
+
+
+def _parse_formula(formula: str):
+    """The syntax tree of ``formula`` (an expression at most :data:`MAX_FORMULA_LENGTH` long and
+    :data:`MAX_FORMULA_DEPTH` deep), or :class:`FormulaError`."""
     import ast
 
     if len(formula) > MAX_FORMULA_LENGTH:
@@ -71,6 +83,14 @@ def time_function(formula: str) -> typing.Callable[[float], float]:
         raise FormulaError(formula, f"not an expression: {_nesting(e)}") from None
     if _depth(tree) > MAX_FORMULA_DEPTH:
         raise FormulaError(formula, f"nested more than {MAX_FORMULA_DEPTH} levels deep")
+    return tree
+
+
+def _check_formula_nodes(formula: str, tree) -> None:
+    """Raise :class:`FormulaError` at the first node of ``tree`` outside the formula language;
+    turn every number constant into a float (in place) on the way."""
+    import ast
+
     allowed = (
         ast.Expression,
         ast.BinOp,
@@ -119,10 +139,11 @@ def time_function(formula: str) -> typing.Callable[[float], float]:
             or node.func.id not in FORMULA_NAMES
         ):
             raise FormulaError(formula, "only calls of " + ", ".join(FORMULA_NAMES))
-    try:
-        code = compile(tree, "<formula>", "eval")
-    except (ValueError, RecursionError, MemoryError) as e:
-        raise FormulaError(formula, f"cannot be compiled: {_nesting(e)}") from None
+
+
+def _formula_value(formula: str, code) -> typing.Callable[[float], float]:
+    """The function of t evaluating the checked, compiled ``code`` of ``formula``: it returns a
+    finite float or raises :class:`FormulaError` naming the formula and t."""
     names = {"__builtins__": {}, "pi": math.pi, "e": math.e, "abs": abs, "min": min, "max": max}
     names.update({f: getattr(math, f) for f in FORMULA_NAMES if hasattr(math, f)})
 

@@ -603,8 +603,23 @@ def localize(
     restored with its shape. Collective; raises :class:`CheckpointError` on every rank if the
     keys do not match (another mesh), an array is missing or a distributed array's rows do not
     match its keys."""
-    files, source = checkpoint.files, checkpoint.path
     state: dict[str, np.ndarray] = {}
+    indices, message = _match_keys(checkpoint, layouts, comm)
+    if not message:
+        state, message = _restore_arrays(checkpoint, layouts, indices)
+    if not message:
+        message = _check_restored(state, current, checkpoint.path)
+    _raise_if_any(comm, message)
+    return state
+
+
+def _match_keys(
+    checkpoint: Checkpoint, layouts: dict[str, Layout], comm: MPI.Comm
+) -> tuple[dict[str, np.ndarray], str]:
+    """For each layout name, the index in the checkpoint's concatenated keys of each local dof
+    (see :func:`_match`), and '' or what is wrong (the same on every rank). Collective: one or
+    two allreduce per layout checked, in the order of ``layouts``, until the first problem."""
+    files, source = checkpoint.files, checkpoint.path
     message = ""
     indices: dict[str, np.ndarray] = {}
     added = {layout.name for key, layout in layouts.items() if key.startswith(ADDED)}
@@ -639,29 +654,36 @@ def localize(
             )
             break
         indices[name] = index
-    if not message:
-        for key in files[0]:
-            if key.startswith("keys."):
-                continue
-            layout = layout_of(key, layouts)
-            if layout is None:
-                state[key] = files[0][key]
-                continue
-            if any(key not in f for f in files):
-                message = f"{source}: array {key!r} is missing from some rank files"
-                break
-            message = _check_rows(checkpoint, key, layout)
-            if message:
-                break
-            stored = np.concatenate([f[key] for f in files])
-            index = indices[layout.name]
-            values = np.zeros((len(index), *stored.shape[1:]), dtype=stored.dtype)
-            values[index >= 0] = stored[index[index >= 0]]
-            state[key] = values.reshape(-1, *stored.shape[2:])
-    if not message:
-        message = _check_restored(state, current, source)
-    _raise_if_any(comm, message)
-    return state
+    return indices, message
+
+
+def _restore_arrays(
+    checkpoint: Checkpoint, layouts: dict[str, Layout], indices: dict[str, np.ndarray]
+) -> tuple[dict[str, np.ndarray], str]:
+    """The checkpoint's arrays on this rank's local dofs (rows picked by ``indices``, global
+    arrays from rank 0's file), and '' or the first array that is missing or damaged. Local."""
+    files, source = checkpoint.files, checkpoint.path
+    state: dict[str, np.ndarray] = {}
+    message = ""
+    for key in files[0]:
+        if key.startswith("keys."):
+            continue
+        layout = layout_of(key, layouts)
+        if layout is None:
+            state[key] = files[0][key]
+            continue
+        if any(key not in f for f in files):
+            message = f"{source}: array {key!r} is missing from some rank files"
+            break
+        message = _check_rows(checkpoint, key, layout)
+        if message:
+            break
+        stored = np.concatenate([f[key] for f in files])
+        index = indices[layout.name]
+        values = np.zeros((len(index), *stored.shape[1:]), dtype=stored.dtype)
+        values[index >= 0] = stored[index[index >= 0]]
+        state[key] = values.reshape(-1, *stored.shape[2:])
+    return state, message
 
 
 def _check_restored(

@@ -31,6 +31,8 @@ EXIT_OK, EXIT_INTERNAL, EXIT_USAGE, EXIT_SOLVE_FAILED, EXIT_OUTPUT_FAILED = 0, 1
 
 
 def _parser() -> argparse.ArgumentParser:
+    """The argument parser of ``fsi``: ``--version`` and the sub-commands run, sweep, mesh,
+    check, report and plot, in that order."""
     parser = argparse.ArgumentParser(prog="fsi", description=__doc__.splitlines()[0])
     parser.add_argument(
         "--version",
@@ -39,22 +41,37 @@ def _parser() -> argparse.ArgumentParser:
         help="show the versions of fsi (and its git revision), dolfinx, Python",
     )
     sub = parser.add_subparsers(dest="command", required=True)
+    _add_run_parser(sub)
+    _add_sweep_parser(sub)
+    p = sub.add_parser("mesh", help="build the case's mesh: DIR/mesh.xdmf and DIR/mesh.json")
+    _add_config_arguments(p)
+    p.add_argument("--out", type=Path, required=True, metavar="DIR")
+    p = sub.add_parser("check", help="validate a case without running it")
+    _add_config_arguments(p)
+    _add_report_parser(sub)
+    _add_plot_parser(sub)
+    return parser
 
-    def with_config(p: argparse.ArgumentParser) -> None:
-        p.add_argument("config", type=Path, help="YAML case file")
-        p.add_argument(
-            "--set",
-            dest="overrides",
-            action="append",
-            default=[],
-            metavar="KEY.PATH=VALUE",
-            help="override a configuration value (repeatable)",
-        )
 
+def _add_config_arguments(p: argparse.ArgumentParser) -> None:
+    """The case file argument and ``--set`` overrides, shared by the commands that read a case."""
+    p.add_argument("config", type=Path, help="YAML case file")
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY.PATH=VALUE",
+        help="override a configuration value (repeatable)",
+    )
+
+
+def _add_run_parser(sub) -> None:
+    """The ``fsi run`` sub-command: a case, ``--out``, ``--restart``, ``--overwrite``."""
     p = sub.add_parser(
         "run", help="run a case: DIR/metrics.csv, summary.json, fields.xdmf, checkpoint/"
     )
-    with_config(p)
+    _add_config_arguments(p)
     p.add_argument("--out", type=Path, required=True, metavar="DIR")
     p.add_argument(
         "--restart",
@@ -70,13 +87,17 @@ def _parser() -> argparse.ArgumentParser:
         help="replace an earlier run's files in DIR (otherwise a DIR holding a run is "
         "refused unless --restart continues it)",
     )
+
+
+def _add_sweep_parser(sub) -> None:
+    """The ``fsi sweep`` sub-command: a case, ``--vary``, ``--out``, ``--dry-run``."""
     p = sub.add_parser(
         "sweep",
         help="run a case for every combination of the --vary values "
         "(a folder each, resuming), then DIR/sweep.csv, sweep.md "
         "and sweep_<quantity>.png",
     )
-    with_config(p)
+    _add_config_arguments(p)
     p.add_argument(
         "--vary",
         action="append",
@@ -100,11 +121,10 @@ def _parser() -> argparse.ArgumentParser:
         help="validate every run and list what the sweep would do with each (skip, "
         "resume, start); run and write nothing",
     )
-    p = sub.add_parser("mesh", help="build the case's mesh: DIR/mesh.xdmf and DIR/mesh.json")
-    with_config(p)
-    p.add_argument("--out", type=Path, required=True, metavar="DIR")
-    p = sub.add_parser("check", help="validate a case without running it")
-    with_config(p)
+
+
+def _add_report_parser(sub) -> None:
+    """The ``fsi report`` sub-command: run folders, ``--out``, ``--times``."""
     p = sub.add_parser(
         "report",
         help="the study's tables (peaks at the report times, solver "
@@ -124,6 +144,10 @@ def _parser() -> argparse.ArgumentParser:
         metavar="T",
         help="report times in s (default: the first run's output.report_times)",
     )
+
+
+def _add_plot_parser(sub) -> None:
+    """The ``fsi plot`` sub-command: a run folder, the field, time, view options and ``--out``."""
     p = sub.add_parser(
         "plot",
         help="a picture (PNG) of one field of a run at one time: filled "
@@ -169,7 +193,6 @@ def _parser() -> argparse.ArgumentParser:
         help="of a vector field (default: magnitude)",
     )
     p.add_argument("--out", type=Path, required=True, metavar="FILE.png")
-    return parser
 
 
 class _Version(argparse.Action):

@@ -291,47 +291,9 @@ def build(tp: Any, value: Any, key: str) -> Any:
     no inf or nan for any number)."""
     origin = typing.get_origin(tp)
     if dataclasses.is_dataclass(tp):
-        if not isinstance(value, dict):
-            raise ConfigError("", key or "<top level>", "a mapping", value)
-        fields = {f.name: f for f in dataclasses.fields(tp)}
-        unknown = sorted(set(value) - set(fields), key=str)
-        if unknown:
-            k = f"{key}.{unknown[0]}" if key else str(unknown[0])
-            raise ConfigError("", k, "one of the keys " + ", ".join(fields), "unknown key")
-        kwargs = {}
-        hints = typing.get_type_hints(tp)
-        for name, f in fields.items():
-            if name not in value:
-                continue
-            sub = f"{key}.{name}" if key else name
-            expected = f.metadata.get("expected")
-            if hints[name] is float and expected is not None and not _finite(value[name]):
-                # "a positive number (s)" -> "a finite positive number (s)"
-                raise ConfigError("", sub, "a finite " + expected.removeprefix("a "), value[name])
-            v = build(hints[name], value[name], sub)
-            if "check" in f.metadata:
-                try:
-                    allowed = f.metadata["check"](v)
-                except ValueError as e:
-                    raise ConfigError(
-                        "", sub, f"{expected} ({getattr(e, 'reason', e)})", v
-                    ) from None
-                if not allowed:
-                    raise ConfigError("", sub, expected, v)
-            kwargs[name] = v
-        return tp(**kwargs)
+        return _build_dataclass(tp, value, key)
     if origin in (Union, types.UnionType):
-        options = typing.get_args(tp)
-        if all(dataclasses.is_dataclass(o) for o in options):
-            return _build_tagged(options, value, key)
-        if float in options and not _finite(value):
-            raise ConfigError("", key, "a finite number", value)
-        for option in options:
-            try:
-                return build(option, value, key)
-            except ConfigError:
-                continue
-        raise ConfigError("", key, _describe(tp), value)
+        return _build_union(tp, value, key)
     if origin is Literal:
         if value not in typing.get_args(tp) or isinstance(value, bool):
             raise ConfigError("", key, _describe(tp), value)
@@ -347,15 +309,7 @@ def build(tp: Any, value: Any, key: str) -> Any:
         value_type = typing.get_args(tp)[1]
         return {str(k): build(value_type, v, f"{key}.{k}") for k, v in value.items()}
     if tp is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError("", key, "a number", value)
-        try:
-            number = float(value)
-        except OverflowError:  # an integer of hundreds of digits
-            number = math.inf
-        if not math.isfinite(number):
-            raise ConfigError("", key, "a finite number", value)
-        return number
+        return _build_float(value, key)
     if tp is int:
         if isinstance(value, bool) or not isinstance(value, int):
             raise ConfigError("", key, "an integer", value)
@@ -365,6 +319,67 @@ def build(tp: Any, value: Any, key: str) -> Any:
             raise ConfigError("", key, _describe(tp), value)
         return value
     raise TypeError(f"unsupported configuration type {tp!r} at {key}")
+
+
+def _build_dataclass(tp: Any, value: Any, key: str) -> Any:
+    """The dataclass ``tp`` from the mapping ``value``: no unknown keys, each field built with
+    :func:`build` and passed through its ``check`` (metadata), absent fields left to defaults."""
+    if not isinstance(value, dict):
+        raise ConfigError("", key or "<top level>", "a mapping", value)
+    fields = {f.name: f for f in dataclasses.fields(tp)}
+    unknown = sorted(set(value) - set(fields), key=str)
+    if unknown:
+        k = f"{key}.{unknown[0]}" if key else str(unknown[0])
+        raise ConfigError("", k, "one of the keys " + ", ".join(fields), "unknown key")
+    kwargs = {}
+    hints = typing.get_type_hints(tp)
+    for name, f in fields.items():
+        if name not in value:
+            continue
+        sub = f"{key}.{name}" if key else name
+        expected = f.metadata.get("expected")
+        if hints[name] is float and expected is not None and not _finite(value[name]):
+            # "a positive number (s)" -> "a finite positive number (s)"
+            raise ConfigError("", sub, "a finite " + expected.removeprefix("a "), value[name])
+        v = build(hints[name], value[name], sub)
+        if "check" in f.metadata:
+            try:
+                allowed = f.metadata["check"](v)
+            except ValueError as e:
+                raise ConfigError("", sub, f"{expected} ({getattr(e, 'reason', e)})", v) from None
+            if not allowed:
+                raise ConfigError("", sub, expected, v)
+        kwargs[name] = v
+    return tp(**kwargs)
+
+
+def _build_union(tp: Any, value: Any, key: str) -> Any:
+    """``value`` as the first option of the union ``tp`` that accepts it (dataclasses chosen by
+    their tag, see :func:`_build_tagged`); no inf or nan where a number is allowed."""
+    options = typing.get_args(tp)
+    if all(dataclasses.is_dataclass(o) for o in options):
+        return _build_tagged(options, value, key)
+    if float in options and not _finite(value):
+        raise ConfigError("", key, "a finite number", value)
+    for option in options:
+        try:
+            return build(option, value, key)
+        except ConfigError:
+            continue
+    raise ConfigError("", key, _describe(tp), value)
+
+
+def _build_float(value: Any, key: str) -> float:
+    """``value`` (an int or float, not a bool) as a finite float."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError("", key, "a number", value)
+    try:
+        number = float(value)
+    except OverflowError:  # an integer of hundreds of digits
+        number = math.inf
+    if not math.isfinite(number):
+        raise ConfigError("", key, "a finite number", value)
+    return number
 
 
 def _build_tagged(options: tuple, value: Any, key: str) -> Any:

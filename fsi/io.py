@@ -175,19 +175,38 @@ def read_rows(path: Path, until_step: int | None = None) -> list[MetricsRow]:
         raise MetricsError(f"{path}: line {line}: not UTF-8 text") from None
     lines = text.split("\n")
     cut = lines.pop()  # "" when the file ends with a line end
-
-    def leave_out_cut() -> None:
-        if cut:
-            log.warning(
-                "%s: line %d is cut short (a run stopped while writing it): left out",
-                path,
-                len(lines) + 1,
-            )
-
     if not lines:
-        leave_out_cut()
+        _leave_out_cut(path, cut, len(lines) + 1)
         return []
-    header = _cells(path, 1, lines[0])
+    header = _header(path, lines[0])
+    rows = []
+    for number, line in enumerate(lines[1:], start=2):
+        row = _metrics_row(path, number, line, header)
+        if row is None:  # a blank line
+            continue
+        if until_step is not None and row.values["step"] > until_step:
+            break
+        rows.append(row)
+    else:
+        _leave_out_cut(path, cut, len(lines) + 1)
+    return rows
+
+
+def _leave_out_cut(path: Path, cut: str, number: int) -> None:
+    """Warn that line ``number``, ``cut`` (the text after the last line end), is left out; no
+    warning when ``cut`` is empty."""
+    if cut:
+        log.warning(
+            "%s: line %d is cut short (a run stopped while writing it): left out",
+            path,
+            number,
+        )
+
+
+def _header(path: Path, line: str) -> list[str]:
+    """The column names of the header line of the metrics table ``path``: each named once,
+    ``step`` and ``t`` among them, else :class:`MetricsError`."""
+    header = _cells(path, 1, line)
     for name in REQUIRED_COLUMNS:
         if name not in header:
             raise MetricsError(f"{path}: line 1: no {name!r} column (not a metrics table)")
@@ -195,31 +214,31 @@ def read_rows(path: Path, until_step: int | None = None) -> list[MetricsRow]:
         if not name or header.count(name) > 1:
             what = f"column {name!r} twice" if name else "a column without a name"
             raise MetricsError(f"{path}: line 1: {what} (not a metrics table)")
-    rows = []
-    for number, line in enumerate(lines[1:], start=2):
-        cells = _cells(path, number, line)
-        if not cells:  # a blank line
-            continue
-        if len(cells) != len(header):
-            raise MetricsError(
-                f"{path}: line {number}: {len(cells)} cells, the header has {len(header)} columns"
-            )
-        text = {k: v for k, v in zip(header, cells) if v != ""}
-        for name in REQUIRED_COLUMNS:
-            if name not in text:
-                raise MetricsError(f"{path}: line {number}: {name}: empty")
-        values = {name: _number(path, number, name, cell) for name, cell in text.items()}
-        step = values["step"]
-        if step < 1 or step != int(step):
-            raise MetricsError(
-                f"{path}: line {number}: step: {text['step']!r} is not a step number (1, 2, ...)"
-            )
-        if until_step is not None and step > until_step:
-            break
-        rows.append(MetricsRow(number, text, values))
-    else:
-        leave_out_cut()
-    return rows
+    return header
+
+
+def _metrics_row(path: Path, number: int, line: str, header: list[str]) -> MetricsRow | None:
+    """Line ``number`` of the metrics table ``path`` as a row (None if blank): a cell per
+    column, ``step`` and ``t`` not empty, finite numbers, ``step`` a whole number ≥ 1, else
+    :class:`MetricsError`."""
+    cells = _cells(path, number, line)
+    if not cells:
+        return None
+    if len(cells) != len(header):
+        raise MetricsError(
+            f"{path}: line {number}: {len(cells)} cells, the header has {len(header)} columns"
+        )
+    text = {k: v for k, v in zip(header, cells) if v != ""}
+    for name in REQUIRED_COLUMNS:
+        if name not in text:
+            raise MetricsError(f"{path}: line {number}: {name}: empty")
+    values = {name: _number(path, number, name, cell) for name, cell in text.items()}
+    step = values["step"]
+    if step < 1 or step != int(step):
+        raise MetricsError(
+            f"{path}: line {number}: step: {text['step']!r} is not a step number (1, 2, ...)"
+        )
+    return MetricsRow(number, text, values)
 
 
 def _cells(path: Path, number: int, line: str) -> list[str]:

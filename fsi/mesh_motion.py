@@ -120,15 +120,10 @@ class MeshMotion:
         self.comm: MPI.Comm = mesh.comm
         if mesh.topology.cell_type != dolfinx.mesh.CellType.triangle:
             raise ValueError("MeshMotion supports affine triangle meshes only")
-        tdim, gdim = mesh.topology.dim, mesh.geometry.dim
-        self.gdim = gdim
-        present = set(np.concatenate(self.comm.allgather(np.unique(tagged.facet_tags.values))))
-        self.moving = tuple(Boundary(b) for b in moving)
-        if fixed is None:
-            fixed = [Boundary(int(b)) for b in sorted(present) if int(b) not in self.moving]
-        self.fixed = tuple(Boundary(b) for b in fixed if b not in self.moving)
+        self.gdim = mesh.geometry.dim
+        self._choose_boundaries(tagged, moving, fixed)
 
-        self.V = compat.function_space(mesh, "Lagrange", 1, (gdim,))
+        self.V = compat.function_space(mesh, "Lagrange", 1, (self.gdim,))
         self.d = dolfinx.fem.Function(self.V, name="mesh_displacement")
         self.w = dolfinx.fem.Function(self.V, name="mesh_velocity")
         self.g = dolfinx.fem.Function(self.V, name="mesh_boundary_displacement")
@@ -136,6 +131,37 @@ class MeshMotion:
         self.d_nm1 = np.zeros_like(self.d.x.array)
         self._saved: MeshMotionState | None = None
 
+        self._map_reference_geometry()
+        self._locate_boundary_dofs(tagged)
+
+        self.k = self._stiffness(tagged)
+        self.quadrature_degree = quadrature_degree
+        self.assemblies = 0
+        self._A0, self._A = self._assemble()
+        self._b = self._A.createVecLeft()
+        self._ksp = self._make_solver()
+
+    # ---- setup
+
+    def _choose_boundaries(
+        self,
+        tagged: TaggedMesh,
+        moving: Sequence[Boundary],
+        fixed: Sequence[Boundary] | None,
+    ) -> None:
+        """``self.moving`` and ``self.fixed`` (default: every other boundary tagged on any rank;
+        a boundary in both is moving). Collective (an allgather)."""
+        present = set(np.concatenate(self.comm.allgather(np.unique(tagged.facet_tags.values))))
+        self.moving = tuple(Boundary(b) for b in moving)
+        if fixed is None:
+            fixed = [Boundary(int(b)) for b in sorted(present) if int(b) not in self.moving]
+        self.fixed = tuple(Boundary(b) for b in fixed if b not in self.moving)
+
+    def _map_reference_geometry(self) -> None:
+        """The reference geometry, its cells, the P1 dof of each geometry node, the dofs'
+        reference points and the cells' reference areas; raises (on every rank) if the P1 dofs
+        and the nodes do not coincide or a cell is degenerate. Collective (two allreduce)."""
+        mesh, gdim = self.mesh, self.gdim
         # Reference geometry, and geometry node -> P1 dof (both follow each cell's vertex order).
         self.reference = mesh.geometry.x.copy()
         self._cells = compat.geometry_dofmap(mesh)
@@ -155,12 +181,18 @@ class MeshMotion:
         )
         if not self.comm.allreduce(bool(local_ok), op=MPI.LAND):
             raise RuntimeError("MeshMotion: P1 dofs and geometry nodes do not coincide")
-        self._n_owned_cells = mesh.topology.index_map(tdim).size_local
+        self._n_owned_cells = mesh.topology.index_map(mesh.topology.dim).size_local
         self.reference_areas = signed_areas(self.reference, self._cells)
         degenerate = bool(np.any(self.reference_areas[: self._n_owned_cells] == 0))
         if self.comm.allreduce(degenerate, op=MPI.LOR):
             raise ValueError("MeshMotion: the reference mesh has a degenerate cell")
 
+    def _locate_boundary_dofs(self, tagged: TaggedMesh) -> None:
+        """The moving-boundary facets and dofs, the owned interface dofs and the owned
+        Dirichlet rows (local and global); raises (on every rank) if no facet is moving.
+        Collective (an allreduce)."""
+        mesh = self.mesh
+        tdim = mesh.topology.dim
         # Dirichlet dofs (block indices, owned and ghost; locate_dofs_topological finds those on
         # facets another rank holds too).
         fdim = tdim - 1
@@ -183,15 +215,6 @@ class MeshMotion:
         self._bc_local = (bc[:, None] * bs + np.arange(bs)).ravel().astype(np.int32)
         start = self.V.dofmap.index_map.local_range[0]
         self._bc_rows = (self._bc_local + start * bs).astype(PETSc.IntType)
-
-        self.k = self._stiffness(tagged)
-        self.quadrature_degree = quadrature_degree
-        self.assemblies = 0
-        self._A0, self._A = self._assemble()
-        self._b = self._A.createVecLeft()
-        self._ksp = self._make_solver()
-
-    # ---- setup
 
     def _stiffness(self, tagged: TaggedMesh):
         """The cell-wise stiffening k (a DG0 Function, or the Constant 1)."""

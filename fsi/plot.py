@@ -256,12 +256,7 @@ def read_field(
     mesh; 0 for the structure). Raises :class:`PlotError` (naming the folder or file and the
     option) for an unknown folder, field, region or a time outside the stored range."""
     run_dir = Path(run_dir)
-    if not math.isfinite(t):
-        raise PlotError(f"--time {t}: not a finite number")
-    if warp is not None and not math.isfinite(warp):
-        raise PlotError(f"--warp {warp}: not a finite number")
-    if region is not None and region not in REGIONS:
-        raise PlotError(f"--region {region}: not one of {', '.join(REGIONS)}")
+    _check_options(t, warp, region)
     domain, segments, series = _find(run_dir, name)
     file = segments[0].xdmf.name
     if region is not None and (region == "fluid") != (domain == "fluid"):
@@ -284,25 +279,10 @@ def read_field(
     values = values[:, :2] if values.ndim == 2 and values.shape[1] > 1 else values.reshape(-1)
 
     displacement = _at_time(segment, DISPLACEMENTS[domain], time)
-    if warp is None:
-        warp = 1.0 if domain == "fluid" and displacement is not None else 0.0
-    if warp != 0.0 and displacement is None:
-        raise PlotError(
-            f"--warp {warp:g}: {segment.xdmf} has no {DISPLACEMENTS[domain][0]} "
-            f"field (the {domain} does not move in this run)"
-        )
-
+    warp = _warp(segment, domain, warp, displacement)
     cells = np.arange(len(triangles))
     if region is not None and region != "fluid":
-        tags = _at_time(segment, ("region",), time)
-        if tags is None:
-            raise PlotError(
-                f"--region {region}: {segment.xdmf} has no 'region' field (a run "
-                "written before fsi run stored it)"
-            )
-        cells = np.flatnonzero(np.rint(tags).astype(np.int64) == STRUCTURE_REGIONS[region])
-        if len(cells) == 0:
-            raise PlotError(f"--region {region}: no {region} cells in {segment.xdmf}")
+        cells = _region_cells(segment, region, time)
         triangles = triangles[cells]
         if center == "cell":
             values = values[cells]
@@ -323,6 +303,47 @@ def read_field(
         values,
         region,
     )
+
+
+def _check_options(t: float, warp: float | None, region: str | None) -> None:
+    """Raise :class:`PlotError` naming the option if ``t`` or ``warp`` is not finite or
+    ``region`` is not one of :data:`REGIONS`."""
+    if not math.isfinite(t):
+        raise PlotError(f"--time {t}: not a finite number")
+    if warp is not None and not math.isfinite(warp):
+        raise PlotError(f"--warp {warp}: not a finite number")
+    if region is not None and region not in REGIONS:
+        raise PlotError(f"--region {region}: not one of {', '.join(REGIONS)}")
+
+
+def _warp(
+    segment: _Segment, domain: str, warp: float | None, displacement: np.ndarray | None
+) -> float:
+    """The warp factor: ``warp``, or by default 1 for a moving fluid and 0 otherwise; raises
+    :class:`PlotError` for a non-zero warp of a domain without a displacement field."""
+    if warp is None:
+        warp = 1.0 if domain == "fluid" and displacement is not None else 0.0
+    if warp != 0.0 and displacement is None:
+        raise PlotError(
+            f"--warp {warp:g}: {segment.xdmf} has no {DISPLACEMENTS[domain][0]} "
+            f"field (the {domain} does not move in this run)"
+        )
+    return warp
+
+
+def _region_cells(segment: _Segment, region: str, time: float) -> np.ndarray:
+    """The indices of the structure cells of ``region`` (from the ``region`` field at ``time``);
+    raises :class:`PlotError` if there is no such field or no such cell."""
+    tags = _at_time(segment, ("region",), time)
+    if tags is None:
+        raise PlotError(
+            f"--region {region}: {segment.xdmf} has no 'region' field (a run "
+            "written before fsi run stored it)"
+        )
+    cells = np.flatnonzero(np.rint(tags).astype(np.int64) == STRUCTURE_REGIONS[region])
+    if len(cells) == 0:
+        raise PlotError(f"--region {region}: no {region} cells in {segment.xdmf}")
+    return cells
 
 
 def _at_time(segment: _Segment, names: tuple[str, ...], time: float) -> np.ndarray | None:
@@ -421,15 +442,8 @@ def draw(
     values, prefix = _component(snapshot, component)
     label, quantity = FIELDS.get(snapshot.name, (snapshot.name, ""))
     used = np.unique(snapshot.triangles)
-    shown = values[used] if snapshot.center == "node" else values
-    unit, scale = _unit(quantity, float(np.max(np.abs(shown))) if len(shown) else 0.0)
-    values, shown = values * scale, shown * scale
-    low, high = float(np.min(shown)), float(np.max(shown))
-    cmap = "viridis"
-    if low < 0.0 < high and quantity != "tag":  # signed: zero in the middle, white
-        low, high, cmap = -max(-low, high), max(-low, high), "RdBu_r"
-    if low == high:
-        low, high = low - 1.0, high + 1.0
+    values, shown, unit = _in_unit(snapshot, values, used, quantity)
+    low, high, cmap = _colour_range(shown, quantity)
 
     xy = snapshot.coordinates * 1e3  # mm
     triangulation = mtri.Triangulation(xy[:, 0], xy[:, 1], snapshot.triangles)
@@ -452,11 +466,41 @@ def draw(
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     ax.set_title(title(snapshot), fontsize=9)
-    wide = aspect < 0.6  # a wide picture: the colour bar below it
+    bar_label = f"{prefix}{label}" + (f" ({unit})" if unit else "")
+    _colour_bar(fig, ax, image, bar_label, quantity, shown, wide=aspect < 0.6)
+    _save_png(fig, path)
+    return path
+
+
+def _in_unit(
+    snapshot: Snapshot, values: np.ndarray, used: np.ndarray, quantity: str
+) -> tuple[np.ndarray, np.ndarray, str]:
+    """``values`` and those shown (at the ``used`` nodes, or every cell) in a readable unit
+    (:func:`_unit` of the largest shown magnitude), and that unit's name."""
+    shown = values[used] if snapshot.center == "node" else values
+    unit, scale = _unit(quantity, float(np.max(np.abs(shown))) if len(shown) else 0.0)
+    return values * scale, shown * scale, unit
+
+
+def _colour_range(shown: np.ndarray, quantity: str) -> tuple[float, float, str]:
+    """The colour map's limits and name: symmetric about zero in ``RdBu_r`` for signed values
+    (not region tags), else the values' range in ``viridis``; never an empty range."""
+    low, high = float(np.min(shown)), float(np.max(shown))
+    cmap = "viridis"
+    if low < 0.0 < high and quantity != "tag":  # signed: zero in the middle, white
+        low, high, cmap = -max(-low, high), max(-low, high), "RdBu_r"
+    if low == high:
+        low, high = low - 1.0, high + 1.0
+    return low, high, cmap
+
+
+def _colour_bar(fig, ax, image, label: str, quantity: str, shown: np.ndarray, wide: bool) -> None:
+    """The colour bar of ``image``, labelled ``label``: below a ``wide`` picture, else on the
+    right; for region tags, a tick named after each region shown."""
     bar = fig.colorbar(
         image,
         ax=ax,
-        label=f"{prefix}{label}" + (f" ({unit})" if unit else ""),
+        label=label,
         location="bottom" if wide else "right",
         shrink=0.6 if wide else 0.9,
         aspect=40 if wide else 20,
@@ -465,6 +509,13 @@ def draw(
         tags = [int(tag) for tag in np.unique(np.rint(shown))]
         bar.set_ticks(tags)
         bar.set_ticklabels([Region(tag).label if tag in set(Region) else str(tag) for tag in tags])
+
+
+def _save_png(fig, path: Path) -> None:
+    """Write ``fig`` to ``path`` (PNG, 150 dpi) under another name, then rename it: the file
+    appears complete or not at all. Closes ``fig`` once the writing was tried."""
+    import matplotlib.pyplot as plt
+
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_name(path.name + ".partial")
     try:
@@ -473,7 +524,6 @@ def draw(
     finally:
         plt.close(fig)
         partial.unlink(missing_ok=True)
-    return path
 
 
 def _streamlines(ax, flow: Snapshot, lo: np.ndarray, hi: np.ndarray) -> None:

@@ -563,27 +563,7 @@ def draw(groups: Sequence[Group], ylabel: str, quantity: str, path: Path) -> str
     )
     axes = list(axes[:, 0])
     for k, group in enumerate(groups):
-        ax = axes[k if scale == "panels" else 0]
-        colour = f"C{group.colour % 10}"
-        for line in group.lines:
-            ax.plot(
-                line.t,
-                [unit.scale * v for v in line.y],
-                line.style,
-                lw=1.2,
-                color=colour,
-                label=line.label or "_nolegend_",
-            )
-        if group.band:
-            low, high = group.lines
-            ax.fill_between(
-                low.t,
-                [unit.scale * v for v in low.y],
-                [unit.scale * v for v in high.y],
-                color=colour,
-                alpha=0.2,
-                label=group.label,
-            )
+        _plot_group(axes[k if scale == "panels" else 0], group, unit.scale)
     for ax in axes:
         if scale == "log":
             ax.set_yscale("log")
@@ -597,6 +577,31 @@ def draw(groups: Sequence[Group], ylabel: str, quantity: str, path: Path) -> str
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return scale
+
+
+def _plot_group(ax, group: Group, factor: float) -> None:
+    """The group's lines on ``ax`` (values × ``factor``, in the group's colour), and for a band
+    the area between its two lines shaded."""
+    colour = f"C{group.colour % 10}"
+    for line in group.lines:
+        ax.plot(
+            line.t,
+            [factor * v for v in line.y],
+            line.style,
+            lw=1.2,
+            color=colour,
+            label=line.label or "_nolegend_",
+        )
+    if group.band:
+        low, high = group.lines
+        ax.fill_between(
+            low.t,
+            [factor * v for v in low.y],
+            [factor * v for v in high.y],
+            color=colour,
+            alpha=0.2,
+            label=group.label,
+        )
 
 
 def flow_rate_plot(runs: Sequence[Run], path: Path) -> bool:

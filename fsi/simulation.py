@@ -344,25 +344,9 @@ def march(
     exception skips the restore), so the checkpoint written then is the snapshot of the
     stepper's state taken after the last converged step, whose metrics row is the last one
     written; the exception says where it is. Collective."""
-    t0 = 0.0 if restart is None else restart.t
-    first = 0 if restart is None else restart.step
     period, schedule = config.heartbeat_period(case), config.run_time(case)
-    last = first
-    for last_step in steps(schedule, t0, first):  # counted, never stored (time.max_steps)
-        last = last_step.index
-    layouts = stepper.layouts()
-    if restart is not None:  # before any file is touched
-        loaded = checkpoint.localize(restart, layouts, stepper.state(), comm)
-    files = _open_outputs(case, out, comm, stepper, restart, period)
-    if restart is not None:
-        stepper.load_state(loaded)
-    saved = _Checkpoints(
-        out,
-        comm,
-        case,
-        layouts,
-        _Snapshot(first, t0, None if restart is None else restart.dt, stepper.state()),
-    )
+    t0, first, last = _step_range(schedule, restart)
+    files, saved = _begin(case, out, comm, stepper, restart, period, t0, first)
     rows: list[dict] = []
     retried: list[Step] = []  # the steps that had to be split
     try:
@@ -376,9 +360,7 @@ def march(
                 files.write_fields(step.t)
             saved.after(_Snapshot(step.index, step.t, step.dt, stepper.state()), final)
             _report_progress(stepper, row, last, (wallclock.perf_counter() - start) / len(rows))
-            signal = comm.allreduce(stop_requested() or 0, op=MPI.MAX)
-            if signal and not final:
-                raise Interrupted(signal)
+            _stop_if_requested(comm, stop_requested, final)
         if not rows:  # restarted at (or past) the end: the checkpoint goes to out as well
             saved.write_good()
     except (RunStopped, io.OutputError) as e:
@@ -388,14 +370,86 @@ def march(
         raise stopped from e
     finally:
         files.close()
-    summary = run_summary(
-        case, comm, files.kept + rows, t0, start, retried, stepper, restart, saved.latest
+    return _finish(
+        case, out, comm, stepper, restart, saved, files.kept + rows, len(rows), retried, t0, start
     )
+
+
+def _step_range(
+    schedule: config.Time, restart: checkpoint.Checkpoint | None
+) -> tuple[float, int, int]:
+    """The run's start time t0, the index of the step before its first (0, or the restart's
+    step) and the index of its last step in ``schedule`` (``first`` if there is none)."""
+    t0 = 0.0 if restart is None else restart.t
+    first = 0 if restart is None else restart.step
+    last = first
+    for last_step in steps(schedule, t0, first):  # counted, never stored (time.max_steps)
+        last = last_step.index
+    return t0, first, last
+
+
+def _begin(
+    case: config.Case,
+    out: Path,
+    comm: MPI.Comm,
+    stepper: Stepper,
+    restart: checkpoint.Checkpoint | None,
+    period: float,
+    t0: float,
+    first: int,
+) -> tuple[io.RunFiles, _Checkpoints]:
+    """The run's open files (:func:`_open_outputs`) and its checkpoints, whose good state is the
+    stepper's at t0. A ``restart``'s arrays are localized and checked before any file is
+    touched, and loaded into the stepper after the files are open. Collective."""
+    layouts = stepper.layouts()
+    if restart is not None:  # before any file is touched
+        loaded = checkpoint.localize(restart, layouts, stepper.state(), comm)
+    files = _open_outputs(case, out, comm, stepper, restart, period)
+    if restart is not None:
+        stepper.load_state(loaded)
+    saved = _Checkpoints(
+        out,
+        comm,
+        case,
+        layouts,
+        _Snapshot(first, t0, None if restart is None else restart.dt, stepper.state()),
+    )
+    return files, saved
+
+
+def _stop_if_requested(
+    comm: MPI.Comm, stop_requested: Callable[[], int | None], final: bool
+) -> None:
+    """Raise :class:`Interrupted` on every rank if ``stop_requested`` returned a signal on any
+    rank, unless the step just taken was the last. Collective (an allreduce)."""
+    signal = comm.allreduce(stop_requested() or 0, op=MPI.MAX)
+    if signal and not final:
+        raise Interrupted(signal)
+
+
+def _finish(
+    case: config.Case,
+    out: Path,
+    comm: MPI.Comm,
+    stepper: Stepper,
+    restart: checkpoint.Checkpoint | None,
+    saved: _Checkpoints,
+    rows: list[dict],
+    steps_taken: int,
+    retried: list[Step],
+    t0: float,
+    start: float,
+) -> RunResult:
+    """Write ``out/summary.json`` (:func:`run_summary` of every row of metrics.csv, ``rows``)
+    and return the run's result (``steps_taken`` by this run). A failure to write raises
+    :class:`OutputFailed` on every rank, after checkpointing the good state unless it is
+    already. Collective."""
+    summary = run_summary(case, comm, rows, t0, start, retried, stepper, restart, saved.latest)
     try:
         io.write_json(comm, out / "summary.json", summary)
     except io.OutputError as e:
         raise saved.stopped(e) from e
-    return RunResult(len(rows), summary["wall_time_s"], summary)
+    return RunResult(steps_taken, summary["wall_time_s"], summary)
 
 
 def _open_outputs(

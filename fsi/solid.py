@@ -430,7 +430,41 @@ class SolidSolver:
         self.forces_n = np.zeros_like(self.forces)
 
     def _build_forms(self, quadrature_degree: int) -> None:
-        mesh, s, law = self.domain.mesh, self.scheme, self.law
+        """The residual of the balance of momentum at n+1−αf (:attr:`residual_form`: stress,
+        inertia, loads, pressure and support) and its Jacobian in η (:attr:`jacobian_form`)."""
+        mesh, s = self.domain.mesh, self.scheme
+        self._build_measures(quadrature_degree)
+        ds_interface = self._ds_interface
+        d = mesh.geometry.dim
+        I = ufl.Identity(d)
+        deta = ufl.TestFunction(self.V)
+        af = s.alpha_f
+        F_new, F_old = I + ufl.grad(self.eta), I + ufl.grad(self.eta_n)
+        residual, v_alpha = self._stress_residual(F_new, F_old, deta)
+        self._gravity = dolfinx.fem.Constant(
+            mesh, np.asarray(self.bcs_data.body_force, dtype=PETSc.ScalarType)
+        )
+        residual -= self.rho * ufl.inner(self._gravity, deta) * self.dx
+        if self.bcs_data.source is not None:
+            residual -= ufl.inner(self.bcs_data.source(ufl.SpatialCoordinate(mesh)), deta) * self.dx
+        residual -= ufl.inner(s.at(self.traction, self.traction_n, af), deta) * ds_interface
+        self._pressure = dolfinx.fem.Constant(mesh, PETSc.ScalarType(0.0))
+        self._pressure_n = dolfinx.fem.Constant(mesh, PETSc.ScalarType(0.0))
+        if self.bcs_data.pressure is not None:
+            N = ufl.FacetNormal(mesh)
+            F_a = s.at(F_new, F_old, af)
+            p_a = s.at(self._pressure, self._pressure_n, af)
+            residual += p_a * ufl.inner(ufl.det(F_a) * ufl.inv(F_a).T * N, deta) * ds_interface
+        support_term = self._support_residual(v_alpha, deta)
+        if support_term is not None:
+            residual += support_term
+        self.residual_form = residual
+        self.jacobian_form = ufl.derivative(residual, self.eta, ufl.TrialFunction(self.V))
+
+    def _build_measures(self, quadrature_degree: int) -> None:
+        """The measures :attr:`dx` and :attr:`ds` (with the cell and facet tags) and the
+        interface's ``ds``, all at ``quadrature_degree``."""
+        mesh = self.domain.mesh
         metadata = {"quadrature_degree": quadrature_degree}
         self.dx = ufl.Measure(
             "dx", domain=mesh, subdomain_data=self.domain.cell_tags, metadata=metadata
@@ -443,11 +477,12 @@ class SolidSolver:
             self.ds(int(self.bcs_data.interface[0])),
         )
         self._ds_interface = ds_interface
-        d = mesh.geometry.dim
-        I = ufl.Identity(d)
-        deta = ufl.TestFunction(self.V)
+
+    def _stress_residual(self, F_new, F_old, deta):
+        """The stress (elastic, plus Kelvin–Voigt if any) and inertia terms of the residual at
+        n+1−αf, and the velocity η̇ at n+1−αf."""
+        s, law = self.scheme, self.law
         af, am = s.alpha_f, s.alpha_m
-        F_new, F_old = I + ufl.grad(self.eta), I + ufl.grad(self.eta_n)
         # Generalized energy-momentum stress: F at n+1-αf times the interpolated Σ.
         S_alpha = s.at(law.second_piola(F_new), law.second_piola(F_old), af)
         # η̇ at n+1-αf, with η̇_{n+1} the scheme's function of the unknown η_{n+1}.
@@ -463,40 +498,31 @@ class SolidSolver:
         if s.dynamic:
             a_new = s.acceleration(self.eta, self.eta_n, self.v_n, self.a_n, self._dt)
             residual += self.rho * ufl.inner(s.at(a_new, self.a_n, am), deta) * self.dx
-        self._gravity = dolfinx.fem.Constant(
-            mesh, np.asarray(self.bcs_data.body_force, dtype=PETSc.ScalarType)
-        )
-        residual -= self.rho * ufl.inner(self._gravity, deta) * self.dx
-        if self.bcs_data.source is not None:
-            residual -= ufl.inner(self.bcs_data.source(ufl.SpatialCoordinate(mesh)), deta) * self.dx
-        residual -= ufl.inner(s.at(self.traction, self.traction_n, af), deta) * ds_interface
-        self._pressure = dolfinx.fem.Constant(mesh, PETSc.ScalarType(0.0))
-        self._pressure_n = dolfinx.fem.Constant(mesh, PETSc.ScalarType(0.0))
-        if self.bcs_data.pressure is not None:
-            N = ufl.FacetNormal(mesh)
-            F_a = s.at(F_new, F_old, af)
-            p_a = s.at(self._pressure, self._pressure_n, af)
-            residual += p_a * ufl.inner(ufl.det(F_a) * ufl.inv(F_a).T * N, deta) * ds_interface
+        return residual, v_alpha
+
+    def _support_residual(self, v_alpha, deta):
+        """The elastic support's term of the residual, or None without a support; its
+        constants, normal and measure go to :attr:`_support` (None without one)."""
+        mesh, s = self.domain.mesh, self.scheme
         support = self.bcs_data.support
         self._support = None
-        if support is not None:
-            # P N = −(k_s η·N + c_s η̇·N) N on the supported boundary, at n+1-αf.
-            N = ufl.FacetNormal(mesh)
-            k_s = dolfinx.fem.Constant(mesh, PETSc.ScalarType(support.stiffness))
-            c_s = dolfinx.fem.Constant(mesh, PETSc.ScalarType(support.damping))
-            ds_support = sum(
-                (self.ds(int(b)) for b in support.boundaries[1:]),
-                self.ds(int(support.boundaries[0])),
-            )
-            self._support = (k_s, c_s, N, ds_support)
-            eta_alpha = s.at(self.eta, self.eta_n, af)
-            residual += (
-                (k_s * ufl.dot(eta_alpha, N) + c_s * ufl.dot(v_alpha, N))
-                * ufl.dot(deta, N)
-                * ds_support
-            )
-        self.residual_form = residual
-        self.jacobian_form = ufl.derivative(residual, self.eta, ufl.TrialFunction(self.V))
+        if support is None:
+            return None
+        # P N = −(k_s η·N + c_s η̇·N) N on the supported boundary, at n+1-αf.
+        N = ufl.FacetNormal(mesh)
+        k_s = dolfinx.fem.Constant(mesh, PETSc.ScalarType(support.stiffness))
+        c_s = dolfinx.fem.Constant(mesh, PETSc.ScalarType(support.damping))
+        ds_support = sum(
+            (self.ds(int(b)) for b in support.boundaries[1:]),
+            self.ds(int(support.boundaries[0])),
+        )
+        self._support = (k_s, c_s, N, ds_support)
+        eta_alpha = s.at(self.eta, self.eta_n, s.alpha_f)
+        return (
+            (k_s * ufl.dot(eta_alpha, N) + c_s * ufl.dot(v_alpha, N))
+            * ufl.dot(deta, N)
+            * ds_support
+        )
 
     def _nodal(self) -> tuple[np.ndarray, np.ndarray]:
         f = self.scheme.at(self.forces, self.forces_n, self.scheme.alpha_f)

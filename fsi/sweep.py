@@ -147,18 +147,7 @@ def plan(
     all the combination's values when it is about another key) or ``fsi run`` cannot run, two
     combinations that give the same case or the same folder name; and
     :class:`fsi.config.ConfigError` when the case file or ``--set`` alone is wrong."""
-    set_keys = [item.partition("=")[0].strip() for item in sets]
-    for variation in variations:
-        clash = next((k for k in set_keys if _overlaps(k, variation.key)), None)
-        if clash is not None:
-            also = "" if clash == variation.key else f" (as part of {clash})"
-            raise SweepError(
-                f"--vary {variation.key}: also given with --set{also}: vary it or set it, not both"
-            )
-    count = math.prod(len(v.values) for v in variations)
-    if count > MAX_RUNS:
-        sizes = " x ".join(str(len(v.values)) for v in variations)
-        raise SweepError(f"--vary: {sizes} = {count} runs; a sweep runs at most {MAX_RUNS}")
+    _check_variations(variations, sets)
     varied = [v.key for v in variations]
     _check_base(case_file, sets, varied)
 
@@ -179,26 +168,51 @@ def plan(
             raise SweepError(f"{_culprit(choice, '')}: {reason}")
         run = SweepRun(index, choice, case, overrides, out / folder_name(choice))
         resolved = config.to_yaml(case)
-        if resolved in seen:
-            raise SweepError(
-                f"--vary: {seen[resolved].label} and {run.label} are the same "
-                "case (values that mean the same, e.g. 0.5 and 0.50): give each "
-                "value once"
-            )
-        if run.folder.name in folders:
-            raise SweepError(
-                f"--vary: {folders[run.folder.name].label} and {run.label} would "
-                f"share the folder {run.folder}: values that differ only in "
-                "characters other than letters, digits and . _ + -"
-            )
-        if len(run.folder.name.encode()) > 255:
-            raise SweepError(
-                f"--vary: the folder name of {run.label} would be longer than 255 "
-                "bytes: vary fewer keys, or with shorter values"
-            )
+        _check_unique(run, resolved, seen, folders)
         seen[resolved] = folders[run.folder.name] = run
         runs.append(run)
     return runs
+
+
+def _check_variations(variations: Sequence[Variation], sets: Sequence[str]) -> None:
+    """Raise :class:`SweepError` if a varied key is also ``--set`` (or one holds the other) or
+    the combinations are more than :data:`MAX_RUNS`."""
+    set_keys = [item.partition("=")[0].strip() for item in sets]
+    for variation in variations:
+        clash = next((k for k in set_keys if _overlaps(k, variation.key)), None)
+        if clash is not None:
+            also = "" if clash == variation.key else f" (as part of {clash})"
+            raise SweepError(
+                f"--vary {variation.key}: also given with --set{also}: vary it or set it, not both"
+            )
+    count = math.prod(len(v.values) for v in variations)
+    if count > MAX_RUNS:
+        sizes = " x ".join(str(len(v.values)) for v in variations)
+        raise SweepError(f"--vary: {sizes} = {count} runs; a sweep runs at most {MAX_RUNS}")
+
+
+def _check_unique(
+    run: SweepRun, resolved: str, seen: dict[str, SweepRun], folders: dict[str, SweepRun]
+) -> None:
+    """Raise :class:`SweepError` if ``run``'s resolved case or folder name is one of an earlier
+    run's (``seen``, ``folders``), or its folder name is longer than 255 bytes."""
+    if resolved in seen:
+        raise SweepError(
+            f"--vary: {seen[resolved].label} and {run.label} are the same "
+            "case (values that mean the same, e.g. 0.5 and 0.50): give each "
+            "value once"
+        )
+    if run.folder.name in folders:
+        raise SweepError(
+            f"--vary: {folders[run.folder.name].label} and {run.label} would "
+            f"share the folder {run.folder}: values that differ only in "
+            "characters other than letters, digits and . _ + -"
+        )
+    if len(run.folder.name.encode()) > 255:
+        raise SweepError(
+            f"--vary: the folder name of {run.label} would be longer than 255 "
+            "bytes: vary fewer keys, or with shorter values"
+        )
 
 
 def _check_base(case_file: Path, sets: Sequence[str], varied: Sequence[str]) -> None:
@@ -360,25 +374,9 @@ def execute(
             if state.action == "skip":
                 statuses[i] = "done"
                 continue
-            tic = wallclock.perf_counter()
-            status, reason = run_one(run, state.action == "resume", state.action == "start")
-            # Free the run's dolfinx/PETSc objects on every rank at this point: their
-            # destructors are collective, and a failed run leaves them in reference cycles
-            # that the garbage collector would free at different moments on each rank.
-            gc.collect()
-            comm.barrier()
-            took = f"{wallclock.perf_counter() - tic:.0f} s"
-            if status == EXIT_OK:
-                statuses[i] = "done"
-                log.info("%s: done in %s", head, took)
-            elif status > 128:
-                statuses[i] = "stopped"
-                stopped_by = status - 128
-                log.info("%s: stopped after %s", head, took)
+            stopped_by = _run_and_log(run, state, head, run_one, comm, statuses, i)
+            if stopped_by:
                 break
-            else:
-                statuses[i] = f"failed: {reason}"
-                log.info("%s: failed after %s (exit status %d): %s", head, took, status, reason)
     except KeyboardInterrupt:  # a second signal between runs
         stopped_by = signal.SIGINT
     try:
@@ -403,6 +401,39 @@ def execute(
             )
         return 128 + stopped_by
     return EXIT_SOLVE_FAILED if any(s.startswith("failed") for s in statuses) else EXIT_OK
+
+
+def _run_and_log(
+    run: SweepRun,
+    state: FolderState,
+    head: str,
+    run_one: RunOne,
+    comm: MPI.Comm,
+    statuses: list[str],
+    i: int,
+) -> int:
+    """Run ``run`` (resumed or started afresh as ``state`` says), record its outcome in
+    ``statuses[i]`` (done, stopped or ``failed: <why>``) and log it after ``head``; returns the
+    signal that stopped it, or 0. Collective (garbage collection and a barrier after the run)."""
+    tic = wallclock.perf_counter()
+    status, reason = run_one(run, state.action == "resume", state.action == "start")
+    # Free the run's dolfinx/PETSc objects on every rank at this point: their
+    # destructors are collective, and a failed run leaves them in reference cycles
+    # that the garbage collector would free at different moments on each rank.
+    gc.collect()
+    comm.barrier()
+    took = f"{wallclock.perf_counter() - tic:.0f} s"
+    if status == EXIT_OK:
+        statuses[i] = "done"
+        log.info("%s: done in %s", head, took)
+    elif status > 128:
+        statuses[i] = "stopped"
+        log.info("%s: stopped after %s", head, took)
+        return status - 128
+    else:
+        statuses[i] = f"failed: {reason}"
+        log.info("%s: failed after %s (exit status %d): %s", head, took, status, reason)
+    return 0
 
 
 def describe_plan(runs: Sequence[SweepRun]) -> list[str]:
