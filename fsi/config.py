@@ -98,19 +98,20 @@ class TurekHronGeometry:
     flag_thickness: float = positive(0.02, " (m)")
 
 
-MESH_LEVELS = {"coarse": 0, "medium": 1, "fine": 2}
+MESH_LEVELS = {"coarse": 0, "medium": 1, "fine": 2, "finest": 3}
 
 
 @dataclass(frozen=True)
 class MeshSettings:
     """gmsh sizes of the coarse mesh: ``size`` away from, ``local_size`` at the plaque (or the
-    obstacle); ``level`` adds uniform refinements (medium = coarse × 4, fine = coarse × 16).
+    obstacle); ``level`` adds uniform refinements (medium = coarse × 4, fine = coarse × 16,
+    finest = coarse × 64: the third level of the performance study, docs/performance.md).
 
     ``max_cells``: validation refuses a mesh whose :func:`estimated_cells` exceeds it, before
     gmsh starts (memory grows with the cells: the fine stenosis, 51k triangles, took ~0.9 GB
     in a serial coupled run, ~18 kB per triangle, so the default 10⁶ is ~18 GB)."""
 
-    level: Literal["coarse", "medium", "fine"] = "coarse"
+    level: Literal["coarse", "medium", "fine", "finest"] = "coarse"
     size: float = positive(6.0e-4, " (m)")
     local_size: float = positive(2.2e-4, " (m)")
     max_cells: int = at_least(1_000_000, 1)

@@ -495,12 +495,13 @@ def test_cell_estimate_is_within_a_factor_3_of_gmsh(path):
 
 @pytest.mark.parametrize("path", [STENOSIS, TUREK_HRON, CHANNEL], ids=lambda p: p.stem)
 def test_cell_estimate_grows_4_times_per_refinement(path):
-    coarse, medium, fine = (
+    coarse, medium, fine, finest = (
         run_size.estimated_cells(config.load(path, [f"mesh.level={level}"]))
-        for level in ("coarse", "medium", "fine")
+        for level in ("coarse", "medium", "fine", "finest")
     )
     assert medium == pytest.approx(4 * coarse, rel=1e-12)
     assert fine == pytest.approx(16 * coarse, rel=1e-12)
+    assert finest == pytest.approx(64 * coarse, rel=1e-12)
 
 
 def test_cell_estimate_follows_the_sizes():
