@@ -446,6 +446,48 @@ class _Contribution:
 
 
 # --------------------------------------------------------------------------------------------
+# The geometry of straight open boundaries (normal flow, the parabolic inflow profile)
+
+
+def boundary_points(mesh, facet_tags, tags: Sequence[int], comm: MPI.Comm) -> np.ndarray:
+    """The (x, y) of the vertices of the facets ``tags``, gathered from every rank (the same
+    array on each; vertices shared by facets repeat). Collective."""
+    nodes = compat.entities_to_geometry(
+        mesh, mesh.topology.dim - 1, facets_of(facet_tags, tags)
+    ).ravel()
+    return np.concatenate(comm.allgather(mesh.geometry.x[nodes, :2]))
+
+
+def parabolic_profile(points: np.ndarray, mesh, comm: MPI.Comm, mean_velocity: float):
+    """The interpolation function of 1.5 Ū 4 s (H − s)/H² (−n) on the straight inlet whose
+    vertices are ``points`` (:func:`boundary_points`): H its width, s the distance along it,
+    n its outward normal (towards the inside of ``mesh``: the side of its centroid).
+    Collective (the centroid)."""
+    # The inlet's end points: the pair of its vertices farthest apart.
+    ends = points[
+        [np.argmin(points @ d) for d in ((1, 0), (0, 1))]
+        + [np.argmax(points @ d) for d in ((1, 0), (0, 1))]
+    ]
+    i, j = np.unravel_index(np.argmax(np.linalg.norm(ends[:, None] - ends[None], axis=2)), (4, 4))
+    start, tangent = ends[i], ends[j] - ends[i]
+    width = np.linalg.norm(tangent)
+    tangent = tangent / width
+    normal = np.array([tangent[1], -tangent[0]])
+    centre = comm.allreduce(mesh.geometry.x[:, :2].sum(axis=0))
+    centre /= comm.allreduce(len(mesh.geometry.x))
+    if normal @ (centre - start) < 0:
+        normal = -normal  # inward
+    peak = 1.5 * mean_velocity
+
+    def profile(xx):
+        s = np.clip((xx[:2].T - start) @ tangent, 0, width)
+        values = peak * 4 * s * (width - s) / width**2
+        return np.outer(normal, values)
+
+    return profile
+
+
+# --------------------------------------------------------------------------------------------
 # The residual
 
 
@@ -691,19 +733,11 @@ class FluidResidual:
 
     # ---- Dirichlet conditions
 
-    def _boundary_points(self, tags: Sequence[int]) -> np.ndarray:
-        """The (x, y) of the vertices of the facets ``tags``, gathered from every rank (the
-        same array on each; vertices shared by facets repeat). Collective."""
-        nodes = compat.entities_to_geometry(
-            self.mesh, self.mesh.topology.dim - 1, facets_of(self.facet_tags, tags)
-        ).ravel()
-        return np.concatenate(self.comm.allgather(self.mesh.geometry.x[nodes, :2]))
-
     def _normal_flow(self, tags: Sequence[int]):
         """u·t = 0 on the open boundary ``tags``, which must be a straight segment parallel to a
         coordinate axis (every inlet and outlet of the shipped geometries): the velocity
         component along it is 0, the normal one stays free."""
-        points = self._boundary_points(tags)
+        points = boundary_points(self.mesh, self.facet_tags, tags, self.comm)
         extent = points.max(axis=0) - points.min(axis=0)
         normal_axis = int(np.argmin(extent))
         if extent[normal_axis] > 1e-9 * extent.max():
@@ -721,32 +755,9 @@ class FluidResidual:
     def _parabolic_inflow(self, bc: Inflow):
         """u = ramp(t) 1.5 Ū 4 s (H − s)/H² (−n) on a straight inlet of width H."""
         spec: config.ParabolicInflow = bc.spec
-        gathered = self._boundary_points(bc.tags)
-        # The inlet's end points: the pair of its vertices farthest apart.
-        ends = gathered[
-            [np.argmin(gathered @ d) for d in ((1, 0), (0, 1))]
-            + [np.argmax(gathered @ d) for d in ((1, 0), (0, 1))]
-        ]
-        i, j = np.unravel_index(
-            np.argmax(np.linalg.norm(ends[:, None] - ends[None], axis=2)), (4, 4)
-        )
-        start, tangent = ends[i], ends[j] - ends[i]
-        width = np.linalg.norm(tangent)
-        tangent = tangent / width
-        normal = np.array([tangent[1], -tangent[0]])
-        centre = self.comm.allreduce(self.mesh.geometry.x[:, :2].sum(axis=0))
-        centre /= self.comm.allreduce(len(self.mesh.geometry.x))
-        if normal @ (centre - start) < 0:
-            normal = -normal  # inward
-        peak = 1.5 * spec.mean_velocity
-
-        def profile(xx):
-            s = np.clip((xx[:2].T - start) @ tangent, 0, width)
-            values = peak * 4 * s * (width - s) / width**2
-            return np.outer(normal, values)
-
+        points = boundary_points(self.mesh, self.facet_tags, bc.tags, self.comm)
         shape = dolfinx.fem.Function(self.V)
-        shape.interpolate(profile)
+        shape.interpolate(parabolic_profile(points, self.mesh, self.comm, spec.mean_velocity))
         inflow = dolfinx.fem.Function(self.V, name="inflow")
 
         ramped = self.scheme != "steady" and spec.ramp_time > 0
