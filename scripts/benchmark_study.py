@@ -134,7 +134,7 @@ def worker(args: argparse.Namespace) -> int:
         simulation.march(case, out, comm, stepper, start)
     except simulation.RunStopped as e:
         failure = str(e).splitlines()[0][:200]
-    rows = _read_rows(out / "metrics.csv") if comm.rank == 0 else []
+    rows = io.read_metrics(out / "metrics.csv") if comm.rank == 0 else []
     if comm.rank == 0:
         shutil.rmtree(out, ignore_errors=True)
     wall = [b[0] - a[0] for a, b in zip(marks, marks[1:])]
@@ -176,16 +176,6 @@ def worker(args: argparse.Namespace) -> int:
         result["t_end"] = rows[-1]["t"] if rows else 0.0
         Path(args.json).write_text(json.dumps(result))
     return 0
-
-
-def _read_rows(path: Path) -> list[dict]:
-    import csv
-
-    with open(path) as f:
-        return [
-            {k: float(v) for k, v in row.items() if v not in ("", None)}
-            for row in csv.DictReader(f)
-        ]
 
 
 # --------------------------------------------------------------------------------------------
