@@ -199,7 +199,7 @@ class _Version(argparse.Action):
     """``--version``: looks the git revision up only when asked."""
 
     def __call__(self, parser, namespace, values, option_string=None):
-        from fsi import provenance
+        from fsi.output import provenance
 
         print(provenance.version_line())
         parser.exit()
@@ -325,7 +325,8 @@ def _run(args: argparse.Namespace, case: config.Case) -> int:
 def run_case(request: RunRequest, case: config.Case) -> RunOutcome:
     """Run ``case`` as ``fsi run`` does (the same checks, messages, files and stops; SIGINT,
     SIGTERM and SIGUSR1 stop it after the current step). Collective."""
-    from fsi import checkpoint, io, simulation
+    from fsi.output import io
+    from fsi.run import checkpoint, simulation
 
     comm = MPI.COMM_WORLD
     reason = simulation.unsupported(case)
@@ -380,7 +381,8 @@ def _refused(comm: MPI.Comm, message: str) -> RunOutcome:
 def _stopped(request: RunRequest, e: Exception) -> RunOutcome:
     """Say why a run stopped early and where its checkpoint is (rank 0: every rank has the
     same exception; also into DIR/run.log); return the exit status and why, in one line."""
-    from fsi import io, simulation
+    from fsi.output import io
+    from fsi.run import simulation
 
     if isinstance(e, simulation.Interrupted):
         status = 128 + e.signal
@@ -468,9 +470,10 @@ class _StopOnSignal:
 def _sweep(args: argparse.Namespace) -> int:
     """``fsi sweep``: every run validated (and ``--out`` checked) before the first starts; then
     the runs one after the other in this process, each as ``fsi run`` (:func:`run_case`), and
-    the table (fsi/sweep.py). A stop signal stops the current run as ``fsi run`` and the sweep
+    the table (fsi/run/sweep.py). A stop signal stops the current run as ``fsi run`` and the sweep
     after it."""
-    from fsi import io, sweep
+    from fsi.output import io
+    from fsi.run import sweep
 
     comm = MPI.COMM_WORLD
     try:
@@ -510,7 +513,8 @@ def _sweep(args: argparse.Namespace) -> int:
 
 
 def _mesh(args: argparse.Namespace, case: config.Case) -> int:
-    from fsi import io, mesh
+    from fsi.output import io
+    from fsi.physics import mesh
 
     comm = MPI.COMM_WORLD
     try:
@@ -540,7 +544,7 @@ def _mesh(args: argparse.Namespace, case: config.Case) -> int:
 
 
 def _report(args: argparse.Namespace) -> int:
-    from fsi import report
+    from fsi.output import report
 
     comm = MPI.COMM_WORLD
     status = EXIT_OK
@@ -564,7 +568,7 @@ def _report(args: argparse.Namespace) -> int:
 
 
 def _plot(args: argparse.Namespace) -> int:
-    from fsi import plot
+    from fsi.output import plot
 
     comm = MPI.COMM_WORLD
     status = EXIT_OK

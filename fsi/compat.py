@@ -78,7 +78,8 @@ def write_meshtags(xdmf: dolfinx.io.XDMFFile, mesh, tags) -> None:
 
 
 def read_mesh_with_tags(comm: MPI.Comm, path: str):
-    """Read ``mesh.xdmf`` as written by :func:`fsi.mesh.write`: the mesh, cell and facet tags."""
+    """Read ``mesh.xdmf`` as written by :func:`fsi.physics.mesh.write`: the mesh, cell and facet
+    tags."""
     with dolfinx.io.XDMFFile(comm, path, "r") as xdmf:
         mesh = xdmf.read_mesh(name="mesh")
         tdim = mesh.topology.dim
@@ -110,7 +111,8 @@ def petsc_vector(u):
 
 
 # --------------------------------------------------------------------------------------------
-# Mixed spaces, expressions and the geometry dofmap (added for fsi.fluid and fsi.metrics)
+# Mixed spaces, expressions and the geometry dofmap (added for fsi.physics.fluid and
+# fsi.output.metrics)
 
 
 def mixed_space(mesh, parts):

@@ -2,16 +2,16 @@
 
 For each acceleration (Aitken, IQN-ILS and, optionally, constant relaxation) it runs the first
 ``--steps`` steps of the case's resolved schedule through the steppers ``fsi run`` uses
-(:class:`fsi.simulation.CoupledStepper`, the partitioned problem of fsi/partitioned.py), then the
-rigid-wall fluid-only run of the same case (``structure.mode=rigid``,
-:class:`fsi.simulation.RigidStepper`) on the same mesh and the same steps, and prints:
+(:class:`fsi.run.simulation.CoupledStepper`, the partitioned problem of fsi/coupled/partitioned.py),
+then the rigid-wall fluid-only run of the same case (``structure.mode=rigid``,
+:class:`fsi.run.simulation.RigidStepper`) on the same mesh and the same steps, and prints:
 
 * per acceleration: mean and max coupling iterations per step, mean fluid and solid Newton
   iterations per step (summed over the step's coupling iterations), fluid/solid Jacobian
   assemblies and LU factorisations per step, the mean wall and CPU time per step and their
   ratios to the rigid-wall step with the same solver settings; when the case reuses the fluid's
-  Jacobian (``fluid.solver.jacobian_reuse``, fsi/newton.py), also to the rigid-wall step with
-  plain Newton (``rigid/none``);
+  Jacobian (``fluid.solver.jacobian_reuse``, fsi/numerics/newton.py), also to the rigid-wall step
+  with plain Newton (``rigid/none``);
 * the sub-solvers' residuals at the accepted coupling iterates against the interface force
   (they must stay well below the coupling tolerance);
 * where a coupled step's time goes (exclusive wall time per step of the pieces, timed with
@@ -64,8 +64,9 @@ from benchmarking import (  # noqa: E402 (this folder, on the path of a script r
     window,
 )
 
-from fsi import config, simulation  # noqa: E402
-from fsi.timestepping import steps  # noqa: E402
+from fsi import config  # noqa: E402
+from fsi.numerics.timestepping import steps  # noqa: E402
+from fsi.run import simulation  # noqa: E402
 
 CASE = Path(__file__).resolve().parents[1] / "configs" / "stenosis_moving_carreau.yaml"
 

@@ -46,8 +46,10 @@ import ufl
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from fsi import compat, config, fluid, mesh, simulation  # noqa: E402
-from fsi.timestepping import steps  # noqa: E402
+from fsi import compat, config
+from fsi.numerics.timestepping import steps  # noqa: E402
+from fsi.physics import fluid, mesh
+from fsi.run import simulation
 from geometry.tags import Region  # noqa: E402
 
 CASE = Path(__file__).resolve().parents[1] / "configs" / "stenosis_fixed_newtonian.yaml"

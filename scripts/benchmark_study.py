@@ -1,7 +1,7 @@
 """Performance of the study's moving-wall Carreau case across mesh levels and ranks (issue #11).
 
 For each mesh level (coarse, fine and the third level ``finest``, one refinement above fine) and
-each rank count (1 and 2), it runs ``fsi run``'s own loop (:func:`fsi.simulation.march`, with
+each rank count (1 and 2), it runs ``fsi run``'s own loop (:func:`fsi.run.simulation.march`, with
 its metrics rows, field files and checkpoints written to a temporary folder) over the first
 steps of the case's schedule, coupled and with a rigid wall (``structure.mode=rigid``, the
 same mesh and solver settings), each in a fresh process (``mpirun -n R``), and prints:
@@ -96,7 +96,9 @@ def worker(args: argparse.Namespace) -> int:
     sys.path[:0] = [str(HERE), str(ROOT)]
     from benchmarking import Profiler, attach_coupled, attach_rigid, window
 
-    from fsi import config, io, simulation
+    from fsi import config
+    from fsi.output import io
+    from fsi.run import simulation
 
     comm = MPI.COMM_WORLD
     logging.disable(logging.WARNING)

@@ -7,8 +7,8 @@ Runs ``configs/turek_hron_<case>.yaml`` through the command line's own code path
 mm) that ``metrics.csv`` holds:
 
 - periodic cases (CFD3, CSM3, FSI2, FSI3): "mean ± amplitude [frequency]" over the last period
-  (fsi/oscillation.py: mean and amplitude from max and min, the period between upward crossings
-  of the mean level), the reference, the relative differences and whether each passes the
+  (fsi/output/oscillation.py: mean and amplitude from max and min, the period between upward
+  crossings of the mean level), the reference, the relative differences and whether each passes the
   acceptance tolerances of solids4foam (2 % on the mean drag, 3 % on frequencies, 5 % on the
   u_y amplitude, 10 % on the u_x mean and amplitude, 15 % on force amplitudes; quantities
   without a quoted tolerance show "–");
@@ -53,8 +53,9 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from fsi import cli, config, io  # noqa: E402
-from fsi.oscillation import (  # noqa: E402
+from fsi import cli, config  # noqa: E402
+from fsi.output import io  # noqa: E402
+from fsi.output.oscillation import (  # noqa: E402
     Difference,
     OscillationError,
     Reference,

@@ -13,8 +13,9 @@ from petsc4py import PETSc
 
 import numpy as np
 
-from fsi import config, simulation
-from fsi.timestepping import steps
+from fsi import config
+from fsi.numerics.timestepping import steps
+from fsi.run import simulation
 
 LU_EVENTS = ("MatLUFactorNum", "MatLUFactorSym", "MatSolve")
 

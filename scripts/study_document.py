@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fsi import report
+from fsi.output import report
 
 TIMES = (0.01, 0.02, 0.05, 0.1, 0.8)
 QUANTITIES = [
@@ -216,12 +216,12 @@ def best(runs: dict, c: str) -> report.Run | None:
 
 
 def field_figures(runs: dict, figures: Path) -> list[tuple[str, Path]]:
-    """Figures 7–9 from the field files (fsi/plot.py): σ₁₂ on the deformed structure of each
+    """Figures 7–9 from the field files (fsi/output/plot.py): σ₁₂ on the deformed structure of each
     configuration at the time of its largest SSS, the displacement ×100 as in the study (×10
     for the moving wall, whose 0.1–0.2 mm displacement ×100 would fold the 1 mm wall across the
     7 mm lumen); the velocity's streamlines at t = RECIRCULATION_TIME and the wall shear stress
     along the diseased wall."""
-    from fsi import plot
+    from fsi.output import plot
 
     out = []
     for c in CONFIGS:
@@ -271,7 +271,7 @@ def field_figures(runs: dict, figures: Path) -> list[tuple[str, Path]]:
 def largest_at(run: report.Run, field: str, t: float) -> tuple[float, float, str]:
     """Where the cell field's largest |value| is at time t: the cell's centroid (reference
     coordinates, m) and its region."""
-    from fsi import plot
+    from fsi.output import plot
     from geometry.tags import Region
 
     values = plot.read_field(run.path, field, t, warp=0.0)
@@ -294,7 +294,7 @@ def boundary_nodes(triangles: np.ndarray) -> np.ndarray:
 def figure_wall_shear(runs: dict, path: Path) -> Path | None:
     """The signed wall shear stress along the lower wall (the plaque's side) against x, one
     line per configuration, at t = RECIRCULATION_TIME."""
-    from fsi import plot
+    from fsi.output import plot
 
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 3.6), layout="constrained")

@@ -7,7 +7,8 @@ from mpi4py import MPI
 import pytest
 import yaml
 
-from fsi import cli, config, config_reader
+from fsi import cli, config
+from fsi.config import reader as config_reader
 
 CONFIGS = sorted((Path(__file__).parents[1] / "configs").glob("*.yaml"))
 

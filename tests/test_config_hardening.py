@@ -11,8 +11,10 @@ from mpi4py import MPI
 
 import pytest
 
-from fsi import boundary_data, cli, config, config_reader, petsc_options, run_size
-from fsi.timestepping import steps
+from fsi import cli, config
+from fsi.config import boundary_data, petsc_options, run_size
+from fsi.config import reader as config_reader
+from fsi.numerics.timestepping import steps
 
 ROOT = Path(__file__).parents[1]
 CHANNEL = ROOT / "configs/channel_poiseuille.yaml"
@@ -483,7 +485,7 @@ def test_too_many_steps_fail_at_once_with_the_count_and_how_to_raise_the_limit(c
 
 @pytest.mark.parametrize("path", [STENOSIS, TUREK_HRON], ids=lambda p: p.stem)
 def test_cell_estimate_is_within_a_factor_3_of_gmsh(path):
-    from fsi import mesh
+    from fsi.physics import mesh
 
     case = config.load(path)
     built = mesh.build(case, MPI.COMM_WORLD).mesh.topology.index_map(2).size_global

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from fsi import config
-from fsi import coupling as cp
+from fsi.coupled import coupling as cp
 
 COMMS = {"world": MPI.COMM_WORLD, "self": MPI.COMM_SELF}
 

@@ -21,9 +21,12 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 
-from fsi import cli, compat, config, fluid, mesh, report, simulation
-from fsi.run_size import count_steps
-from fsi.timestepping import steps
+from fsi import cli, compat, config
+from fsi.config.run_size import count_steps
+from fsi.numerics.timestepping import steps
+from fsi.output import report
+from fsi.physics import fluid, mesh
+from fsi.run import simulation
 from geometry.tags import Region
 
 CHANNEL = "configs/channel_poiseuille.yaml"

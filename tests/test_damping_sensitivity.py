@@ -25,7 +25,8 @@ import math
 
 import pytest
 
-from fsi import cli, config, io
+from fsi import cli, config
+from fsi.output import io
 
 CASE = "configs/stenosis_moving_newtonian.yaml"
 WINDOW = 0.05  # s: the pulse and the ring, up to where it has decayed to ~3 % of the peak

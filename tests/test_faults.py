@@ -18,7 +18,9 @@ from mpi4py import MPI
 
 import pytest
 
-from fsi import cli, config, io, simulation
+from fsi import cli, config
+from fsi.output import io
+from fsi.run import simulation
 
 ROOT = Path(__file__).resolve().parents[1]
 CHANNEL = str(ROOT / "configs/channel_poiseuille.yaml")
@@ -187,7 +189,7 @@ def test_a_checkpoint_that_cannot_be_written_keeps_the_previous_one(
     """A full disk while checkpointing: the partial copy is removed, the previous checkpoint
     stays, the run goes on; when the last step cannot be checkpointed the run fails (exit 4)
     naming the checkpoint that is left."""
-    from fsi import checkpoint
+    from fsi.run import checkpoint
 
     write = checkpoint._write_swap
 
@@ -329,7 +331,7 @@ def test_an_inlet_formula_failing_mid_run_fails_the_step_with_a_checkpoint(share
 def test_a_mesh_build_leaves_the_runs_sigint_handler_in_place():
     """gmsh's Python API sets SIGINT to its default while it runs (and 4.13 does not restore
     it): the build asks it not to, so Ctrl-C still reaches the run's checkpointing handler."""
-    from fsi import mesh
+    from fsi.physics import mesh
 
     def handler(signum, frame):
         pass

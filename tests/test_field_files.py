@@ -11,7 +11,8 @@ import h5py
 import numpy as np
 import pytest
 
-from fsi import cli, io
+from fsi import cli
+from fsi.output import io
 from geometry.tags import Region
 
 CASE = "configs/stenosis_moving_newtonian.yaml"

@@ -12,7 +12,11 @@ import numpy as np
 import pytest
 import ufl
 
-from fsi import compat, config, config_reader, fluid, mesh, metrics, newton, rheology
+from fsi import compat, config
+from fsi.config import reader as config_reader
+from fsi.numerics import newton
+from fsi.output import metrics
+from fsi.physics import fluid, mesh, rheology
 from geometry.tags import Boundary, Region
 
 WALL, INLET, OUTLET = Boundary.RIGID_WALL, Boundary.INLET, Boundary.OUTLET

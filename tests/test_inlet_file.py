@@ -8,7 +8,10 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 
-from fsi import cli, config, config_reader, fluid, io
+from fsi import cli, config
+from fsi.config import reader as config_reader
+from fsi.output import io
+from fsi.physics import fluid
 
 CHANNEL = "configs/channel_poiseuille.yaml"
 THREE_STEPS = ["time.end=0.003", "time.schedule=[{until: 0.003, dt: 0.001}]"]

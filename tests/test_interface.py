@@ -5,7 +5,9 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 
-from fsi import compat, config, interface, mesh
+from fsi import compat, config
+from fsi.coupled import interface
+from fsi.physics import mesh
 from geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 
 

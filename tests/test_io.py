@@ -6,7 +6,8 @@ import dolfinx.fem
 import dolfinx.mesh
 import numpy as np
 
-from fsi import compat, io
+from fsi import compat
+from fsi.output import io
 
 
 def test_metrics_table_flushes_rows_and_restarts(shared_tmp):

@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 from mesh_checks import global_max, mesh_motion_settings
 
-from fsi import cli, config, mesh
-from fsi.mesh_motion import MeshMotion, MeshQualityError
+from fsi import cli, config
+from fsi.physics import mesh
+from fsi.physics.mesh_motion import MeshMotion, MeshQualityError
 from geometry.tags import Boundary, Region
 
 ROOT = Path(__file__).parents[1]

@@ -1,4 +1,4 @@
-"""ALE mesh motion of the fluid (fsi/mesh_motion.py), serially and on 2 ranks.
+"""ALE mesh motion of the fluid (fsi/physics/mesh_motion.py), serially and on 2 ranks.
 
 The mesh is the default case's coarse stenosis fluid submesh: lumen 7 mm high, a 1 cm plaque on
 the bottom reaching half the height, so the lumen is 3.5 mm wide at the plaque's apex.
@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 from mesh_checks import global_max, mesh_motion_settings
 
-from fsi import compat, config, mesh
-from fsi.mesh_motion import MeshMotion, MeshQualityError
+from fsi import compat, config
+from fsi.physics import mesh
+from fsi.physics.mesh_motion import MeshMotion, MeshQualityError
 from geometry.tags import Boundary, Region
 
 CASE = config.from_dict({})
@@ -114,11 +115,11 @@ def test_bump_moves_interface_nodes_exactly_and_keeps_the_other_boundaries(fluid
 
 def test_boundary_data_from_the_solid_through_a_p2_interface_map(fluid):
     """The coupler's path: the solid's P2 displacement → the fluid's P2 space on Γw1
-    (fsi.interface.InterfaceMap) → MeshMotion.set_boundary_function, which takes its vertex
+    (fsi.coupled.interface.InterfaceMap) → MeshMotion.set_boundary_function, which takes its vertex
     values: the same data as setting the interface vector directly."""
     import dolfinx.fem
 
-    from fsi.interface import InterfaceMap
+    from fsi.coupled.interface import InterfaceMap
     from geometry.tags import STRUCTURE_REGIONS
 
     solid = mesh.restrict(mesh.build(CASE), *STRUCTURE_REGIONS)

@@ -1,4 +1,4 @@
-"""Flow rates (fsi.metrics.flow_rate) on Poiseuille flow: exact at the inlet and the outlet,
+"""Flow rates (fsi.output.metrics.flow_rate) on Poiseuille flow: exact at the inlet and the outlet,
 positive downstream, on the mesh as it is now; 1 rank = 2 ranks (the suite runs on both)."""
 
 import dolfinx.fem
@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from test_fluid import INLET, OUTLET, channel, pressure_driven
 
-from fsi import compat, metrics
+from fsi import compat
+from fsi.output import metrics
 
 H = 0.007  # the height of test_fluid.channel
 

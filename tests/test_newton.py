@@ -1,4 +1,4 @@
-"""Jacobian reuse (modified Newton, fsi/newton.py) in the fluid and the solid solvers.
+"""Jacobian reuse (modified Newton, fsi/numerics/newton.py) in the fluid and the solid solvers.
 
 Reuse changes the path of Newton's iterations, not the answer: on the study's moving-wall Carreau
 stenosis (coarse, steps of 0.25 ms inside the inlet pulse) the fluid alone, the structure alone
@@ -26,8 +26,10 @@ import dolfinx.fem.petsc
 import numpy as np
 import pytest
 
-from fsi import compat, config, fluid, mesh, simulation, solid
-from fsi.timestepping import steps
+from fsi import compat, config
+from fsi.numerics.timestepping import steps
+from fsi.physics import fluid, mesh, solid
+from fsi.run import simulation
 from geometry.tags import Region
 
 CASE = "configs/stenosis_moving_carreau.yaml"

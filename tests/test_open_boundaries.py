@@ -15,8 +15,12 @@ import numpy as np
 import pytest
 from test_fluid import carreau_flow_rate_1d, channel
 
-from fsi import config, config_reader, fluid, metrics, rheology, simulation
-from fsi.timestepping import steps
+from fsi import config
+from fsi.config import reader as config_reader
+from fsi.numerics.timestepping import steps
+from fsi.output import metrics
+from fsi.physics import fluid, rheology
+from fsi.run import simulation
 from geometry.tags import Boundary
 
 STUDY = {

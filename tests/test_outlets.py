@@ -1,4 +1,5 @@
-"""Resistance and three-element Windkessel (RCR) outlets (fsi/outlets.py, fluid.LumpedOutlet).
+"""Resistance and three-element Windkessel (RCR) outlets (fsi/physics/outlets.py,
+fluid.LumpedOutlet).
 
 The models alone against their ODE (exact solution, order of the time scheme); the fluid with a
 resistance outlet in a steady rigid channel (P = P_ref + R Q at the solution, for R up to 10⁹
@@ -20,8 +21,10 @@ import numpy as np
 import pytest
 import ufl
 
-from fsi import cli, config, fluid, mesh, metrics, outlets
-from fsi.timestepping import bdf_weights
+from fsi import cli, config
+from fsi.numerics.timestepping import bdf_weights
+from fsi.output import metrics
+from fsi.physics import fluid, mesh, outlets
 from geometry.tags import Boundary, Region
 
 INLET, OUTLET, WALL = Boundary.INLET, Boundary.OUTLET, Boundary.RIGID_WALL

@@ -1,6 +1,6 @@
-"""``fsi run`` on the coupled stenosis modes (partitioned FSI, fsi/partitioned.py): three steps of
-1 ms inside the inlet pulse, fixed and moving wall, through the command line; 1 rank = N ranks;
-failures (coupling, mesh quality) exit 3 and keep the finished rows."""
+"""``fsi run`` on the coupled stenosis modes (partitioned FSI, fsi/coupled/partitioned.py): three
+steps of 1 ms inside the inlet pulse, fixed and moving wall, through the command line; 1 rank = N
+ranks; failures (coupling, mesh quality) exit 3 and keep the finished rows."""
 
 import json
 import math
@@ -12,7 +12,9 @@ from mpi4py import MPI
 
 import pytest
 
-from fsi import cli, config, io, simulation
+from fsi import cli, config
+from fsi.output import io
+from fsi.run import simulation
 
 CASE = "configs/stenosis_moving_newtonian.yaml"
 SHORT = [

@@ -11,7 +11,8 @@ import h5py
 import numpy as np
 import pytest
 
-from fsi import cli, plot
+from fsi import cli
+from fsi.output import plot
 
 PNG = b"\x89PNG\r\n\x1a\n"
 CASE = "configs/stenosis_moving_newtonian.yaml"

@@ -12,7 +12,8 @@ from mpi4py import MPI
 
 import pytest
 
-from fsi import cli, config, io, report, units
+from fsi import cli, config
+from fsi.output import io, report, units
 
 SHORT = [
     "structure.mode=rigid",

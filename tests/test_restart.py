@@ -1,4 +1,4 @@
-"""Checkpoints and ``fsi run --restart`` (fsi/checkpoint.py, fsi.simulation.march).
+"""Checkpoints and ``fsi run --restart`` (fsi/run/checkpoint.py, fsi.run.simulation.march).
 
 A run stopped after step k and restarted from its checkpoint continues like the uninterrupted
 run: rigid stenosis (BDF2 across a change of dt), coupled moving wall with Aitken and with
@@ -31,7 +31,8 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from fsi import checkpoint, cli, config, simulation
+from fsi import cli, config
+from fsi.run import checkpoint, simulation
 
 RIGID = "configs/stenosis_fixed_newtonian.yaml"
 COUPLED = "configs/stenosis_moving_newtonian.yaml"
@@ -667,7 +668,7 @@ def test_a_checkpoint_is_replaced_atomically(shared_tmp):
 
 
 def test_state_dataclasses_round_trip_through_arrays():
-    from fsi.fluid import FluidState
+    from fsi.physics.fluid import FluidState
 
     s = FluidState(0.25, None, 3, *(np.arange(4.0) + i for i in range(7)), True)
     back = checkpoint.from_arrays(FluidState, "fluid.", checkpoint.to_arrays("fluid.", s))
@@ -682,7 +683,7 @@ def test_coupling_memory_carries_over_through_its_arrays(acceleration):
     """Aitken's ω, IQN-ILS's past columns and the predictor's history, saved after step 2 of a
     linear fixed-point problem x = A x + b(t) and loaded into fresh objects: step 3 repeats bit
     for bit (and without them it takes another path)."""
-    from fsi import coupling
+    from fsi.coupled import coupling
 
     comm = MPI.COMM_SELF
     rng = np.random.default_rng(1)

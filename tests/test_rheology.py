@@ -10,7 +10,10 @@ import numpy as np
 import pytest
 import ufl
 
-from fsi import compat, config, config_reader, metrics, rheology
+from fsi import compat, config
+from fsi.config import reader as config_reader
+from fsi.output import metrics
+from fsi.physics import rheology
 
 MODELS = ["newtonian", "carreau", "carreau_yasuda", "cross", "power_law", "casson"]
 

@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 import fsi
-from fsi import cli, config, io, simulation
+from fsi import cli, config
+from fsi.output import io
+from fsi.run import simulation
 
 SHORT = ["structure.mode=rigid", "time.end=0.004", "time.schedule=[{until: 0.004, dt: 0.001}]"]
 CASE = "configs/stenosis_fixed_newtonian.yaml"
@@ -184,7 +186,7 @@ class HalfStepOnly:
 def test_a_failed_step_is_retried_as_halves_from_the_state_before_it():
     """time.retries: a failed step goes back to the state before it and is taken as two halves,
     each of which may be halved again while retries remain."""
-    from fsi.timestepping import Step
+    from fsi.numerics.timestepping import Step
 
     stepper, retried = HalfStepOnly(limit=0.1), []
     row = simulation.advance(stepper, Step(3, 0.4, 0.4), stepper.state(), 2, retried)

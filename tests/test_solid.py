@@ -1,4 +1,4 @@
-"""The structure solver (fsi/solid.py): verification against exact solutions and benchmarks.
+"""The structure solver (fsi/physics/solid.py): verification against exact solutions and benchmarks.
 
 Every test runs serially and on 2 ranks and asserts the same numbers on both. Measured values
 (dolfinx 0.5.2, 1 rank) are quoted next to each tolerance.
@@ -22,9 +22,12 @@ import numpy as np
 import pytest
 import ufl
 
-from fsi import compat, config, config_reader, materials, mesh, simulation, solid
+from fsi import compat, config
 from fsi.config import Material, SolverSettings
-from fsi.timestepping import NewmarkFamily, steps
+from fsi.config import reader as config_reader
+from fsi.numerics.timestepping import NewmarkFamily, steps
+from fsi.physics import materials, mesh, solid
+from fsi.run import simulation
 from geometry import turek_hron
 from geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 
@@ -845,10 +848,10 @@ def test_turek_hron_csm3_oscillation():
 
 
 def test_coupled_solid_drives_dirichlet_neumann_iterations():
-    """The solid behind fsi.coupling.couple_step with a fake 'fluid' that pushes back like a
+    """The solid behind fsi.coupled.coupling.couple_step with a fake 'fluid' that pushes back like a
     spring, forces = f0 − k x: Aitken converges each step to the fixed point x = S(f0 − k x),
     and the converged displacement reproduces that load exactly."""
-    from fsi import coupling
+    from fsi.coupled import coupling
 
     s = _cantilever(NewmarkFamily.generalized_alpha(0.5))
     coupled = solid.CoupledSolid(s, load="forces")

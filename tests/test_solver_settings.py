@@ -26,7 +26,8 @@ from mpi4py import MPI
 
 import pytest
 
-from fsi import cli, io
+from fsi import cli
+from fsi.output import io
 
 CASE = "configs/stenosis_moving_carreau.yaml"
 PULSE = ["time.end=0.01"]  # 40 steps of 0.25 ms: the 5 ms pulse and the 5 ms after it

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from fsi import config, report
+from fsi import config
+from fsi.output import report
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from scripts import study_document  # noqa: E402

@@ -9,8 +9,9 @@ import math
 
 import pytest
 
-from fsi import cli, config, io
-from fsi.timestepping import steps
+from fsi import cli, config
+from fsi.numerics.timestepping import steps
+from fsi.output import io
 
 CASES = ["moving_carreau", "moving_newtonian", "fixed_carreau", "fixed_newtonian"]
 

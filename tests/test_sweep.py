@@ -12,7 +12,9 @@ from mpi4py import MPI
 
 import pytest
 
-from fsi import cli, io, sweep
+from fsi import cli
+from fsi.output import io
+from fsi.run import sweep
 
 STENOSIS = "configs/stenosis_moving_newtonian.yaml"
 CHANNEL = "configs/channel_poiseuille.yaml"

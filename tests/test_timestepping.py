@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from fsi import config
-from fsi.timestepping import bdf_weights, steps
+from fsi.numerics.timestepping import bdf_weights, steps
 
 
 def test_study_schedule():

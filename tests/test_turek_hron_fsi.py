@@ -5,7 +5,9 @@ from mpi4py import MPI
 
 import pytest
 
-from fsi import cli, config, io, simulation
+from fsi import cli, config
+from fsi.output import io
+from fsi.run import simulation
 
 FSI1 = "configs/turek_hron_fsi1.yaml"
 

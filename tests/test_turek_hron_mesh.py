@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 from mesh_checks import boundary_vertices
 
-from fsi import cli, compat, config, config_reader, mesh
+from fsi import cli, compat, config
+from fsi.config import reader as config_reader
+from fsi.physics import mesh
 from geometry import turek_hron
 from geometry.tags import Boundary, Region
 

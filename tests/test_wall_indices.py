@@ -1,5 +1,5 @@
-"""The hemodynamic indices TAWSS, OSI and RRT (fsi.metrics.WallIndices, accumulated in-run by
-fsi.simulation.FluidOutputs; docs/hemodynamic-indices.md).
+"""The hemodynamic indices TAWSS, OSI and RRT (fsi.output.metrics.WallIndices, accumulated in-run by
+fsi.run.simulation.FluidOutputs; docs/hemodynamic-indices.md).
 
 The accumulator against known answers on synthetic τ(t) (constant, sinusoidal over whole
 periods, with uniform and non-uniform steps); ``fsi run`` on the straight channel against the
@@ -23,8 +23,10 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from fsi import cli, config, io, metrics, simulation
-from fsi.timestepping import steps
+from fsi import cli, config
+from fsi.numerics.timestepping import steps
+from fsi.output import io, metrics
+from fsi.run import simulation
 from geometry.tags import Boundary
 
 CHANNEL = "configs/channel_poiseuille.yaml"

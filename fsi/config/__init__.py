@@ -7,15 +7,15 @@ raise :class:`ConfigError` naming the file, the key and what is expected, before
 computed. The schema is documented in docs/configuration.md.
 
 What a configuration may not do (each refused with a :class:`ConfigError`): hold a number that
-is not finite; break the file limits of :mod:`fsi.config_reader` (size, nesting, repeated keys);
-give PETSc any option outside the allow-list of :mod:`fsi.petsc_options` (no viewers,
+is not finite; break the file limits of :mod:`fsi.config.reader` (size, nesting, repeated keys);
+give PETSc any option outside the allow-list of :mod:`fsi.config.petsc_options` (no viewers,
 monitors, Python types, options files or file paths); ask for more than ``time.max_steps``
-steps or, by :func:`fsi.run_size.estimated_cells`, more than ``mesh.max_cells`` triangles;
-give an inlet formula the language of :mod:`fsi.boundary_data` refuses or one that fails at
+steps or, by :func:`fsi.config.run_size.estimated_cells`, more than ``mesh.max_cells`` triangles;
+give an inlet formula the language of :mod:`fsi.config.boundary_data` refuses or one that fails at
 t = 0 or at a step time of the schedule; give a ``pressure_file`` inlet whose CSV file cannot be
-read or is not a waveform (:func:`fsi.boundary_data.read_waveform`).
+read or is not a waveform (:func:`fsi.config.boundary_data.read_waveform`).
 
-Reading and building live in :mod:`fsi.config_reader`; this module is the schema (the
+Reading and building live in :mod:`fsi.config.reader`; this module is the schema (the
 dataclasses and their defaults), the checks that involve several keys (:func:`validate`) and
 the conversion back to YAML (:func:`to_dict`).
 """
@@ -31,14 +31,15 @@ from typing import Any, Literal
 
 import yaml
 
-from fsi.boundary_data import (
+from fsi.config.boundary_data import (
     FORMULA_NAMES,
     FormulaError,
     WaveformError,
     read_waveform,
     time_function,
 )
-from fsi.config_reader import (
+from fsi.config.petsc_options import check_petsc_options
+from fsi.config.reader import (
     ConfigError,
     apply_overrides,
     at_least,
@@ -49,9 +50,8 @@ from fsi.config_reader import (
     positive,
     read_case_file,
 )
-from fsi.petsc_options import check_petsc_options
-from fsi.run_size import BYTES_PER_CELL, count_steps, estimated_cells, format_count
-from fsi.timestepping import steps
+from fsi.config.run_size import BYTES_PER_CELL, count_steps, estimated_cells, format_count
+from fsi.numerics.timestepping import steps
 from geometry import stenosis as stenosis_geometry
 
 # --------------------------------------------------------------------------------------------
@@ -305,7 +305,8 @@ class TractionFreeOutlet:
 class ResistanceOutlet:
     """σ n = −P n with P = P_ref + R Q (in the ``open_boundary`` form): Q (m²/s) the flow rate
     per unit depth out through the outlet, ``resistance`` R (Pa s/m², per unit depth),
-    ``reference_pressure`` P_ref (Pa). Q is the step's own (implicit: fsi.fluid.LumpedOutlet)."""
+    ``reference_pressure`` P_ref (Pa). Q is the step's own (implicit:
+    fsi.physics.fluid.LumpedOutlet)."""
 
     kind: Literal["resistance"] = "resistance"
     resistance: float = non_negative(0.0, " (Pa s/m^2)")
@@ -319,7 +320,7 @@ class WindkesselOutlet:
     C dP_c/dt = Q − (P_c − P_ref)/R_d, P_c(0) = P_0: ``proximal_resistance`` R_p and
     ``distal_resistance`` R_d (Pa s/m²), ``compliance`` C (m²/Pa), ``initial_pressure`` P_0 and
     ``reference_pressure`` P_ref (Pa); Q (m²/s) per unit depth as for :class:`ResistanceOutlet`.
-    The ODE is integrated with the fluid's scheme (fsi/outlets.py)."""
+    The ODE is integrated with the fluid's scheme (fsi/physics/outlets.py)."""
 
     kind: Literal["windkessel"] = "windkessel"
     proximal_resistance: float = non_negative(0.0, " (Pa s/m^2)")
@@ -340,10 +341,10 @@ class SolverSettings:
     ``jacobian_reuse``: ``none`` assembles (and factorises) the Jacobian at every Newton
     iteration; ``step`` keeps the last one across the Newton and coupling iterations of a time
     step, ``run`` also across steps, while it still contracts the residual: it is re-assembled
-    when ``|F(x_k)| > jacobian_reuse_rate · |F(x_{k−1})|`` (modified Newton, fsi/newton.py).
-    The stopping test is unchanged, so is the converged answer (to the solver's tolerance); a
-    failed solve with a reused Jacobian is repeated with fresh ones. ``step`` keeps restarts
-    exact (the path of a step depends only on the state at its start)."""
+    when ``|F(x_k)| > jacobian_reuse_rate · |F(x_{k−1})|`` (modified Newton,
+    fsi/numerics/newton.py). The stopping test is unchanged, so is the converged answer (to the
+    solver's tolerance); a failed solve with a reused Jacobian is repeated with fresh ones. ``step``
+    keeps restarts exact (the path of a step depends only on the state at its start)."""
 
     rtol: float = positive(1.0e-9)
     atol: float = positive(1.0e-10)
@@ -397,7 +398,7 @@ class Fluid:
 
 @dataclass(frozen=True)
 class Material:
-    """Hyperelastic material of one structure region (MODEL.md §3; fsi/materials.py): the
+    """Hyperelastic material of one structure region (MODEL.md §3; fsi/physics/materials.py): the
     study's St. Venant–Kirchhoff ``svk`` or a compressible ``neo_hookean``, plane strain.
     ``viscous_relaxation_time`` τ (s) adds the Kelvin–Voigt viscous stress
     ``S_v = τ (λ tr Ė I + 2μ Ė)`` (docs/wall-damping.md): every small-amplitude mode of
@@ -545,8 +546,8 @@ class Time:
     )
 
     def run_schedule(self, period: float) -> Time:
-        """The schedule the run steps through (:func:`fsi.timestepping.steps` of it): this one
-        when ``cycles`` is 0 or there is no ``period``; else ``cycles`` copies of this
+        """The schedule the run steps through (:func:`fsi.numerics.timestepping.steps` of it): this
+        one when ``cycles`` is 0 or there is no ``period``; else ``cycles`` copies of this
         schedule's steps from 0 to ``period`` T, the k-th shifted by (k − 1) T so that every
         heartbeat ends exactly on k T, and ``end`` = ``cycles`` × T."""
         if self.cycles < 1 or not period > 0:
@@ -570,7 +571,7 @@ class Time:
 
 @dataclass(frozen=True)
 class Coupling:
-    """Dirichlet–Neumann iterations per step (MODEL.md §5; fsi/coupling.py).
+    """Dirichlet–Neumann iterations per step (MODEL.md §5; fsi/coupled/coupling.py).
 
     ``initial_relaxation``: ω of constant relaxation, Aitken's first ω and IQN-ILS's relaxed
     first iteration; ``max_relaxation``: Aitken's cap |ω| <= ω_max; ``iqn_reuse``: time steps
@@ -591,7 +592,7 @@ class Coupling:
 @dataclass(frozen=True)
 class MeshMotion:
     """ALE extension of the interface displacement into the fluid (MODEL.md §5;
-    fsi/mesh_motion.py): ``harmonic`` −∇·(k ∇d) = 0, ``elastic`` −∇·(k σ(d)) = 0 with
+    fsi/physics/mesh_motion.py): ``harmonic`` −∇·(k ∇d) = 0, ``elastic`` −∇·(k σ(d)) = 0 with
     σ = 2 ε + λ' tr(ε) I, λ' = 2ν/(1 − 2ν) from ``poisson_ratio``, or ``biharmonic`` Δ²d = 0
     (the minimiser of ∫ k |∇∇d|², mixed with the Hessian as auxiliary field; natural condition
     ∂²d/∂n² = 0 where d is given, so affine motions are extended exactly). Stiffening k (per cell):
@@ -650,7 +651,7 @@ def load(path: str | Path, overrides: typing.Sequence[str] = ()) -> Case:
     """Read a case from YAML, apply ``key.path=value`` overrides, build and validate it.
 
     Every failure is a :class:`ConfigError` naming the file (or ``--set``) and the key: what
-    :func:`fsi.config_reader.read_case_file` refuses (unreadable, too large, not UTF-8, invalid
+    :func:`fsi.config.reader.read_case_file` refuses (unreadable, too large, not UTF-8, invalid
     or too deeply nested YAML, a repeated key) and whatever :func:`from_dict` refuses.
     """
     data = read_case_file(path)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import re
 
-from fsi.config_reader import ConfigError, shorten
+from fsi.config.reader import ConfigError, shorten
 
 # Sub-solver prefixes inside one solver's options: the blocks of block Jacobi / ASM (sub_),
 # the redundant PC, multigrid levels, fieldsplit blocks and a smoother's eigenvalue estimator.

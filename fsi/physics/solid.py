@@ -8,7 +8,7 @@ Turek–Hron flag) find the displacement η with::
     P N = t₀ + nodal forces − p J F⁻ᵀ N  on the interface Γw1
     P N = −(k_s η·N + c_s η̇·N) N   on ΓN       (tissue support; 0 and 0: traction-free)
 
-with per-region hyperelastic laws (fsi/materials.py), the per-region Kelvin–Voigt viscous
+with per-region hyperelastic laws (fsi/physics/materials.py), the per-region Kelvin–Voigt viscous
 stress ``S_v = τ (λ tr Ė I + 2μ Ė)``, ``Ė = sym(Fᵀ ∇η̇)`` (relaxation time τ ≥ 0, 0 by default;
 a small-amplitude mode of angular frequency ω then has the damping ratio ωτ/2), the external
 tissue's spring–dashpot support of Moireau et al. (2012) on the exterior ΓN, normal direction
@@ -17,7 +17,7 @@ docs/wall-damping.md), a traction ``t₀`` per unit *reference*
 length (first Piola traction; a fluid's Cauchy traction σ n on the deformed interface is
 ``t₀ = J σ F⁻ᵀ N``), nodal interface forces (a fluid's residual-based reaction forces) and an
 optional follower pressure ``p``. Discretised with vector Lagrange elements (P2 by default) and
-marched in time by the Newmark family of fsi/timestepping.py, in the energy-momentum form::
+marched in time by the Newmark family of fsi/numerics/timestepping.py, in the energy-momentum form::
 
     ∫ ρ a_{n+1-αm}·δη + F_{n+1-αf} Σ_{n+1-αf} : ∇δη dx = ∫ ρ b·δη dx + ∫ t₀_{n+1-αf}·δη ds + ...
 
@@ -65,12 +65,12 @@ import numpy as np
 import ufl
 
 from fsi import compat
-from fsi import mesh as fsi_mesh
 from fsi.config import Case, Material, SolverSettings, StenosisGeometry
-from fsi.materials import HyperelasticLaw, KelvinVoigt, cauchy, cauchy_zz, lame, make_law
-from fsi.mesh import TaggedMesh
-from fsi.newton import Newton, SolveFailed, SolveResult, petsc_options
-from fsi.timestepping import NewmarkFamily, structural_scheme
+from fsi.numerics.newton import Newton, SolveFailed, SolveResult, petsc_options
+from fsi.numerics.timestepping import NewmarkFamily, structural_scheme
+from fsi.physics import mesh as fsi_mesh
+from fsi.physics.materials import HyperelasticLaw, KelvinVoigt, cauchy, cauchy_zz, lame, make_law
+from fsi.physics.mesh import TaggedMesh
 from geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 
 log = logging.getLogger(__name__)
@@ -749,7 +749,7 @@ class SolidSolver:
 
 
 class CoupledSolid:
-    """The solid as the coupler's interface solver (fsi.coupling.InterfaceSolver).
+    """The solid as the coupler's interface solver (fsi.coupled.coupling.InterfaceSolver).
 
     ``solve(load)`` takes the fluid's interface load at t_{n+1} as a flat interface vector
     (``"forces"``: nodal forces, N/m; ``"traction"``: first Piola traction values, Pa), solves

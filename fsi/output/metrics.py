@@ -23,7 +23,8 @@ import dolfinx.mesh
 import numpy as np
 import ufl
 
-from fsi import compat, rheology
+from fsi import compat
+from fsi.physics import rheology
 
 
 def _owned_blocks(u: dolfinx.fem.Function) -> np.ndarray:
@@ -377,7 +378,7 @@ def surface_force(
 ) -> np.ndarray:
     """(F_x, F_y) = ∫ σ n_b ds over ``tags``, the force of the fluid on a body whose outward
     normal n_b = −n points into the fluid (Turek–Hron's drag and lift, N/m). The residual-based
-    :meth:`fsi.fluid.FluidSolver.boundary_force` is the more accurate variant."""
+    :meth:`fsi.physics.fluid.FluidSolver.boundary_force` is the more accurate variant."""
     mesh = u.function_space.mesh
     measure = boundary_measure(mesh, facet_tags, tags, quadrature_degree)
     traction = -rheology.cauchy_stress(u, p, law) * ufl.FacetNormal(mesh)

@@ -22,7 +22,7 @@ def format_count(n: float) -> str:
 
 
 def count_steps(time) -> float:
-    """The number of steps :func:`fsi.timestepping.steps` takes from t = 0 to ``time.end``,
+    """The number of steps :func:`fsi.numerics.timestepping.steps` takes from t = 0 to ``time.end``,
     counted per segment arithmetically (a schedule of 10¹² steps costs no more than one of 10;
     inf for a dt so small that the count overflows). Each segment's steps end on its ``until``
     (or ``end``), a remainder below 1e-9 dt merged into the last step, as ``steps`` does."""
@@ -44,7 +44,7 @@ TRIANGLE_AREA = math.sqrt(3) / 4
 
 
 def estimated_cells(case) -> float:
-    """About how many triangles :func:`fsi.mesh.build` makes for ``case``, from the geometry
+    """About how many triangles :func:`fsi.physics.mesh.build` makes for ``case``, from the geometry
     alone (no gmsh): area / (TRIANGLE_AREA h²), × 4 per uniform refinement of ``mesh.level``.
 
     The size field h is modelled per geometry: ``size`` everywhere in a channel; in the

@@ -12,7 +12,7 @@ import math
 import typing
 from pathlib import Path
 
-from fsi.config_reader import MAX_FILE_BYTES, shorten
+from fsi.config.reader import MAX_FILE_BYTES, shorten
 
 FORMULA_NAMES = ("sin", "cos", "tan", "exp", "log", "sqrt", "tanh", "abs", "min", "max")
 

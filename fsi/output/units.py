@@ -1,6 +1,6 @@
 """Display units: each quantity is shown in the largest of its units in which the largest value
 is at least 1 (300 Pa, 17 kPa; 230 µm; 27 cm/s), for the report's tables and plots
-(fsi/report.py) and the field pictures (fsi/plot.py)."""
+(fsi/output/report.py) and the field pictures (fsi/output/plot.py)."""
 
 from __future__ import annotations
 

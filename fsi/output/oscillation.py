@@ -8,7 +8,7 @@ Over the last full period ``[t_c[-2], t_c[-1]]`` of a signal y(t),
 
 where the t_c are the signal's successive upward crossings of its mean level, interpolated
 linearly between samples (../shared/reference/turek_hron.md, "Periodic results"). Pure numpy:
-no MPI, no files; metrics tables come from :func:`fsi.io.read_metrics`.
+no MPI, no files; metrics tables come from :func:`fsi.output.io.read_metrics`.
 
 Accuracy for a signal sampled every dt (the tests check these bounds):
 

@@ -2,27 +2,28 @@
 
     ρ (∂u/∂t|_X + ((u − w)·∇)u) − ∇·(2 μ(s(u)) D(u)) + ∇p = f,   ∇·u = 0   in Ωf(t),
 
-with ``D(u) = sym ∇u``, ``s(u) = sqrt(2 D:D)`` (fsi/rheology.py), ``w`` the mesh velocity and
-``f`` an optional body force (manufactured solutions). Weak form on the current configuration
+with ``D(u) = sym ∇u``, ``s(u) = sqrt(2 D:D)`` (fsi/physics/rheology.py), ``w`` the mesh velocity
+and ``f`` an optional body force (manufactured solutions). Weak form on the current configuration
 (residual ``F((u, p); (v, q))``):
 
     ρ (Σ_k a_k u^{n+1−k}, v) + ρ (((u − w)·∇)u, v) + (2 μ D(u), D(v)) − (p, ∇·v) − (q, ∇·u)
         − (f, v) − ⟨σ n, v⟩_natural = 0.
 
 The time derivative ``∂u/∂t|_X ≈ Σ_k a_k u^{n+1−k}`` acts on the nodal values (which move with
-the mesh, i.e. at fixed X); the weights ``a_k`` come from :func:`fsi.timestepping.bdf_weights`
-(backward Euler, variable-step BDF2; all zero in steady mode), so the physics never names a
-scheme. Everything is evaluated on Ωf(t_{n+1}) (non-conservative ALE form): a uniform flow stays
-uniform on any mesh motion (the discrete geometric conservation law of this form), and the mesh
-velocity is by default the same BDF derivative of the mesh displacement, ``w = Σ_k a_k d^{n+1−k}``.
+the mesh, i.e. at fixed X); the weights ``a_k`` come from
+:func:`fsi.numerics.timestepping.bdf_weights` (backward Euler, variable-step BDF2; all zero in
+steady mode), so the physics never names a scheme. Everything is evaluated on Ωf(t_{n+1})
+(non-conservative ALE form): a uniform flow stays uniform on any mesh motion (the discrete geometric
+conservation law of this form), and the mesh velocity is by default the same BDF derivative of the
+mesh displacement, ``w = Σ_k a_k d^{n+1−k}``.
 
 :class:`FluidResidual` builds F as this sum, one method per term (inertia, convection,
 viscous stress, pressure, continuity, body force, SUPG). Boundary conditions are data
 (:class:`NoSlip`, :class:`Velocity`, :class:`Inflow`, :class:`Outflow`, :class:`Slip`,
 :class:`Traction`; :func:`boundary_conditions` builds a case's), each turned into its Dirichlet
 conditions and boundary terms by one function found in :attr:`FluidResidual.BOUNDARY_KINDS`. An
-outlet with a lumped model (resistance, RCR Windkessel; fsi/outlets.py) takes its pressure from
-its flow rate, implicitly (:class:`LumpedOutlet`). The coupler drives the solver through
+outlet with a lumped model (resistance, RCR Windkessel; fsi/physics/outlets.py) takes its pressure
+from its flow rate, implicitly (:class:`LumpedOutlet`). The coupler drives the solver through
 ``set_mesh_displacement``, ``boundary_velocity``, ``step``, ``advance``,
 ``save_state``/``restore_state`` and ``interface_force``.
 """
@@ -46,9 +47,11 @@ import dolfinx.nls.petsc
 import numpy as np
 import ufl
 
-from fsi import boundary_data, compat, config, outlets, rheology
-from fsi.newton import Newton, SolveResult
-from fsi.timestepping import bdf_weights
+from fsi import compat, config
+from fsi.config import boundary_data
+from fsi.numerics.newton import Newton, SolveResult
+from fsi.numerics.timestepping import bdf_weights
+from fsi.physics import outlets, rheology
 from geometry.tags import Boundary
 
 log = logging.getLogger(__name__)
@@ -117,7 +120,7 @@ class Inflow:
 @dataclass(frozen=True)
 class Outflow:
     """An open outlet on ``tags``: σ n = −P n + β/2 ρ min(u·n, 0) u (in the ``open_boundary``
-    form), P = 0 (traction-free, the study's) or, with a lumped ``model`` (fsi/outlets.py:
+    form), P = 0 (traction-free, the study's) or, with a lumped ``model`` (fsi/physics/outlets.py:
     resistance, RCR Windkessel), the model's pressure at the outlet's flow rate
     (:class:`LumpedOutlet`); the β term removes the energy that backflow would carry in
     (Bazilevs et al. 2009)."""
@@ -307,13 +310,14 @@ class NodalForces:
 
 
 # --------------------------------------------------------------------------------------------
-# Lumped outlets: a pressure from the outlet's flow rate (fsi/outlets.py)
+# Lumped outlets: a pressure from the outlet's flow rate (fsi/physics/outlets.py)
 
 
 class LumpedOutlet:
     """An :class:`Outflow` whose pressure P comes from a lumped model (resistance, RCR
     Windkessel): σ n = −P n with, within a step, P = P₀' + R' Q (the model's
-    :meth:`~fsi.outlets.OutletModel.pressure_law`) and Q = ∫_Γ u·n ds the step's own flow rate.
+    :meth:`~fsi.physics.outlets.OutletModel.pressure_law`) and Q = ∫_Γ u·n ds the step's own flow
+    rate.
 
     Q is linear in the unknowns, Q = b · U with b_i = ∫_Γ φ_i·n ds, so the residual's term
     ∫_Γ P n·v ds has the Jacobian R' b bᵀ: :class:`_FluidProblem` sets P from each Newton
@@ -815,7 +819,7 @@ class FluidSolver:
     """Generalized Navier–Stokes on a (moving) fluid mesh; see the module docstring.
 
     Args:
-        mesh: the fluid mesh (e.g. ``fsi.mesh.restrict(tagged, Region.FLUID).mesh``).
+        mesh: the fluid mesh (e.g. ``fsi.physics.mesh.restrict(tagged, Region.FLUID).mesh``).
         facet_tags: its boundary tags (``.facet_tags`` of the same).
         fluid: the ``fluid`` section (density, rheology, quadrature, Newton and PETSc options).
         boundaries: which tags get which condition (e.g. :func:`boundary_conditions`); tags without

@@ -1,5 +1,5 @@
 """Checkpoints of ``fsi run``: the files. The state itself comes from the run's stepper
-(:meth:`fsi.simulation.Stepper.state`) as named numpy arrays of its local dofs, with a
+(:meth:`fsi.run.simulation.Stepper.state`) as named numpy arrays of its local dofs, with a
 :class:`Layout` for each distributed array; this module writes, finds, reads and redistributes
 them, and opens nothing else.
 
@@ -45,7 +45,9 @@ import numpy as np
 import yaml
 
 import fsi
-from fsi import compat, config, config_reader, io
+from fsi import compat, config
+from fsi.config import reader as config_reader
+from fsi.output import io
 
 log = logging.getLogger("fsi")
 
@@ -55,7 +57,7 @@ METADATA = "checkpoint.json"
 VARIABLE = ("coupling.", "predictor.", "counters.", "fluid.outlet_state")
 ADDED = ("wall_indices.",)
 """Groups of state arrays added after checkpoints were first written: a checkpoint without
-them still restarts (the stepper starts those from the restart; fsi.simulation.FluidOutputs)."""
+them still restarts (the stepper starts those from the restart; fsi.run.simulation.FluidOutputs)."""
 """Groups of state arrays whose number and shape may change between runs (accelerations,
 predictor order, counters); every other array of a fresh stepper's state must be restored."""
 MATCH_TOLERANCE = 1e-9
@@ -138,7 +140,7 @@ def layout_of(key: str, layouts: dict[str, Layout]) -> Layout | None:
 
 
 def to_arrays(prefix: str, state) -> dict[str, np.ndarray]:
-    """The fields of a state dataclass (e.g. :class:`fsi.fluid.FluidState`) as arrays named
+    """The fields of a state dataclass (e.g. :class:`fsi.physics.fluid.FluidState`) as arrays named
     ``prefix + field``; ``None`` becomes an empty array."""
     return {
         prefix + f.name: (
@@ -260,7 +262,7 @@ def _real(value) -> bool:
 def check_metrics(meta: dict, source: Path, metrics: Path) -> None:
     """Raise :class:`CheckpointError` (naming ``metrics``, the run folder's metrics.csv) unless
     it holds the rows a restart from the checkpoint's step k keeps, each once and in order:
-    steps 1 to k, complete (:func:`fsi.io.read_rows`), and step k's ``t`` and ``dt`` (where
+    steps 1 to k, complete (:func:`fsi.output.io.read_rows`), and step k's ``t`` and ``dt`` (where
     both have one) are the checkpoint's (``source``) within a relative :data:`TIME_TOLERANCE`."""
     k = meta["step"]
     if k == 0:

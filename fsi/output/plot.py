@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fsi.units import UNITS, choose_unit
+from fsi.output.units import UNITS, choose_unit
 from geometry.tags import Region
 
 FILES = {"fluid": "fields", "structure": "solid"}
@@ -359,7 +359,7 @@ def _at_time(segment: _Segment, names: tuple[str, ...], time: float) -> np.ndarr
 
 def _unit(quantity: str, largest: float) -> tuple[str, float]:
     """A readable unit for values up to ``largest`` (SI) and the factor to it
-    (:func:`fsi.units.choose_unit`; a region tag has none)."""
+    (:func:`fsi.output.units.choose_unit`; a region tag has none)."""
     if quantity not in UNITS:
         return "", 1.0
     unit = choose_unit(quantity, [largest])

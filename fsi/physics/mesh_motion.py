@@ -13,7 +13,8 @@ biharmonic: its natural conditions, ∂²d/∂n² = 0 also where d is given). Th
 stiffening ``k`` is constant per cell: 1, ``(J_max/J)^e`` with ``J`` the reference cell area
 (small cells move almost rigidly), or ``(δ_max/δ)^e`` with ``δ`` the distance of the cell's
 centroid to the moving boundary. The fluid mesh follows as ``x = X + d(X)`` and the mesh velocity
-is the backward difference ``w = Σ_k a_k d^{n+1−k}`` (:func:`fsi.timestepping.bdf_weights`).
+is the backward difference ``w = Σ_k a_k d^{n+1−k}``
+(:func:`fsi.numerics.timestepping.bdf_weights`).
 
 The biharmonic is mixed, with the Hessian H = ∇∇d as auxiliary P1 field. (The Ciarlet–Raviart
 form w = −Δd, −Δw = 0 of turtleFSI, with w left free on the boundary, has ∂d/∂n = 0 as natural
@@ -46,10 +47,10 @@ import numpy as np
 import ufl
 
 from fsi import compat, config
-from fsi.interface import owned_interface_dofs
-from fsi.mesh import TaggedMesh
-from fsi.newton import petsc_options
-from fsi.timestepping import bdf_weights
+from fsi.coupled.interface import owned_interface_dofs
+from fsi.numerics.newton import petsc_options
+from fsi.numerics.timestepping import bdf_weights
+from fsi.physics.mesh import TaggedMesh
 from geometry.stenosis import distance_to_segments
 from geometry.tags import Boundary
 
@@ -200,7 +201,7 @@ class MeshMotion:
         self._moving_facets = tagged.facets(*self.moving)
         self._moving_dofs = dolfinx.fem.locate_dofs_topological(self.V, fdim, self._moving_facets)
         fixed_dofs = dolfinx.fem.locate_dofs_topological(self.V, fdim, tagged.facets(*self.fixed))
-        # Owned moving-boundary dofs: the rows of an interface vector (as in fsi.interface).
+        # Owned moving-boundary dofs: the rows of an interface vector (as in fsi.coupled.interface).
         self.interface_dofs = owned_interface_dofs(self.V, self._moving_facets)
         n_moving = self.comm.allreduce(len(self.interface_dofs), op=MPI.SUM)
         if n_moving == 0:
@@ -328,7 +329,8 @@ class MeshMotion:
 
     def set_boundary_displacement(self, values: np.ndarray) -> None:
         """Set d on the moving boundary from an interface vector: values (n, gdim) at the owned
-        moving dofs :attr:`interface_dofs` (the order of :class:`fsi.interface.InterfaceMap`)."""
+        moving dofs :attr:`interface_dofs` (the order of
+        :class:`fsi.coupled.interface.InterfaceMap`)."""
         values = np.asarray(values, dtype=float).reshape(len(self.interface_dofs), self.gdim)
         self.g.x.array.reshape(-1, self.gdim)[self.interface_dofs] = values
         self.g.x.scatter_forward()

@@ -15,10 +15,10 @@ periodic inlet: summary.json's ``cycles``) get a table of their heartbeats
 with a caption line. Reads only the files ``fsi run`` writes: ``config.yaml``, ``metrics.csv``,
 ``summary.json``.
 
-Units (:func:`fsi.units.choose_unit`). ``metrics.csv`` holds SI units; each table and plot shows
-its quantity in one of a few units (:data:`fsi.units.UNITS`: stress and pressure Pa, kPa or MPa;
-displacement µm or mm; velocity cm/s or m/s; length mm; flow rate per unit depth cm²/s): the
-largest unit in which the largest magnitude shown is at least 1 (17 kPa, 300 Pa, 230 µm,
+Units (:func:`fsi.output.units.choose_unit`). ``metrics.csv`` holds SI units; each table and plot
+shows its quantity in one of a few units (:data:`fsi.output.units.UNITS`: stress and pressure Pa,
+kPa or MPa; displacement µm or mm; velocity cm/s or m/s; length mm; flow rate per unit depth cm²/s):
+the largest unit in which the largest magnitude shown is at least 1 (17 kPa, 300 Pa, 230 µm,
 1.5 mm, 30 cm/s), the smallest one when there is none. Tables keep 4 significant digits.
 
 Scales (:func:`choose_scale`). Each plot has one group of lines per run (per waveform for
@@ -41,8 +41,10 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from fsi import boundary_data, config, io
-from fsi.units import choose_unit
+from fsi import config
+from fsi.config import boundary_data
+from fsi.output import io
+from fsi.output.units import choose_unit
 
 log = logging.getLogger("fsi")
 
@@ -372,7 +374,7 @@ def inlet_pressure_groups(runs: Sequence[Run]) -> list[Group]:
     inlets are left out), one group per distinct inlet, over [0, the last step of the runs that
     share it] (for runs without steps their end: ``time.end``, or ``time.cycles`` heartbeats).
     Points where a formula cannot be evaluated are left out."""
-    from fsi.fluid import inlet_pressure
+    from fsi.physics.fluid import inlet_pressure
 
     shared: dict[object, list[Run]] = {}
     for run in runs:
@@ -641,11 +643,11 @@ def write(runs: Sequence[Run], out: Path, times: Sequence[float] | None = None) 
 def snapshots(
     runs: Sequence[Run], out: Path, times: Sequence[float] | None = None
 ) -> list[tuple[Path, str]]:
-    """Field pictures (fsi/plot.py) at the report times of every run that has field files:
+    """Field pictures (fsi/output/plot.py) at the report times of every run that has field files:
     the structural shear stress σ₁₂ on the structure (``<run>_sss_t<T>.png``) and the velocity
     with its streamlines on the current fluid mesh (``<run>_velocity_t<T>.png``). A time the
     run has not reached is skipped. Returns (file, caption) pairs."""
-    from fsi import plot
+    from fsi.output import plot
 
     written = []
     for run in runs:

@@ -4,13 +4,14 @@ interface solver, and the assembly of a coupled case from one mesh.
 Per coupling iteration the fluid side maps the interface displacement x (the solid's owned
 interface dofs, flat) to the force the blood exerts on the structure:
 
-1. η_Γ: x is transferred to the fluid's P2 interface nodes (:class:`fsi.interface.InterfaceMap`,
-   pairing by position on the reference configuration);
+1. η_Γ: x is transferred to the fluid's P2 interface nodes
+   (:class:`fsi.coupled.interface.InterfaceMap`, pairing by position on the reference
+   configuration);
 2. mesh motion: the P1 vertex values of η_Γ are the Dirichlet data ``g`` of the harmonic/elastic
-   extension ``d`` (:class:`fsi.mesh_motion.MeshMotion`, used here only as an extension operator:
-   ``solve`` and the quality guard ``check_quality``, which raises before the mesh moves); the
-   fluid's own :class:`fsi.fluid.AleMesh` then moves the mesh to ``x = X + d`` and owns the
-   displacement history and ``w``. Exactly one object writes the mesh coordinates;
+   extension ``d`` (:class:`fsi.physics.mesh_motion.MeshMotion`, used here only as an extension
+   operator: ``solve`` and the quality guard ``check_quality``, which raises before the mesh moves);
+   the fluid's own :class:`fsi.physics.fluid.AleMesh` then moves the mesh to ``x = X + d`` and owns
+   the displacement history and ``w``. Exactly one object writes the mesh coordinates;
 3. kinematic condition: ``u = w`` on Γw1, with ``w = Σ_k a_k d^{n+1−k}`` the fluid scheme's BDF
    derivative of the mesh displacement (the same weights as ∂u/∂t), interpolated into P2. So the
    moving wall is exactly material for the discrete fluid (no flux through Γw1 relative to the
@@ -21,10 +22,10 @@ interface dofs, flat) to the force the blood exerts on the structure:
    (it belongs to another time scheme and to the solid's output, not to the input x);
 4. the fluid step (Newton) on the moved mesh;
 5. the output: the residual-based nodal forces ``f_i = −R_i = −∫_Γ σ n_f φ_i ds`` of the fluid
-   (:meth:`fsi.fluid.FluidSolver.interface_force`; n_f the fluid's outward normal, so this is
-   ``∫ σ n_s φ_i ds`` with n_s = −n_f: the force of the fluid ON the structure, N per unit
-   depth), transferred to the solid's interface dofs. :class:`fsi.solid.CoupledSolid` adds such
-   nodal forces to its external load as they are (``load="forces"``). Nodal forces are
+   (:meth:`fsi.physics.fluid.FluidSolver.interface_force`; n_f the fluid's outward normal, so this
+   is ``∫ σ n_s φ_i ds`` with n_s = −n_f: the force of the fluid ON the structure, N per unit
+   depth), transferred to the solid's interface dofs. :class:`fsi.physics.solid.CoupledSolid` adds
+   such nodal forces to its external load as they are (``load="forces"``). Nodal forces are
    configuration-independent vectors, so the total-Lagrangian solid takes them unchanged.
 """
 
@@ -38,15 +39,17 @@ from mpi4py import MPI
 import dolfinx.fem
 import numpy as np
 
-from fsi import config, coupling, fluid, mesh, solid
-from fsi.interface import InterfaceMap
-from fsi.mesh_motion import MeshMotion
-from fsi.newton import SolveResult
+from fsi import config
+from fsi.coupled import coupling
+from fsi.coupled.interface import InterfaceMap
+from fsi.numerics.newton import SolveResult
+from fsi.physics import fluid, mesh, solid
+from fsi.physics.mesh_motion import MeshMotion
 from geometry.tags import Boundary, Region
 
 
 class FluidInterface:
-    """The fluid (with its mesh motion) as a :class:`fsi.coupling.InterfaceSolver`.
+    """The fluid (with its mesh motion) as a :class:`fsi.coupled.coupling.InterfaceSolver`.
 
     ``solve(x)``: interface displacement (solid interface vector, flat, m) → nodal forces of the
     fluid on the structure (solid interface vector, flat, N/m); see the module docstring.
@@ -56,8 +59,8 @@ class FluidInterface:
     displacement history and ``w`` live in the fluid's AleMesh, which the fluid's own
     save/restore/advance cover.
 
-    Raises (collectively) :class:`fsi.mesh_motion.MeshQualityError` when the extension would
-    collapse a cell, and :class:`fsi.newton.SolveFailed` when the fluid step fails.
+    Raises (collectively) :class:`fsi.physics.mesh_motion.MeshQualityError` when the extension would
+    collapse a cell, and :class:`fsi.numerics.newton.SolveFailed` when the fluid step fails.
     """
 
     def __init__(
@@ -129,7 +132,7 @@ class FluidInterface:
 
 
 class SolidInterface(solid.CoupledSolid):
-    """:class:`fsi.solid.CoupledSolid` that also counts the Newton iterations of a step's
+    """:class:`fsi.physics.solid.CoupledSolid` that also counts the Newton iterations of a step's
     coupling iterations (``newton_iterations``)."""
 
     def __init__(self, solver: solid.SolidSolver):

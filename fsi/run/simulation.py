@@ -1,12 +1,12 @@
 """The time loop of ``fsi run``: builds the mesh and the solvers of a case, steps through the
-schedule, and hands metrics and fields to the writers of fsi/io.py.
+schedule, and hands metrics and fields to the writers of fsi/output/io.py.
 
 Rigid-structure cases (``structure.mode: rigid``) solve the fluid alone, with no-slip on every
 wall and on the (then rigid) interface and obstacle. The coupled modes of the stenosis
 (``fixed_wall``, ``moving_wall``; MODEL.md §4–5) solve the partitioned fluid–structure problem of
-fsi/partitioned.py, Dirichlet–Neumann iterations per step. Both share one loop (:func:`march`):
-a *stepper* advances one step and returns its metrics row; the loop writes the row, the fields
-and the summary.
+fsi/coupled/partitioned.py, Dirichlet–Neumann iterations per step. Both share one loop
+(:func:`march`): a *stepper* advances one step and returns its metrics row; the loop writes the row,
+the fields and the summary.
 """
 
 from __future__ import annotations
@@ -23,22 +23,15 @@ from mpi4py import MPI
 
 import numpy as np
 
-from fsi import (
-    boundary_data,
-    checkpoint,
-    config,
-    coupling,
-    fluid,
-    io,
-    mesh,
-    metrics,
-    newton,
-    partitioned,
-    provenance,
-    solid,
-)
-from fsi.mesh_motion import MeshQualityError
-from fsi.timestepping import Step, steps
+from fsi import config
+from fsi.config import boundary_data
+from fsi.coupled import coupling, partitioned
+from fsi.numerics import newton
+from fsi.numerics.timestepping import Step, steps
+from fsi.output import io, metrics, provenance
+from fsi.physics import fluid, mesh, solid
+from fsi.physics.mesh_motion import MeshQualityError
+from fsi.run import checkpoint
 from geometry import turek_hron
 from geometry.tags import Boundary, Region
 
@@ -66,7 +59,7 @@ COUPLED_COLUMNS = COLUMNS + [
 ]
 WALL_COLUMNS = ["min_wss", "max_wss", "recirculation_length"]
 """Channel-like lumens (stenosis, channel): the signed wall shear stress's extremes (Pa) and the
-longest reversed-flow zone along either wall (m) (fsi.metrics.wall_shear_summary)."""
+longest reversed-flow zone along either wall (m) (fsi.output.metrics.wall_shear_summary)."""
 """``peak_wall_displacement``: max |η| over the vessel wall (0 in the fixed-wall mode);
 ``relaxation``: Aitken's (or the constant) ω of the step's last iteration, empty for IQN-ILS;
 ``newton_iterations``/``solid_newton_iterations``: fluid/solid Newton iterations summed over the
@@ -77,8 +70,8 @@ def stress_columns(solver: solid.SolidSolver) -> list[str]:
     """The structure's stress maxima (Pa) beside ``max_sss``: ``max_von_mises``,
     ``max_principal`` over the whole structure, and ``max_sss_<region>``,
     ``max_von_mises_<region>``, ``max_principal_<region>`` per region (cap, lipid, wall; the
-    Turek–Hron flag), where ``max_sss`` is the largest |σ₁₂| (fsi.solid.StressFields); with a
-    fibrous cap, :data:`CAP_LOCATION_COLUMNS`."""
+    Turek–Hron flag), where ``max_sss`` is the largest |σ₁₂| (fsi.physics.solid.StressFields); with
+    a fibrous cap, :data:`CAP_LOCATION_COLUMNS`."""
     return (
         ["max_von_mises", "max_principal"]
         + [
@@ -92,7 +85,7 @@ def stress_columns(solver: solid.SolidSolver) -> list[str]:
 
 CAP_LOCATION_COLUMNS = ["max_principal_cap_x", "max_principal_cap_y"]
 """Where ``max_principal_cap`` is attained: the reference coordinates (m) of the stress
-field's node that holds it (fsi.solid.StressFields.location_of_max)."""
+field's node that holds it (fsi.physics.solid.StressFields.location_of_max)."""
 
 
 def stress_row(solver: solid.SolidSolver) -> dict[str, float]:
@@ -116,11 +109,11 @@ def stress_row(solver: solid.SolidSolver) -> dict[str, float]:
 
 FLOW_COLUMNS = ["inlet_flow_rate", "outlet_flow_rate"]
 """Every fluid mesh with an inlet and an outlet: the volume flow rate per unit depth (m²/s)
-through each, positive downstream, on the current mesh (fsi.metrics.flow_rate)."""
+through each, positive downstream, on the current mesh (fsi.output.metrics.flow_rate)."""
 PRESSURE_COLUMNS = ["mean_inlet_pressure", "mean_outlet_pressure"]
 """Every fluid mesh with an inlet and an outlet: the pressure p averaged over the inlet and
 over the outlet (Pa; in 2D the length average ∫ p ds / ∫ ds, on the current mesh;
-fsi.metrics.BoundaryMean)."""
+fsi.output.metrics.BoundaryMean)."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -254,12 +247,12 @@ def run(
     stop_requested: Callable[[], int | None] = lambda: None,
 ) -> RunResult:
     """Run a case (rigid structure or coupled), writing ``out``'s files (see the README), from
-    t = 0 or from the checkpoint ``restart`` (:func:`fsi.checkpoint.read`). ``stop_requested``
+    t = 0 or from the checkpoint ``restart`` (:func:`fsi.run.checkpoint.read`). ``stop_requested``
     returns the number of a signal that asks the run to stop, or None (polled after every
     step; :class:`Interrupted`).
 
     Raises a :class:`RunStopped` when the run stops early (the finished steps stay in
-    metrics.csv, the last converged one is checkpointed), :class:`fsi.checkpoint.
+    metrics.csv, the last converged one is checkpointed), :class:`fsi.run.checkpoint.
     CheckpointError` when ``restart``'s arrays do not fit the case (before anything is
     written). Collective."""
     start = wallclock.perf_counter()
@@ -309,7 +302,7 @@ class Stepper(Protocol):
         the stepper is built."""
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
-        """Continue from :meth:`state`'s arrays (on this run's dofs, :func:`fsi.checkpoint.
+        """Continue from :meth:`state`'s arrays (on this run's dofs, :func:`fsi.run.checkpoint.
         localize`); the output fields are brought up to date."""
 
 
@@ -324,22 +317,23 @@ def march(
 ) -> RunResult:
     """Step ``stepper`` through the schedule: ``out/config.yaml``, a metrics row per step
     (flushed at once), fields every ``output.fields_every`` steps and at the end, a checkpoint
-    (fsi/checkpoint.py) every ``output.checkpoint_every`` steps, at the end and when the run
+    (fsi/run/checkpoint.py) every ``output.checkpoint_every`` steps, at the end and when the run
     stops early, and ``out/summary.json`` (over all rows of metrics.csv) once every step is done.
     The steps are those of ``case.time.run_schedule`` (``time.cycles`` heartbeats one after
     another); with a periodic inlet every row has its heartbeat in ``cycle`` and the summary a
     ``cycles`` table (:func:`cycle_table`).
 
     With ``restart`` the checkpoint's arrays are placed on this run's dofs and checked
-    (:func:`fsi.checkpoint.localize`) before anything is written, then loaded into the stepper,
+    (:func:`fsi.run.checkpoint.localize`) before anything is written, then loaded into the stepper,
     and the schedule goes on after the checkpoint's step k: the metrics
     rows up to k are kept (copied from the checkpoint's run folder if ``out`` is another one),
-    and the fields go to new files (``fields.restart<k>.xdmf``, :func:`fsi.io.field_segment`).
+    and the fields go to new files (``fields.restart<k>.xdmf``,
+    :func:`fsi.output.io.field_segment`).
 
     The run stops early with a :class:`RunStopped` raised on every rank: :class:`StepFailed`
     when a step fails, :class:`OutputFailed` when a file cannot be written (rank 0's failures
-    are shared, :func:`fsi.io.collectively`), :class:`Interrupted` after the step during which
-    ``stop_requested`` (polled on every rank) returned a signal. A failed step leaves the
+    are shared, :func:`fsi.output.io.collectively`), :class:`Interrupted` after the step during
+    which ``stop_requested`` (polled on every rank) returned a signal. A failed step leaves the
     solvers anywhere (the coupler keeps its last iterates as initial guesses; a sub-solver's
     exception skips the restore), so the checkpoint written then is the snapshot of the
     stepper's state taken after the last converged step, whose metrics row is the last one
@@ -673,7 +667,7 @@ class FluidOutputs:
     no-slip or moving wall), for channel-like lumens the WALL_COLUMNS of the metrics row and,
     where the fluid mesh has an inlet and an outlet, the FLOW_COLUMNS and PRESSURE_COLUMNS; and
     the hemodynamic indices TAWSS, OSI and RRT at two Gauss points of every wall facet,
-    accumulated by :meth:`update` (fsi.metrics.WallIndices, docs/hemodynamic-indices.md) over
+    accumulated by :meth:`update` (fsi.output.metrics.WallIndices, docs/hemodynamic-indices.md) over
     the run or, when the inlet repeats with a period T
     (:func:`fsi.config.heartbeat_period`), over each heartbeat ((k − 1) T, k T] on its own:
     the accumulators start afresh at every k T and the finished heartbeats' are kept
@@ -809,7 +803,7 @@ class FluidOutputs:
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
         """Continue the indices from :meth:`state`'s arrays (on this run's samples); a
-        checkpoint written before they existed (fsi.checkpoint.ADDED) starts them at the
+        checkpoint written before they existed (fsi.run.checkpoint.ADDED) starts them at the
         restart's time, with a warning."""
         if "wall_indices.integrals" not in state:
             self.indices = metrics.WallIndices(
@@ -872,7 +866,7 @@ class FluidOutputs:
         of a zero mean shear. With an inlet ``period`` T > 0 a first column ``cycle`` and one
         such block of rows per heartbeat the state has reached (1, 2, ...; the last one averaged
         over the part reached so far). Collective (gathered to rank 0, written there; raises
-        :class:`fsi.io.OutputError` on every rank if it cannot be written)."""
+        :class:`fsi.output.io.OutputError` on every rank if it cannot be written)."""
         if "wall_indices.integrals" not in state:
             return
         windows = [*state.get("wall_indices.past_windows", []), state["wall_indices.window"]]
@@ -999,7 +993,7 @@ class RigidStepper:
 
 
 class CoupledStepper:
-    """Dirichlet–Neumann iterations per step (fsi/partitioned.py), then the study's metrics:
+    """Dirichlet–Neumann iterations per step (fsi/coupled/partitioned.py), then the study's metrics:
     peaks of |u| and p over the fluid, of |η| over the structure, and the largest |σ₁₂| (SSS).
     The Turek–Hron cases add the benchmark's ``drag`` and ``lift`` (N/m, over the cylinder and
     the flag, on the deformed mesh) and the displacement ``ux_A``, ``uy_A`` (m) of point A."""
@@ -1227,9 +1221,9 @@ class StructureStepper:
 
 
 def fluid_layouts(solver: fluid.FluidSolver) -> dict[str, checkpoint.Layout]:
-    """The rows of :class:`fsi.fluid.FluidState`'s arrays: ``U`` on the mixed space (velocity
-    and pressure nodes), ``u_n``/``u_nm1`` on the velocity's P2 nodes, the mesh displacement
-    history and ``w`` on the P1 vertices. Call it before the mesh moves."""
+    """The rows of :class:`fsi.physics.fluid.FluidState`'s arrays: ``U`` on the mixed space
+    (velocity and pressure nodes), ``u_n``/``u_nm1`` on the velocity's P2 nodes, the mesh
+    displacement history and ``w`` on the P1 vertices. Call it before the mesh moves."""
     velocity = checkpoint.space_layout("fluid_velocity", solver.V)
     pressure = checkpoint.space_layout("fluid_pressure", solver.Q)
     V_to_W, Q_to_W = solver.mixed_dofs()
@@ -1247,7 +1241,7 @@ def fluid_layouts(solver: fluid.FluidSolver) -> dict[str, checkpoint.Layout]:
 
 def fluid_state(solver: fluid.FluidSolver, state: dict[str, np.ndarray]) -> fluid.FluidState:
     """The fluid's state from ``fluid.*`` arrays. The lumped outlets' state (a Windkessel's
-    P_c^n, P_c^{n−1}; fsi.checkpoint.VARIABLE) is restored if it fits this run's outlets; one
+    P_c^n, P_c^{n−1}; fsi.run.checkpoint.VARIABLE) is restored if it fits this run's outlets; one
     that does not (a checkpoint written before outlets had a state, or by a run with another
     kind of outlet) starts them from their initial state (P_0), with a warning."""
     initial = np.concatenate([np.zeros(0), *(o.model.initial_state() for o in solver.lumped)])
@@ -1265,8 +1259,8 @@ def fluid_state(solver: fluid.FluidSolver, state: dict[str, np.ndarray]) -> flui
 
 
 def structure_layouts(solver: solid.SolidSolver) -> dict[str, checkpoint.Layout]:
-    """The rows of :class:`fsi.solid.SolidState`'s arrays: η and its history, the tractions on
-    the displacement space's nodes; the nodal interface forces, arrays (n, 2), on the owned
+    """The rows of :class:`fsi.physics.solid.SolidState`'s arrays: η and its history, the tractions
+    on the displacement space's nodes; the nodal interface forces, arrays (n, 2), on the owned
     interface nodes (one row each)."""
     nodes = checkpoint.space_layout("solid", solver.V)
     forces = checkpoint.interface_layout("interface_nodes", solver.interface_points, 1)
@@ -1282,7 +1276,8 @@ def structure_layouts(solver: solid.SolidSolver) -> dict[str, checkpoint.Layout]
 
 def _load_solid(solver: solid.SolidSolver, state: dict[str, np.ndarray]) -> None:
     """The solid's state from ``solid.*`` arrays; the rates of the last step η̇, η̈ (outputs,
-    recomputed by every step) as :meth:`fsi.solid.SolidSolver.advance` leaves them; stresses."""
+    recomputed by every step) as :meth:`fsi.physics.solid.SolidSolver.advance` leaves them;
+    stresses."""
     solver.restore_state(checkpoint.from_arrays(solid.SolidState, "solid.", state))
     solver.v.x.array[:] = solver.v_n.x.array
     solver.a.x.array[:] = solver.a_n.x.array

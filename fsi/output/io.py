@@ -27,7 +27,7 @@ import dolfinx.fem
 import dolfinx.io
 
 from fsi import compat
-from fsi.mesh import TaggedMesh
+from fsi.physics.mesh import TaggedMesh
 
 log = logging.getLogger("fsi")
 
@@ -121,7 +121,7 @@ def write_json(comm: MPI.Comm, path: Path, data: dict) -> None:
 
 def write_mesh(out: Path, tagged: TaggedMesh, summary: dict) -> None:
     """``out/mesh.xdmf`` (mesh, cell tags ``cell_tags``, facet tags ``facet_tags``) and
-    ``out/mesh.json`` (the summary of :func:`fsi.mesh.summary`). Collective."""
+    ``out/mesh.json`` (the summary of :func:`fsi.physics.mesh.summary`). Collective."""
     comm = tagged.comm
     on_rank0(comm, lambda: out.mkdir(parents=True, exist_ok=True))
     tagged.mesh.name = "mesh"
@@ -472,7 +472,7 @@ class RunFiles:
         handler = logging.FileHandler(path, mode="a", encoding="utf-8")
         handler.setFormatter(logging.Formatter("%(asctime)s %(message)s", "%Y-%m-%d %H:%M:%S"))
         handler.setLevel(logging.INFO)
-        from fsi import provenance
+        from fsi.output import provenance
 
         with path.open("a", encoding="utf-8") as f:
             describe = provenance.describe()

@@ -35,7 +35,9 @@ from mpi4py import MPI
 
 import yaml
 
-from fsi import checkpoint, config, io, units
+from fsi import config
+from fsi.output import io, units
+from fsi.run import checkpoint
 
 log = logging.getLogger("fsi")
 
@@ -151,7 +153,7 @@ def plan(
     varied = [v.key for v in variations]
     _check_base(case_file, sets, varied)
 
-    from fsi import simulation
+    from fsi.run import simulation
 
     runs: list[SweepRun] = []
     seen: dict[str, SweepRun] = {}
@@ -456,7 +458,7 @@ def describe_plan(runs: Sequence[SweepRun]) -> list[str]:
 
 @dataclass(frozen=True)
 class Headline:
-    """A column of the table: ``name``, the :mod:`fsi.units` quantity it is shown in, what it
+    """A column of the table: ``name``, the :mod:`fsi.output.units` quantity it is shown in, what it
     is, and where it comes from: the ``max``/``min`` over the rows of metrics.csv column
     ``source``, or (``how="summary"``) summary.json's key ``source``."""
 
@@ -574,7 +576,7 @@ def write_results(
     no value, and what each column is) and :func:`write_plots`. Only runs whose status is
     ``done`` have values (a done run whose files cannot be read becomes ``failed: ...``).
     Returns the files written and the statuses. Collective (rank 0 writes; raises
-    :class:`fsi.io.OutputError` on every rank if it cannot)."""
+    :class:`fsi.output.io.OutputError` on every rank if it cannot)."""
     keys = [v.key for v in variations]
     statuses = list(statuses)
     table: list[dict[str, float | None]] = []
@@ -614,7 +616,7 @@ def markdown(
     statuses: Sequence[str],
 ) -> str:
     """The table as markdown: one row per run, each headline in the unit that suits its values
-    (:func:`fsi.units.choose_unit`), 4 significant digits, ``–`` where there is no value."""
+    (:func:`fsi.output.units.choose_unit`), 4 significant digits, ``–`` where there is no value."""
     shown = {}
     for h in HEADLINES:
         values = [row[h.name] for row in table if row[h.name] is not None]

@@ -67,7 +67,7 @@ def bdf_weights(order: int, dt: float, dt_previous: float | None = None) -> tupl
 
 
 # --------------------------------------------------------------------------------------------
-# Structural time integration (the Newmark family, used by fsi.solid)
+# Structural time integration (the Newmark family, used by fsi.physics.solid)
 
 
 @dataclass(frozen=True)

@@ -2,16 +2,17 @@
 
 In 2D every quantity is per unit depth: Q = ∫_outlet u·n ds (m²/s, positive out of the
 domain), resistances R in Pa s/m², a compliance C in m²/Pa. The fluid applies P as the
-open-boundary traction σ n = −P n (fsi/fluid.py). Two models (docs/boundary-conditions.md):
+open-boundary traction σ n = −P n (fsi/physics/fluid.py). Two models (docs/boundary-conditions.md):
 
 - resistance: P = P_ref + R Q;
 - three-element Windkessel (RCR; Westerhof et al. 2009):
 
       C dP_c/dt = Q − (P_c − P_ref)/R_d,    P = P_c + R_p Q,    P_c(0) = P_0.
 
-The ODE is discretised with the fluid's own time weights (:func:`fsi.timestepping.bdf_weights`:
-backward Euler, variable-step BDF2; all zero when steady), dP_c/dt ≈ a₀ P_c^{n+1} + a₁ P_c^n +
-a₂ P_c^{n−1}, and solved with the step's own (implicit) Q:
+The ODE is discretised with the fluid's own time weights
+(:func:`fsi.numerics.timestepping.bdf_weights`: backward Euler, variable-step BDF2; all zero when
+steady), dP_c/dt ≈ a₀ P_c^{n+1} + a₁ P_c^n + a₂ P_c^{n−1}, and solved with the step's own (implicit)
+Q:
 
     P_c^{n+1} = (Q + P_ref/R_d − C (a₁ P_c^n + a₂ P_c^{n−1})) / (C a₀ + 1/R_d),
 

@@ -1,0 +1,4 @@
+"""The coupled problem: the maps between the fluid's and the structure's interface dofs
+(:mod:`.interface`), the Dirichlet–Neumann loop with its accelerations and predictors
+(:mod:`.coupling`) and the partitioned problem that joins the solvers (:mod:`.partitioned`).
+"""
