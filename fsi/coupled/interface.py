@@ -19,13 +19,7 @@ import dolfinx.fem
 import numpy as np
 from scipy.spatial import cKDTree
 
-
-def owned_interface_dofs(V, facets: np.ndarray) -> np.ndarray:
-    """Owned (block) dofs of ``V`` on the given local facets."""
-    mesh = V.mesh
-    fdim = mesh.topology.dim - 1
-    dofs = dolfinx.fem.locate_dofs_topological(V, fdim, facets)
-    return dofs[dofs < V.dofmap.index_map.size_local]
+from fsi.physics.mesh import owned_facet_dofs
 
 
 class InterfaceMap:
@@ -43,8 +37,8 @@ class InterfaceMap:
         self.bs = V_src.dofmap.index_map_bs
         if V_dst.dofmap.index_map_bs != self.bs:
             raise ValueError("interface spaces must have the same block size")
-        self.src_dofs = owned_interface_dofs(V_src, facets_src)
-        self.dst_dofs = owned_interface_dofs(V_dst, facets_dst)
+        self.src_dofs = owned_facet_dofs(V_src, facets_src)
+        self.dst_dofs = owned_facet_dofs(V_dst, facets_dst)
         src_points = V_src.tabulate_dof_coordinates()[self.src_dofs]
         dst_points = V_dst.tabulate_dof_coordinates()[self.dst_dofs]
 

@@ -213,6 +213,14 @@ def restrict(tagged: TaggedMesh, *regions: Region) -> TaggedMesh:
     return TaggedMesh(submesh, cell_tags, facet_tags, parent_cells)
 
 
+def owned_facet_dofs(V, facets: np.ndarray) -> np.ndarray:
+    """The owned (block) dofs of ``V`` on the given local facets (e.g. the interface)."""
+    mesh = V.mesh
+    fdim = mesh.topology.dim - 1
+    dofs = dolfinx.fem.locate_dofs_topological(V, fdim, facets)
+    return dofs[dofs < V.dofmap.index_map.size_local]
+
+
 def _midpoints(mesh, facets: np.ndarray) -> np.ndarray:
     nodes = compat.entities_to_geometry(mesh, mesh.topology.dim - 1, facets).reshape(
         len(facets), -1

@@ -47,10 +47,9 @@ import numpy as np
 import ufl
 
 from fsi import compat, config
-from fsi.coupled.interface import owned_interface_dofs
 from fsi.numerics.newton import petsc_options
 from fsi.numerics.timestepping import bdf_weights
-from fsi.physics.mesh import TaggedMesh
+from fsi.physics.mesh import TaggedMesh, owned_facet_dofs
 from geometry.stenosis import distance_to_segments
 from geometry.tags import Boundary
 
@@ -202,7 +201,7 @@ class MeshMotion:
         self._moving_dofs = dolfinx.fem.locate_dofs_topological(self.V, fdim, self._moving_facets)
         fixed_dofs = dolfinx.fem.locate_dofs_topological(self.V, fdim, tagged.facets(*self.fixed))
         # Owned moving-boundary dofs: the rows of an interface vector (as in fsi.coupled.interface).
-        self.interface_dofs = owned_interface_dofs(self.V, self._moving_facets)
+        self.interface_dofs = owned_facet_dofs(self.V, self._moving_facets)
         n_moving = self.comm.allreduce(len(self.interface_dofs), op=MPI.SUM)
         if n_moving == 0:
             raise ValueError(
