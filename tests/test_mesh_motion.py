@@ -7,13 +7,15 @@ the bottom reaching half the height, so the lumen is 3.5 mm wide at the plaque's
 from mpi4py import MPI
 from petsc4py import PETSc
 
+import dolfinx.fem
 import numpy as np
 import pytest
 from mesh_checks import global_max, mesh_motion_settings
 
 from fsi import compat, config
+from fsi.numerics.timestepping import bdf_weights
 from fsi.physics import mesh
-from fsi.physics.mesh_motion import MeshMotion, MeshQualityError
+from fsi.physics.mesh_motion import AleMesh, MeshMotion, MeshQualityError
 from geometry.tags import Boundary, Region
 
 CASE = config.from_dict({})
@@ -44,7 +46,7 @@ def fluid():
 
 @pytest.fixture(autouse=True)
 def _reference_geometry(fluid):
-    """Every test starts and ends on the reference mesh (MeshMotion moves the shared mesh)."""
+    """Every test starts and ends on the reference mesh (AleMesh moves the shared mesh)."""
     x = fluid.mesh.geometry.x.copy()
     yield
     fluid.mesh.geometry.x[:] = x
@@ -91,9 +93,13 @@ def test_affine_boundary_displacement_is_extended_exactly(fluid, method):
 def test_bump_moves_interface_nodes_exactly_and_keeps_the_other_boundaries(fluid):
     A = 5e-4  # 0.5 mm: a seventh of the 3.5 mm lumen at the apex
     mm = MeshMotion(fluid)  # the defaults: harmonic, Jacobian stiffening
+    ale = AleMesh(fluid.mesh)  # the one object that moves the mesh
     assert mm.fixed == (Boundary.INLET, Boundary.OUTLET, Boundary.RIGID_WALL)
     values = bump(A)(mm.interface_points.T).T  # an interface vector, as the coupler sets it
-    mm.update(values)  # set, solve, check quality, move
+    mm.set_boundary_displacement(values)
+    mm.solve()
+    mm.check_quality()
+    ale.move(mm.d)  # the coupler's order: set, solve, check quality, move
 
     x, X = fluid.mesh.geometry.x, mm.reference
     cap = boundary_nodes(fluid, Boundary.INTERFACE)
@@ -175,12 +181,15 @@ def test_quality_guard(fluid):
 
     # 4 mm through a 3.5 mm gap: the plaque passes the opposite wall, cells must invert.
     reference = fluid.mesh.geometry.x.copy()
+    mm.set_boundary_displacement(bump(4e-3)(mm.interface_points.T).T)
+    mm.solve()
     with pytest.raises(MeshQualityError) as info:
-        mm.update(bump(4e-3)(mm.interface_points.T).T)
+        mm.check_quality()
     e = info.value
     assert e.ratio < 0 and e.threshold == 0.05 and "inverted" in str(e)
     assert X0 < e.where[0] < X0 + LS  # above the plaque
-    # The guard runs before the mesh moves: the fluid never sees the inverted mesh.
+    # The guard judges X + d without moving the mesh, so the coupler runs it before the
+    # fluid's AleMesh moves the mesh: the fluid never sees the inverted mesh.
     assert np.array_equal(fluid.mesh.geometry.x, reference)
 
     # Not inverted but below a strict threshold: 1 mm unstiffened gives min J/J_ref = 0.436.
@@ -195,9 +204,10 @@ def test_quality_guard(fluid):
 @pytest.mark.parametrize("method", ["harmonic", "elastic"])
 def test_mesh_velocity_of_a_linear_motion(fluid, method):
     """d(t) = t f: the extension is linear in the data, so d(t) = t E(f) and both backward Euler
-    and variable-step BDF2 give w = E(f) exactly; on the interface w = f."""
+    and variable-step BDF2 give the AleMesh's w = E(f) exactly; on the interface w = f."""
     f = bump(3e-4)
     mm = MeshMotion(fluid, mesh_motion_settings(method=method))
+    ale = AleMesh(fluid.mesh)
     values = f(mm.interface_points.T).T
     mm.set_boundary_displacement(values)
     extension = mm.solve().x.array.copy()
@@ -205,18 +215,19 @@ def test_mesh_velocity_of_a_linear_motion(fluid, method):
     times = [0.3, 0.5, 0.6]  # dt = 0.2, then 0.1
     for i, t in enumerate(times):
         mm.set_boundary_displacement(t * values)
-        mm.solve()
+        ale.move(mm.solve())
         if i == 1:
-            w = mm.mesh_velocity(0.2).x.array
+            ale.set_velocity(bdf_weights(1, 0.2))
         elif i == 2:
-            w = mm.mesh_velocity(0.1, order=2, dt_previous=0.2).x.array
+            ale.set_velocity(bdf_weights(2, 0.1, dt_previous=0.2))
         if i:
+            w = ale.w.x.array
             # Round-off of d (~1e-16 |d|) divided by dt: far below 1e-10 relative.
             scale = global_max(fluid.comm, extension)
             assert global_max(fluid.comm, w - extension) < 1e-10 * scale
             on_interface = w.reshape(-1, 2)[mm.interface_dofs]
             assert global_max(fluid.comm, on_interface - values) < 1e-12 * scale
-        mm.advance()
+        ale.advance()
 
 
 def test_solve_reuses_the_matrix_and_its_factorisation(fluid):
@@ -268,25 +279,27 @@ def test_iterative_solver_from_the_config(fluid):
     )
 
 
-def test_apply_reset_and_restore(fluid):
+def test_ale_mesh_moves_resets_and_restores(fluid):
+    """AleMesh moves the mesh to X + d, back to X with d = 0, and its restore brings back d,
+    its history and the mesh position."""
     mm = MeshMotion(fluid)
+    ale = AleMesh(fluid.mesh)
     reference = fluid.mesh.geometry.x.copy()
     mm.set_boundary_displacement(bump(3e-4)(mm.interface_points.T).T)
-    mm.solve()
-    mm.advance()
-    state = mm.save_state()
-    mm.apply()
+    ale.move(mm.solve())
+    ale.advance()
+    state = ale.save()
     moved = fluid.mesh.geometry.x.copy()
     assert global_max(fluid.comm, moved - reference) > 1e-4
-    mm.reset()
+    ale.move(dolfinx.fem.Function(ale.space))
     assert np.array_equal(fluid.mesh.geometry.x, reference)
 
     mm.set_boundary_displacement(bump(-3e-4)(mm.interface_points.T).T)
-    mm.solve()
-    mm.advance()
-    mm.apply()
-    mm.restore_state(state)
-    assert np.array_equal(mm.d.x.array, state.d) and np.array_equal(mm.d_n, state.d_n)
+    ale.move(mm.solve())
+    ale.advance()
+    ale.restore(*state)
+    d, d_n, _, _ = state
+    assert np.array_equal(ale.d.x.array, d) and np.array_equal(ale.history.x_n, d_n)
     assert np.array_equal(fluid.mesh.geometry.x, moved)  # restore moves the mesh back, too
 
 

@@ -10,10 +10,13 @@ from pathlib import Path
 
 from mpi4py import MPI
 
+import numpy as np
 import pytest
 
 from fsi import cli, config
+from fsi.coupled import partitioned
 from fsi.output import io
+from fsi.physics.mesh_motion import MeshQualityError
 from fsi.run import simulation
 
 CASE = "configs/stenosis_moving_newtonian.yaml"
@@ -155,3 +158,28 @@ def test_mesh_quality_guard_exits_3(shared_tmp, fsi_log):
     assert [r["step"] for r in io.read_metrics(out / "metrics.csv")] == [1]
     assert "mesh_motion.min_jacobian_ratio = 0.998" in fsi_log.text
     assert "step 2 to t = 0.002 s" in fsi_log.text
+
+
+def test_the_fluid_side_checks_the_mesh_before_its_ale_mesh_moves_it():
+    """FluidInterface.move_mesh: MeshMotion extends the interface displacement and judges
+    X + d; only then does the fluid's AleMesh move the mesh. A displacement that would invert
+    cells raises and leaves the mesh where it was; an admissible one (the wall shifted by 10 µm)
+    moves it, and the wall velocity is the backward Euler w = d/dt of the first step."""
+    comm = MPI.COMM_WORLD
+    case = config.load(CASE, ["structure.mode=moving_wall"])
+    problem = partitioned.build_coupled(case, comm)
+    side, x = problem.fluid_side, problem.fluid.mesh.geometry.x
+    reference = x.copy()
+    n = problem.solid.interface_displacement().shape[0]
+    side.begin_step(0.001, 0.001)
+    with pytest.raises(MeshQualityError, match="inverted"):
+        side.move_mesh(np.tile([0.0, 0.05], n))  # 5 cm: through the 7 mm lumen
+    assert np.array_equal(x, reference)
+    side.move_mesh(np.tile([0.0, 1e-5], n))
+    moved = comm.allreduce(float(np.abs(x - reference).max(initial=0.0)), op=MPI.MAX)
+    assert moved == pytest.approx(1e-5, rel=1e-9)
+    assert 0.9 < side.mesh_quality < 1
+    wall = comm.allreduce(
+        float(np.abs(problem.fluid.boundary_velocity.x.array).max(initial=0.0)), op=MPI.MAX
+    )
+    assert wall == pytest.approx(1e-5 / 0.001, rel=1e-9)

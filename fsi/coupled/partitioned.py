@@ -7,11 +7,13 @@ interface dofs, flat) to the force the blood exerts on the structure:
 1. η_Γ: x is transferred to the fluid's P2 interface nodes
    (:class:`fsi.coupled.interface.InterfaceMap`, pairing by position on the reference
    configuration);
-2. mesh motion: the P1 vertex values of η_Γ are the Dirichlet data ``g`` of the harmonic/elastic
-   extension ``d`` (:class:`fsi.physics.mesh_motion.MeshMotion`, used here only as an extension
-   operator: ``solve`` and the quality guard ``check_quality``, which raises before the mesh moves);
-   the fluid's own :class:`fsi.physics.fluid.AleMesh` then moves the mesh to ``x = X + d`` and owns
-   the displacement history and ``w``. Exactly one object writes the mesh coordinates;
+2. mesh motion (fsi/physics/mesh_motion.py): the P1 vertex values of η_Γ are the Dirichlet data
+   ``g`` of the extension ``d`` (:class:`~fsi.physics.mesh_motion.MeshMotion`, the extension
+   operator: ``solve``, and the quality guard ``check_quality``, which judges X + d and raises
+   before the mesh moves; it keeps no time levels); the fluid's
+   :class:`~fsi.physics.mesh_motion.AleMesh` (``FluidSolver.ale``) then moves the mesh to
+   ``x = X + d``. The AleMesh is the one object that writes the mesh coordinates and the one
+   owner of the displacement history d^n, d^{n−1} and of ``w``;
 3. kinematic condition: ``u = w`` on Γw1, with ``w = Σ_k a_k d^{n+1−k}`` the fluid scheme's BDF
    derivative of the mesh displacement (the same weights as ∂u/∂t), interpolated into P2. So the
    moving wall is exactly material for the discrete fluid (no flux through Γw1 relative to the
@@ -55,9 +57,9 @@ class FluidInterface:
     fluid on the structure (solid interface vector, flat, N/m); see the module docstring.
     ``restore_state`` goes back to the start of the step (solution history and mesh position)
     but keeps the last (u, p) as Newton's initial guess (``warm_start``). The mesh motion has
-    no state to save: its ``g`` and ``d`` are recomputed from x in every iteration, and the
-    displacement history and ``w`` live in the fluid's AleMesh, which the fluid's own
-    save/restore/advance cover.
+    no state to save: its ``g`` and ``d`` are recomputed from x in every iteration; the mesh
+    position, the displacement history and ``w`` belong to the fluid's AleMesh, which the
+    fluid's own save/restore/advance cover.
 
     Raises (collectively) :class:`fsi.physics.mesh_motion.MeshQualityError` when the extension would
     collapse a cell, and :class:`fsi.numerics.newton.SolveFailed` when the fluid step fails.

@@ -3,6 +3,8 @@
 * :func:`steps` walks the configured step schedule (the study's 5 ms / 10 ms, or a resolved one).
 * :func:`bdf_weights` gives the variable-step backward-difference weights used by the fluid:
   ``∂u/∂t (t_{n+1}) ≈ Σ_k w_k u^{n+1-k}``.
+* :class:`BdfHistory` keeps a field's accepted levels u^n, u^{n−1} and forms that sum (the
+  fluid's velocity, the ALE mesh displacement).
 """
 
 from __future__ import annotations
@@ -10,6 +12,8 @@ from __future__ import annotations
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Protocol
+
+import numpy as np
 
 
 class Segment(Protocol):
@@ -64,6 +68,49 @@ def bdf_weights(order: int, dt: float, dt_previous: float | None = None) -> tupl
         r = dt / dt_previous
         return ((1 + 2 * r) / (1 + r) / dt, -(1 + r) / dt, r * r / (1 + r) / dt)
     raise ValueError(f"BDF order {order} is not supported (1 or 2)")
+
+
+class BdfHistory:
+    """The accepted time levels x^n, x^{n−1} of a field x, for the backward difference
+    ``Σ_k a_k x^{n+1−k}`` of :func:`bdf_weights`.
+
+    ``x`` is the field's current level x^{n+1} (the one being solved for), ``x_n`` and ``x_nm1``
+    the accepted ones: arrays of one shape that the history reads and writes in place, never
+    rebinds. So they may be the value arrays of dolfinx Functions (``u_n.x.array``), which stay
+    the Functions that forms use. Every operation copies values or forms the sum; no other
+    arithmetic.
+    """
+
+    def __init__(
+        self, x: np.ndarray, x_n: np.ndarray | None = None, x_nm1: np.ndarray | None = None
+    ):
+        self.x = x
+        self.x_n = np.zeros_like(x) if x_n is None else x_n
+        self.x_nm1 = np.zeros_like(x) if x_nm1 is None else x_nm1
+
+    def start(self) -> None:
+        """x^{n−1} = x^n = x: the history of a field that was x before the first step."""
+        self.x_n[:] = self.x
+        self.x_nm1[:] = self.x
+
+    def advance(self) -> None:
+        """Accept the current level: x^{n−1} ← x^n, x^n ← x."""
+        self.x_nm1[:] = self.x_n
+        self.x_n[:] = self.x
+
+    def derivative(self, weights: Sequence[float]) -> np.ndarray:
+        """``Σ_k a_k x^{n+1−k} = a₀ x + a₁ x^n (+ a₂ x^{n−1})`` for ``weights`` (a₀, a₁[, a₂]),
+        summed in that order (a new array)."""
+        return sum(a * h for a, h in zip(weights, (self.x, self.x_n, self.x_nm1)))
+
+    def save(self) -> tuple[np.ndarray, np.ndarray]:
+        """Copies of (x^n, x^{n−1})."""
+        return self.x_n.copy(), self.x_nm1.copy()
+
+    def restore(self, x_n: np.ndarray, x_nm1: np.ndarray) -> None:
+        """Set the accepted levels to ``x_n``, ``x_nm1`` (e.g. from :meth:`save`)."""
+        self.x_n[:] = x_n
+        self.x_nm1[:] = x_nm1
 
 
 # --------------------------------------------------------------------------------------------
@@ -150,8 +197,6 @@ class NewmarkFamily:
 
         Its spectral radius is the per-step amplitude factor of a mode with ``ω dt = omega_dt``.
         """
-        import numpy as np
-
         am, af, b, g, w2 = self.alpha_m, self.alpha_f, self.beta, self.gamma, omega_dt**2
         lhs = np.array([[w2 * (1 - af), 0, 1 - am], [1, 0, -b], [0, 1, -g]], dtype=float)
         rhs = np.array([[-w2 * af, 0, -am], [1, 1, 0.5 - b], [0, 1, 1 - g]], dtype=float)
@@ -159,8 +204,6 @@ class NewmarkFamily:
 
     def spectral_radius(self, omega_dt: float) -> float:
         """``ρ(A(ω dt))``: 1 for the trapezoidal rule, → ρ∞ as ``ω dt → ∞``."""
-        import numpy as np
-
         return float(np.abs(np.linalg.eigvals(self.amplification_matrix(omega_dt))).max())
 
 

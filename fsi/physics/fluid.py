@@ -15,7 +15,9 @@ the mesh, i.e. at fixed X); the weights ``a_k`` come from
 steady mode), so the physics never names a scheme. Everything is evaluated on Ωf(t_{n+1})
 (non-conservative ALE form): a uniform flow stays uniform on any mesh motion (the discrete geometric
 conservation law of this form), and the mesh velocity is by default the same BDF derivative of the
-mesh displacement, ``w = Σ_k a_k d^{n+1−k}``.
+mesh displacement, ``w = Σ_k a_k d^{n+1−k}``. The accepted levels u^n, u^{n−1} are a
+:class:`fsi.numerics.timestepping.BdfHistory`; the mesh, its displacement history and w are the
+solver's :class:`fsi.physics.mesh_motion.AleMesh` (``ale``).
 
 :class:`FluidResidual` builds F as this sum, one method per term (inertia, convection,
 viscous stress, pressure, continuity, body force, SUPG). Boundary conditions are data
@@ -50,8 +52,9 @@ import ufl
 from fsi import compat, config
 from fsi.config import boundary_data
 from fsi.numerics.newton import Newton, SolveResult
-from fsi.numerics.timestepping import bdf_weights
+from fsi.numerics.timestepping import BdfHistory, bdf_weights
 from fsi.physics import outlets, rheology
+from fsi.physics.mesh_motion import AleMesh
 from geometry.tags import Boundary
 
 log = logging.getLogger(__name__)
@@ -213,65 +216,6 @@ def inlet_pressure(spec: config.Inlet) -> Callable[[float], float]:
 def inflow_ramp(t: float, ramp_time: float) -> float:
     """(1 − cos(π t / T_r)) / 2 for t < T_r, 1 after (Turek–Hron: T_r = 2 s)."""
     return 1.0 if t >= ramp_time else 0.5 * (1 - math.cos(math.pi * t / ramp_time))
-
-
-# --------------------------------------------------------------------------------------------
-# Mesh
-
-
-class AleMesh:
-    """Moves a (P1-geometry) mesh by a vector P1 displacement d: x = X + d(X).
-
-    Keeps the reference coordinates X, the displacement ``d`` (a Function on :attr:`space`),
-    the accepted displacements d^n, d^{n−1} and the mesh velocity ``w``.
-    """
-
-    def __init__(self, mesh: dolfinx.mesh.Mesh):
-        gdim = mesh.geometry.dim
-        self.mesh = mesh
-        self.space = compat.function_space(mesh, "Lagrange", 1, (gdim,))
-        self.d = dolfinx.fem.Function(self.space, name="mesh_displacement")
-        self.w = dolfinx.fem.Function(self.space, name="mesh_velocity")
-        self.reference = mesh.geometry.x.copy()
-        # Geometry node ↔ P1 dof: both follow the reference cell's vertex order.
-        nodes = compat.geometry_dofmap(mesh)
-        dofs = compat.cell_dofs(self.space)
-        if nodes.shape != dofs.shape:
-            raise ValueError("AleMesh needs an affine (P1) geometry")
-        self._nodes, self._dofs = nodes.ravel(), dofs.ravel()
-        coordinates = self.space.tabulate_dof_coordinates()
-        if not np.allclose(
-            coordinates[self._dofs, :gdim],
-            self.reference[self._nodes, :gdim],
-            rtol=0,
-            atol=1e-12 * (1 + np.abs(self.reference).max()),
-        ):
-            raise RuntimeError("AleMesh: P1 dofs and geometry nodes do not match")
-        self.d_n = np.zeros_like(self.d.x.array)
-        self.d_nm1 = np.zeros_like(self.d.x.array)
-
-    def move(self, d: dolfinx.fem.Function | None = None) -> None:
-        """Set the displacement (interpolated into P1 if it lives elsewhere) and move the mesh."""
-        if d is not None and d is not self.d:
-            if d.function_space == self.space:
-                self.d.x.array[:] = d.x.array
-            else:
-                self.d.interpolate(d)
-        self.d.x.scatter_forward()
-        gdim = self.mesh.geometry.dim
-        values = self.d.x.array.reshape(-1, gdim)
-        self.mesh.geometry.x[self._nodes, :gdim] = (
-            self.reference[self._nodes, :gdim] + values[self._dofs]
-        )
-
-    def set_velocity(self, weights: Sequence[float]) -> None:
-        """w = Σ_k a_k d^{n+1−k} (the mesh velocity consistent with the fluid's time scheme)."""
-        history = (self.d.x.array, self.d_n, self.d_nm1)
-        self.w.x.array[:] = sum(a * h for a, h in zip(weights, history))
-
-    def advance(self) -> None:
-        self.d_nm1[:] = self.d_n
-        self.d_n[:] = self.d.x.array
 
 
 # --------------------------------------------------------------------------------------------
@@ -857,6 +801,8 @@ class FluidSolver:
         self.p = dolfinx.fem.Function(self.Q, name="pressure")
         self.u_n = dolfinx.fem.Function(self.V)
         self.u_nm1 = dolfinx.fem.Function(self.V)
+        # u^n, u^{n−1}: the history writes the arrays of the Functions the residual uses.
+        self.velocity_history = BdfHistory(self.u.x.array, self.u_n.x.array, self.u_nm1.x.array)
         self.boundary_velocity = dolfinx.fem.Function(self.V, name="boundary_velocity")
         self.ale = AleMesh(mesh)
 
@@ -919,8 +865,7 @@ class FluidSolver:
         values as for ``Function.interpolate``; u^n = u^{n−1} = u. Default: rest."""
         if u is not None:
             self.u.interpolate(u)
-            self.u_n.x.array[:] = self.u.x.array
-            self.u_nm1.x.array[:] = self.u.x.array
+            self.velocity_history.start()
             _copy_to_mixed(self.U, self.u, self._V_to_W)
         if p is not None:
             self.p.interpolate(p)
@@ -964,8 +909,7 @@ class FluidSolver:
         the lumped outlets' states advance with the step's flow rates."""
         for outlet in self.lumped:
             outlet.advance(self.time_weights(self._dt))
-        self.u_nm1.x.array[:] = self.u_n.x.array
-        self.u_n.x.array[:] = self.u.x.array  # u is U's velocity after every step/restore
+        self.velocity_history.advance()  # u is U's velocity after every step/restore
         self.ale.advance()
         self.dt_previous = self._dt
         self.time = float(self.t.value)
@@ -980,12 +924,8 @@ class FluidSolver:
             self.dt_previous,
             self.accepted_steps,
             self.U.x.array.copy(),
-            self.u_n.x.array.copy(),
-            self.u_nm1.x.array.copy(),
-            self.ale.d.x.array.copy(),
-            self.ale.d_n.copy(),
-            self.ale.d_nm1.copy(),
-            self.ale.w.x.array.copy(),
+            *self.velocity_history.save(),  # u_n, u_nm1
+            *self.ale.save(),  # d, d_n, d_nm1, w
             self._mesh_velocity_given,
             np.concatenate([np.zeros(0), *(outlet.state for outlet in self.lumped)]),
         )
@@ -996,17 +936,12 @@ class FluidSolver:
         s = state or self._saved
         if s is None:
             raise RuntimeError("restore_state before any save_state")
+        self._restore_outlets(s.outlet_state)  # first: it checks the state's size
         self.time, self.dt_previous, self.accepted_steps = s.time, s.dt_previous, s.accepted_steps
         self.U.x.array[:] = s.U
-        self.u_n.x.array[:] = s.u_n
-        self.u_nm1.x.array[:] = s.u_nm1
-        self.ale.d.x.array[:] = s.d
-        self.ale.d_n[:] = s.d_n
-        self.ale.d_nm1[:] = s.d_nm1
-        self.ale.w.x.array[:] = s.w
+        self.velocity_history.restore(s.u_n, s.u_nm1)
+        self.ale.restore(s.d, s.d_n, s.d_nm1, s.w)  # and moves the mesh to X + d
         self._mesh_velocity_given = s.mesh_velocity_given
-        self._restore_outlets(s.outlet_state)
-        self.ale.move()
         self._sync_outputs()
 
     def _restore_outlets(self, state: np.ndarray) -> None:

@@ -1,4 +1,10 @@
-"""ALE mesh motion of the fluid domain (MODEL.md §5): extend the interface displacement inward.
+"""ALE mesh motion of the fluid domain (MODEL.md §5): extend the interface displacement inward,
+and move the mesh.
+
+Two objects, one job each: :class:`MeshMotion` is the extension operator (boundary data → the
+mesh displacement ``d``, with the quality guard; it never moves the mesh), and :class:`AleMesh`
+owns the moving mesh (the one object that writes its coordinates, x = X + d(X)), the accepted
+displacements d^n, d^{n−1} and the mesh velocity w.
 
 The mesh displacement ``d`` (vector P1, the geometry's degree) solves, on the reference fluid
 domain Ω̂f, one of
@@ -13,18 +19,17 @@ biharmonic: its natural conditions, ∂²d/∂n² = 0 also where d is given). Th
 stiffening ``k`` is constant per cell: 1, ``(J_max/J)^e`` with ``J`` the reference cell area
 (small cells move almost rigidly), or ``(δ_max/δ)^e`` with ``δ`` the distance of the cell's
 centroid to the moving boundary. The fluid mesh follows as ``x = X + d(X)`` and the mesh velocity
-is the backward difference ``w = Σ_k a_k d^{n+1−k}``
-(:func:`fsi.numerics.timestepping.bdf_weights`).
+is the backward difference ``w = Σ_k a_k d^{n+1−k}`` (:class:`AleMesh`, with the fluid's weights
+:func:`fsi.numerics.timestepping.bdf_weights`).
 
 The biharmonic is mixed, with the Hessian H = ∇∇d as auxiliary P1 field. (The Ciarlet–Raviart
 form w = −Δd, −Δw = 0 of turtleFSI, with w left free on the boundary, has ∂d/∂n = 0 as natural
 condition where d is given, so it cannot extend an affine motion; this one does, for any k.)
-H is eliminated with the lumped mass matrix
-(:meth:`MeshMotion._biharmonic_operator`), so it too is one sparse symmetric matrix, with the
-two-cell stencil of Δ² (2.7× the harmonic's nonzeros). Cost on the coarse Turek–Hron fluid mesh
-(5,234 dofs, serial, MUMPS): harmonic 30 ms to assemble and factorise, 0.61 ms per solve;
-biharmonic 106 ms and 0.74 ms. Which extension survives which motion is measured in
-tests/test_large_deformation.py (the Turek–Hron FSI2 flag bent by ±8 cm).
+H is eliminated with the lumped mass matrix (:func:`biharmonic_operator`), so it too is one
+sparse symmetric matrix, with the two-cell stencil of Δ² (2.7× the harmonic's nonzeros). Cost
+on the coarse Turek–Hron fluid mesh (5,234 dofs, serial, MUMPS): harmonic 30 ms to assemble and
+factorise, 0.61 ms per solve; biharmonic 106 ms and 0.74 ms. Which extension survives which
+motion is measured in tests/test_large_deformation.py (the Turek–Hron FSI2 flag bent by ±8 cm).
 
 The operator lives on the reference configuration, so it is assembled (and factorised) once; a
 solve is one right-hand side ``b = −A₀ g`` (lifting done algebraically with the unconstrained
@@ -34,7 +39,6 @@ matrix ``A₀``, so it never depends on where the mesh currently is) and one bac
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -48,7 +52,7 @@ import ufl
 
 from fsi import compat, config
 from fsi.numerics.newton import petsc_options
-from fsi.numerics.timestepping import bdf_weights
+from fsi.numerics.timestepping import BdfHistory
 from fsi.physics.mesh import TaggedMesh, owned_facet_dofs
 from geometry.stenosis import distance_to_segments
 from geometry.tags import Boundary
@@ -73,17 +77,6 @@ class MeshQualityError(RuntimeError):
         )
 
 
-@dataclass
-class MeshMotionState:
-    """What :meth:`MeshMotion.restore_state` needs (local arrays, owned and ghost entries)."""
-
-    d: np.ndarray
-    d_n: np.ndarray
-    d_nm1: np.ndarray
-    g: np.ndarray
-    w: np.ndarray
-
-
 def signed_areas(x: np.ndarray, nodes: np.ndarray) -> np.ndarray:
     """Signed areas ½ (x₁ − x₀) × (x₂ − x₀) of triangles with vertex rows ``nodes`` (n, 3)."""
     a = x[nodes[:, 1], :2] - x[nodes[:, 0], :2]
@@ -91,9 +84,76 @@ def signed_areas(x: np.ndarray, nodes: np.ndarray) -> np.ndarray:
     return 0.5 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
 
 
+def geometry_node_dofs(V: dolfinx.fem.FunctionSpace) -> tuple[np.ndarray, np.ndarray]:
+    """The geometry nodes of the local cells, each once, and the dof of the vector P1 space
+    ``V`` at each (both follow each cell's vertex order). A submesh may hold a geometry node
+    that no local cell uses (dolfinx 0.5 on several ranks): it is not listed, so it is never
+    moved, and it plays no part in any cell. Raises if the geometry is not affine (P1), and on
+    every rank if a node and its dof are apart. Collective (an allreduce)."""
+    mesh = V.mesh
+    cells, dofs = compat.geometry_dofmap(mesh), compat.cell_dofs(V)
+    if cells.shape != dofs.shape:
+        raise ValueError("the mesh motion needs an affine (P1) geometry")
+    nodes, first = np.unique(cells.ravel(), return_index=True)
+    node_dofs = dofs.ravel()[first]
+    gdim, x = mesh.geometry.dim, mesh.geometry.x
+    points = V.tabulate_dof_coordinates()[node_dofs, :gdim]
+    scale = 1.0 + np.abs(x).max(initial=0.0)
+    local_ok = np.allclose(points, x[nodes, :gdim], rtol=0, atol=1e-12 * scale)
+    if not mesh.comm.allreduce(bool(local_ok), op=MPI.LAND):
+        raise RuntimeError("mesh motion: P1 dofs and geometry nodes do not coincide")
+    return nodes, node_dofs
+
+
+def biharmonic_operator(V: dolfinx.fem.FunctionSpace, k) -> PETSc.Mat:
+    """A₀ = Σ_ij B_ijᵀ W B_ij: the discrete energy ∫ k |∇∇d|² of the biharmonic method, on the
+    vector P1 space ``V`` with the stiffening ``k`` (a DG0 Function or a Constant).
+
+    The auxiliary field is the Hessian H = ∇∇d in P1, defined weakly (mixed form) by
+    ``∫ H_ij·φ dx = −∫ ∂_j d·∂_i φ dx + ∫_∂Ω ∂_j d·φ n_i ds`` for every P1 φ, i.e.
+    ``M H_ij = B_ij d`` (the boundary term keeps it consistent up to the boundary: an affine
+    d gives H = 0 exactly). With the lumped mass M ≈ diag(m_a), m_a = ∫ φ_a at node a, the
+    energy ∫ k |H|² ≈ Σ_a (∫ k φ_a) |H(a)|² = dᵀ (Σ_ij B_ijᵀ W B_ij) d with
+    W = diag(∫ k φ_a / m_a²): H is eliminated and one sparse symmetric matrix remains.
+    Minimising it with d = g on the Dirichlet boundaries gives Δ²d = 0 in Ω with the
+    natural condition ∂²d/∂n² = 0 there (and on free boundaries the second natural one)."""
+    mesh, gdim = V.mesh, V.mesh.geometry.dim
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    dx = ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": 1})
+    ds = ufl.Measure("ds", domain=mesh, metadata={"quadrature_degree": 1})
+    n = ufl.FacetNormal(mesh)
+    ones = ufl.as_vector([1.0] * gdim)
+
+    def lumped(weight):
+        vec = dolfinx.fem.petsc.assemble_vector(dolfinx.fem.form(weight * ufl.inner(ones, v) * dx))
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        return vec
+
+    W = lumped(k)
+    mass = lumped(1.0)
+    W.pointwiseDivide(W, mass)
+    W.pointwiseDivide(W, mass)
+    A0 = None
+    for i in range(gdim):
+        for j in range(gdim):  # H_ij = ∂_i ∂_j d
+            b_ij = -ufl.inner(u.dx(j), v.dx(i)) * dx + ufl.inner(u.dx(j), v) * n[i] * ds
+            B = dolfinx.fem.petsc.assemble_matrix(dolfinx.fem.form(b_ij))
+            B.assemble()
+            WB = B.copy()
+            WB.diagonalScale(L=W)
+            term = B.transposeMatMult(WB)
+            if A0 is None:
+                A0 = term
+            else:
+                A0.axpy(1.0, term, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+    return A0
+
+
 class MeshMotion:
     """The harmonic, elastic or biharmonic extension of a boundary displacement into the fluid
-    mesh.
+    mesh: boundary data (:meth:`set_boundary_displacement`, :meth:`set_boundary_function`) →
+    :meth:`solve` → d, and the quality of X + d (:meth:`check_quality`). It never moves the
+    mesh (:class:`AleMesh` does), and keeps no time levels.
 
     Args:
         tagged: the fluid (sub)mesh with its facet tags, in its reference configuration.
@@ -125,11 +185,7 @@ class MeshMotion:
 
         self.V = compat.function_space(mesh, "Lagrange", 1, (self.gdim,))
         self.d = dolfinx.fem.Function(self.V, name="mesh_displacement")
-        self.w = dolfinx.fem.Function(self.V, name="mesh_velocity")
         self.g = dolfinx.fem.Function(self.V, name="mesh_boundary_displacement")
-        self.d_n = np.zeros_like(self.d.x.array)
-        self.d_nm1 = np.zeros_like(self.d.x.array)
-        self._saved: MeshMotionState | None = None
 
         self._map_reference_geometry()
         self._locate_boundary_dofs(tagged)
@@ -158,29 +214,16 @@ class MeshMotion:
         self.fixed = tuple(Boundary(b) for b in fixed if b not in self.moving)
 
     def _map_reference_geometry(self) -> None:
-        """The reference geometry, its cells, the P1 dof of each geometry node, the dofs'
-        reference points and the cells' reference areas; raises (on every rank) if the P1 dofs
-        and the nodes do not coincide or a cell is degenerate. Collective (two allreduce)."""
-        mesh, gdim = self.mesh, self.gdim
-        # Reference geometry, and geometry node -> P1 dof (both follow each cell's vertex order).
+        """The reference geometry X, its cells, the P1 dof of each geometry node
+        (:func:`geometry_node_dofs`), the dofs' reference points and the cells' reference
+        areas; raises (on every rank) if a node and its dof are apart or a cell is degenerate.
+        Collective (two allreduce)."""
+        mesh = self.mesh
         self.reference = mesh.geometry.x.copy()
         self._cells = compat.geometry_dofmap(mesh)
-        dofs = compat.cell_dofs(self.V)
-        if self._cells.shape != dofs.shape or self._cells.shape[1] != 3:
-            raise ValueError("MeshMotion needs an affine (P1) triangle geometry")
-        # A submesh may hold a geometry node that no local cell uses (dolfinx 0.5 on several
-        # ranks): it is never moved, and it plays no part in any cell.
-        self._nodes, first = np.unique(self._cells.ravel(), return_index=True)
-        self._node_dofs = dofs.ravel()[first]
+        self._nodes, self._node_dofs = geometry_node_dofs(self.V)
         # Reference coordinates X of the P1 dofs (local: owned, then ghost).
-        self.dof_points = self.V.tabulate_dof_coordinates()[:, :gdim].copy()
-        points = self.dof_points[self._node_dofs]
-        scale = 1.0 + np.abs(self.reference).max(initial=0.0)
-        local_ok = np.allclose(
-            points, self.reference[self._nodes, :gdim], rtol=0, atol=1e-12 * scale
-        )
-        if not self.comm.allreduce(bool(local_ok), op=MPI.LAND):
-            raise RuntimeError("MeshMotion: P1 dofs and geometry nodes do not coincide")
+        self.dof_points = self.V.tabulate_dof_coordinates()[:, : self.gdim].copy()
         self._n_owned_cells = mesh.topology.index_map(mesh.topology.dim).size_local
         self.reference_areas = signed_areas(self.reference, self._cells)
         degenerate = bool(np.any(self.reference_areas[: self._n_owned_cells] == 0))
@@ -256,54 +299,11 @@ class MeshMotion:
         sigma = 2 * eps(u) + lam * ufl.tr(eps(u)) * ufl.Identity(self.gdim)
         return self.k * ufl.inner(sigma, eps(v)) * dx
 
-    def _biharmonic_operator(self) -> PETSc.Mat:
-        """A₀ = Σ_ij B_ijᵀ W B_ij: the discrete energy ∫ k |∇∇d|² of the biharmonic method.
-
-        The auxiliary field is the Hessian H = ∇∇d in P1, defined weakly (mixed form) by
-        ``∫ H_ij·φ dx = −∫ ∂_j d·∂_i φ dx + ∫_∂Ω ∂_j d·φ n_i ds`` for every P1 φ, i.e.
-        ``M H_ij = B_ij d`` (the boundary term keeps it consistent up to the boundary: an affine
-        d gives H = 0 exactly). With the lumped mass M ≈ diag(m_a), m_a = ∫ φ_a at node a, the
-        energy ∫ k |H|² ≈ Σ_a (∫ k φ_a) |H(a)|² = dᵀ (Σ_ij B_ijᵀ W B_ij) d with
-        W = diag(∫ k φ_a / m_a²): H is eliminated and one sparse symmetric matrix remains.
-        Minimising it with d = g on the Dirichlet boundaries gives Δ²d = 0 in Ω with the
-        natural condition ∂²d/∂n² = 0 there (and on free boundaries the second natural one)."""
-        u, v = ufl.TrialFunction(self.V), ufl.TestFunction(self.V)
-        dx = ufl.Measure("dx", domain=self.mesh, metadata={"quadrature_degree": 1})
-        ds = ufl.Measure("ds", domain=self.mesh, metadata={"quadrature_degree": 1})
-        n = ufl.FacetNormal(self.mesh)
-        ones = ufl.as_vector([1.0] * self.gdim)
-
-        def lumped(weight):
-            vec = dolfinx.fem.petsc.assemble_vector(
-                dolfinx.fem.form(weight * ufl.inner(ones, v) * dx)
-            )
-            vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-            return vec
-
-        W = lumped(self.k)
-        mass = lumped(1.0)
-        W.pointwiseDivide(W, mass)
-        W.pointwiseDivide(W, mass)
-        A0 = None
-        for i in range(self.gdim):
-            for j in range(self.gdim):  # H_ij = ∂_i ∂_j d
-                b_ij = -ufl.inner(u.dx(j), v.dx(i)) * dx + ufl.inner(u.dx(j), v) * n[i] * ds
-                B = dolfinx.fem.petsc.assemble_matrix(dolfinx.fem.form(b_ij))
-                B.assemble()
-                WB = B.copy()
-                WB.diagonalScale(L=W)
-                term = B.transposeMatMult(WB)
-                if A0 is None:
-                    A0 = term
-                else:
-                    A0.axpy(1.0, term, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
-        return A0
-
     def _assemble(self):
         """A₀ (no boundary conditions) and A (Dirichlet rows and columns → identity)."""
         self.assemblies += 1
         if self.settings.method == "biharmonic":
-            A0 = self._biharmonic_operator()
+            A0 = biharmonic_operator(self.V, self.k)
         else:
             A0 = dolfinx.fem.petsc.assemble_matrix(dolfinx.fem.form(self._forms()))
         A0.assemble()
@@ -355,7 +355,7 @@ class MeshMotion:
         f = self.d if f is None else f
         return f.x.array.reshape(-1, self.gdim)[self.interface_dofs].copy()
 
-    # ---- solve and move
+    # ---- solve
 
     def solve(self) -> dolfinx.fem.Function:
         """d: the extension of the boundary data. Solves A d = −A₀ g (Dirichlet rows: d = g)
@@ -371,25 +371,6 @@ class MeshMotion:
             raise RuntimeError(f"mesh motion: the linear solve failed (KSP reason {reason})")
         self.d.x.array[self._bc_local] = g_owned  # boundary values exactly, not to round-off
         self.d.x.scatter_forward()
-        return self.d
-
-    def apply(self) -> None:
-        """Move the mesh to x = X + d (X the reference coordinates)."""
-        gdim = self.gdim
-        self.mesh.geometry.x[self._nodes, :gdim] = (
-            self.reference[self._nodes, :gdim] + self.d.x.array.reshape(-1, gdim)[self._node_dofs]
-        )
-
-    def reset(self) -> None:
-        """Move the mesh back to its reference coordinates X (d is kept)."""
-        self.mesh.geometry.x[:] = self.reference
-
-    def update(self, values: np.ndarray) -> dolfinx.fem.Function:
-        """One coupling iteration's motion: boundary data, solve, quality check, move."""
-        self.set_boundary_displacement(values)
-        self.solve()
-        self.check_quality()
-        self.apply()
         return self.d
 
     # ---- quality
@@ -412,8 +393,9 @@ class MeshMotion:
         return ratio, where
 
     def check_quality(self) -> float:
-        """Raise :class:`MeshQualityError` if min J/J_ref (of X + d, i.e. of the mesh after
-        :meth:`apply`) is below ``min_jacobian_ratio``; return the ratio. Collective."""
+        """Raise :class:`MeshQualityError` if min J/J_ref of X + d (the mesh :class:`AleMesh`
+        would make of d; judged without moving the mesh) is below ``min_jacobian_ratio``;
+        return the ratio. Collective."""
         ratio, where = self.min_jacobian_ratio()
         if not ratio >= self.settings.min_jacobian_ratio:  # also catches NaN
             raise MeshQualityError(ratio, where, self.settings.min_jacobian_ratio)
@@ -424,41 +406,56 @@ class MeshMotion:
         x[self._nodes, : self.gdim] += self.d.x.array.reshape(-1, self.gdim)[self._node_dofs]
         return x
 
-    # ---- time levels
 
-    def mesh_velocity(
-        self, dt: float, order: int = 1, dt_previous: float | None = None
-    ) -> dolfinx.fem.Function:
-        """w = Σ_k a_k d^{n+1−k}: backward Euler (d − d^n)/dt, or variable-step BDF2."""
-        weights = bdf_weights(order, dt, dt_previous)
-        history = (self.d.x.array, self.d_n, self.d_nm1)
-        self.w.x.array[:] = sum(a * h for a, h in zip(weights, history))
-        return self.w
+class AleMesh:
+    """The moving fluid mesh x = X + d(X), d a vector P1 displacement: the one object that
+    writes the mesh's coordinates.
+
+    Keeps the reference coordinates X, the displacement ``d`` (a Function on :attr:`space`),
+    its accepted levels d^n, d^{n−1} (:attr:`history`) and the mesh velocity ``w``. Build it
+    before the mesh first moves. Collective (construction).
+    """
+
+    def __init__(self, mesh: dolfinx.mesh.Mesh):
+        gdim = mesh.geometry.dim
+        self.mesh = mesh
+        self.space = compat.function_space(mesh, "Lagrange", 1, (gdim,))
+        self.d = dolfinx.fem.Function(self.space, name="mesh_displacement")
+        self.w = dolfinx.fem.Function(self.space, name="mesh_velocity")
+        self.history = BdfHistory(self.d.x.array)
+        self.reference = mesh.geometry.x.copy()
+        self._nodes, self._dofs = geometry_node_dofs(self.space)
+
+    def move(self, d: dolfinx.fem.Function | None = None) -> None:
+        """Set the displacement (interpolated into P1 if it lives elsewhere) and move the mesh
+        to x = X + d; without ``d``, move it to X + (the current) d."""
+        if d is not None and d is not self.d:
+            if d.function_space == self.space:
+                self.d.x.array[:] = d.x.array
+            else:
+                self.d.interpolate(d)
+        self.d.x.scatter_forward()
+        gdim = self.mesh.geometry.dim
+        values = self.d.x.array.reshape(-1, gdim)
+        self.mesh.geometry.x[self._nodes, :gdim] = (
+            self.reference[self._nodes, :gdim] + values[self._dofs]
+        )
+
+    def set_velocity(self, weights: Sequence[float]) -> None:
+        """w = Σ_k a_k d^{n+1−k} (the mesh velocity consistent with the fluid's time scheme)."""
+        self.w.x.array[:] = self.history.derivative(weights)
 
     def advance(self) -> None:
         """Accept the step: d^{n−1} ← d^n, d^n ← d."""
-        self.d_nm1[:] = self.d_n
-        self.d_n[:] = self.d.x.array
+        self.history.advance()
 
-    def save_state(self) -> MeshMotionState:
-        """Snapshot of d, its history, the boundary data and w (kept for restore_state)."""
-        self._saved = MeshMotionState(
-            self.d.x.array.copy(),
-            self.d_n.copy(),
-            self.d_nm1.copy(),
-            self.g.x.array.copy(),
-            self.w.x.array.copy(),
-        )
-        return self._saved
+    def save(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Copies of (d, d^n, d^{n−1}, w) (local arrays, owned and ghost entries)."""
+        return (self.d.x.array.copy(), *self.history.save(), self.w.x.array.copy())
 
-    def restore_state(self, state: MeshMotionState | None = None) -> None:
-        """Return to ``state`` (default: the last save_state) and move the mesh to X + d."""
-        s = state or self._saved
-        if s is None:
-            raise RuntimeError("restore_state before any save_state")
-        self.d.x.array[:] = s.d
-        self.d_n[:] = s.d_n
-        self.d_nm1[:] = s.d_nm1
-        self.g.x.array[:] = s.g
-        self.w.x.array[:] = s.w
-        self.apply()
+    def restore(self, d: np.ndarray, d_n: np.ndarray, d_nm1: np.ndarray, w: np.ndarray) -> None:
+        """Return to a :meth:`save`'s (d, d^n, d^{n−1}, w) and move the mesh to X + d."""
+        self.d.x.array[:] = d
+        self.history.restore(d_n, d_nm1)
+        self.w.x.array[:] = w
+        self.move()
