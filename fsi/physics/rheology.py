@@ -76,17 +76,14 @@ class Newtonian:
 
 
 @dataclass(frozen=True)
-class Carreau:
-    """μ(s) = μ∞ + (μ0 − μ∞)(1 + (λ s)²)^((n − 1)/2) (the study's law, MODEL.md §2)."""
+class PlateauLaw:
+    """The laws whose viscosity goes from μ0 (``mu_0``) at rest to μ∞ (``mu_inf``) at high
+    shear rates, changing around the shear rate 1/λ (``relaxation_time`` λ): Carreau,
+    Carreau–Yasuda and Cross, each with its own ``mu``."""
 
     mu_0: float
     mu_inf: float
     relaxation_time: float
-    power_index: float
-
-    def mu(self, s):
-        n, lam = self.power_index, self.relaxation_time
-        return self.mu_inf + (self.mu_0 - self.mu_inf) * (1 + (lam * s) ** 2) ** ((n - 1) / 2)
 
     @property
     def reference_viscosity(self) -> float:
@@ -94,12 +91,20 @@ class Carreau:
 
 
 @dataclass(frozen=True)
-class CarreauYasuda:
+class Carreau(PlateauLaw):
+    """μ(s) = μ∞ + (μ0 − μ∞)(1 + (λ s)²)^((n − 1)/2) (the study's law, MODEL.md §2)."""
+
+    power_index: float
+
+    def mu(self, s):
+        n, lam = self.power_index, self.relaxation_time
+        return self.mu_inf + (self.mu_0 - self.mu_inf) * (1 + (lam * s) ** 2) ** ((n - 1) / 2)
+
+
+@dataclass(frozen=True)
+class CarreauYasuda(PlateauLaw):
     """μ(s) = μ∞ + (μ0 − μ∞)(1 + (λ s)^a)^((n − 1)/a); a = 2 is Carreau."""
 
-    mu_0: float
-    mu_inf: float
-    relaxation_time: float
     power_index: float
     yasuda_exponent: float
 
@@ -107,27 +112,16 @@ class CarreauYasuda:
         n, lam, a = self.power_index, self.relaxation_time, self.yasuda_exponent
         return self.mu_inf + (self.mu_0 - self.mu_inf) * (1 + (lam * s) ** a) ** ((n - 1) / a)
 
-    @property
-    def reference_viscosity(self) -> float:
-        return max(self.mu_0, self.mu_inf)
-
 
 @dataclass(frozen=True)
-class Cross:
+class Cross(PlateauLaw):
     """μ(s) = μ∞ + (μ0 − μ∞) / (1 + (λ s)^m)."""
 
-    mu_0: float
-    mu_inf: float
-    relaxation_time: float
     exponent: float
 
     def mu(self, s):
         lam, m = self.relaxation_time, self.exponent
         return self.mu_inf + (self.mu_0 - self.mu_inf) / (1 + (lam * s) ** m)
-
-    @property
-    def reference_viscosity(self) -> float:
-        return max(self.mu_0, self.mu_inf)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,121 @@
+"""A case file to a :class:`Case` and back: :func:`load` reads, builds and validates one
+(:func:`from_dict` from data already read, with a ``pressure_file`` inlet's rows read from its
+CSV file), :func:`to_dict`, :func:`to_yaml` and :func:`dump` write the resolved configuration.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import typing
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from fsi.config.boundary_data import WaveformError, read_waveform
+from fsi.config.case import Case
+from fsi.config.fluid_section import InletPressureFile, InletPressureTable
+from fsi.config.reader import ConfigError, apply_overrides, build, read_case_file
+from fsi.config.validation import validate
+
+
+def load(path: str | Path, overrides: typing.Sequence[str] = ()) -> Case:
+    """Read a case from YAML, apply ``key.path=value`` overrides, build and validate it.
+
+    Every failure is a :class:`ConfigError` naming the file (or ``--set``) and the key: what
+    :func:`fsi.config.reader.read_case_file` refuses (unreadable, too large, not UTF-8, invalid
+    or too deeply nested YAML, a repeated key) and whatever :func:`from_dict` refuses.
+    """
+    data = read_case_file(path)
+    overridden = apply_overrides(data, overrides)
+    return from_dict(data, str(path), overridden)
+
+
+def from_dict(data: dict, source: str = "<dict>", overridden: set[str] | None = None) -> Case:
+    """Build and validate a :class:`Case` from a plain dict (as read from YAML).
+
+    ``overridden``: the keys :func:`fsi.config.reader.apply_overrides` set (and the sections
+    it created); an error at one of them, below one (``time.schedule[0].dt`` below
+    ``time.schedule``) or about a whole section one changed (``mesh``'s cell count after
+    ``--set mesh.size=...``) names ``--set`` instead of ``source``."""
+    overridden = overridden or set()
+    try:
+        case = build(Case, data, "")
+        case = _read_inlet_file(case, source, overridden)
+        validate(case)
+    except ConfigError as e:
+        from_command_line = any(
+            e.key == k or e.key.startswith((k + ".", k + "[")) or k.startswith(e.key + ".")
+            for k in overridden
+        )
+        raise e.from_source("--set" if from_command_line else source) from None
+    return case
+
+
+def _read_inlet_file(case: Case, source: str, overridden: set[str]) -> Case:
+    """``case`` with a ``pressure_file`` inlet's rows read into its ``table`` (other inlets
+    unchanged). ``file`` is relative to the folder of ``source`` (the case file), or to the
+    current directory when ``--set`` gave it (or ``source`` is not a file: ``<dict>``); the
+    path kept in the case is the one opened."""
+    inlet = case.fluid.inlet
+    if not isinstance(inlet, InletPressureFile):
+        return case
+    if inlet.table:
+        raise ConfigError(
+            "",
+            "fluid.inlet.table",
+            reason="not a key of kind 'pressure_file' "
+            "(its rows come from fluid.inlet.file; use kind 'pressure_table' to "
+            "give them inline)",
+        )
+    if not inlet.file:
+        raise ConfigError(
+            "",
+            "fluid.inlet.file",
+            "the name of a CSV file of rows t, P (relative to the case file's folder)",
+        )
+    from_command_line = bool({"fluid", "fluid.inlet", "fluid.inlet.file"} & overridden)
+    path = Path(inlet.file)
+    if not path.is_absolute() and not from_command_line and source not in ("<dict>", "--set"):
+        path = Path(source).parent / path
+    try:
+        rows = read_waveform(path)
+    except OSError as e:
+        raise ConfigError(
+            "", "fluid.inlet.file", reason=f"cannot read {path} ({e.strerror or type(e).__name__})"
+        ) from None
+    except WaveformError as e:
+        raise ConfigError("", "fluid.inlet.file", reason=str(e)) from None
+    inlet = dataclasses.replace(inlet, file=str(path), table=rows)
+    return dataclasses.replace(case, fluid=dataclasses.replace(case.fluid, inlet=inlet))
+
+
+def to_dict(case: Case) -> dict:
+    """The resolved configuration as plain YAML-ready data (tuples as lists); a
+    ``pressure_file`` inlet as the ``pressure_table`` of its rows and period, so that
+    :func:`load` of the data needs no CSV file and gives the same P(t)."""
+
+    def plain(v: Any) -> Any:
+        if isinstance(v, dict):
+            return {k: plain(x) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [plain(x) for x in v]
+        return v
+
+    data = plain(dataclasses.asdict(case))
+    inlet = case.fluid.inlet
+    if isinstance(inlet, InletPressureFile):  # self-contained: the rows, not the file
+        data["fluid"]["inlet"] = plain(
+            dataclasses.asdict(InletPressureTable(table=inlet.table, period=inlet.period))
+        )
+    return data
+
+
+def to_yaml(case: Case) -> str:
+    """The resolved configuration as YAML text (``fsi run`` writes it as DIR/config.yaml)."""
+    return yaml.safe_dump(to_dict(case), sort_keys=False)
+
+
+def dump(case: Case, path: str | Path) -> None:
+    """Write :func:`to_yaml` of ``case`` to the file ``path``."""
+    Path(path).write_text(to_yaml(case))

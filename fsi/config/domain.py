@@ -1,0 +1,82 @@
+"""The ``geometry`` and ``mesh`` sections of a case: the domain and how finely gmsh meshes it.
+
+``geometry.kind`` picks one of :class:`StenosisGeometry` (the study's artery),
+:class:`ChannelGeometry` (verification) and :class:`TurekHronGeometry` (the benchmark); the
+builders that read these sections are in ``geometry/`` and :mod:`fsi.physics.mesh`. The checks
+that involve several keys (the plaque inside the segment, the flag inside the channel) are in
+:mod:`fsi.config.validation`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from fsi.config.reader import at_least, open_interval, positive
+
+
+@dataclass(frozen=True)
+class StenosisGeometry:
+    """The stenosed carotid of MODEL.md §1 (geometry/stenosis.py has the profiles)."""
+
+    kind: Literal["stenosis"] = "stenosis"
+    length: float = positive(0.02, " (m)")
+    height: float = positive(0.007, " (m)")
+    wall_thickness: float = positive(0.001, " (m)")
+    stenosis_length: float = positive(0.01, " (m)")
+    stenosis_degree: float = open_interval(0.5, 0.0, 1.0)
+    cap_thickness: float = positive(0.0005, " (m)")
+    lipid_length: float = positive(0.006, " (m)")
+    plaque_sides: tuple[Literal["bottom", "top"], ...] = ("bottom",)
+
+
+@dataclass(frozen=True)
+class ChannelGeometry:
+    """A straight rigid channel for verification cases (geometry/channel.py)."""
+
+    kind: Literal["channel"] = "channel"
+    length: float = positive(0.02, " (m)")
+    height: float = positive(0.007, " (m)")
+
+
+@dataclass(frozen=True)
+class TurekHronGeometry:
+    """The Turek–Hron benchmark (../shared/reference/turek_hron.md, geometry/turek_hron.py): a
+    channel ``[0, length] × [0, height]``, a rigid cylinder and an elastic flag of
+    ``flag_length`` (from the cylinder's rightmost point to the tip) × ``flag_thickness`` centred
+    on the cylinder's axis. Defaults are the benchmark's (tip and point A at x = 0.6)."""
+
+    kind: Literal["turek_hron"] = "turek_hron"
+    length: float = positive(2.5, " (m)")
+    height: float = positive(0.41, " (m)")
+    cylinder_centre: tuple[float, ...] = (0.2, 0.2)
+    cylinder_radius: float = positive(0.05, " (m)")
+    flag_length: float = positive(0.35, " (m)")
+    flag_thickness: float = positive(0.02, " (m)")
+
+
+Geometry = StenosisGeometry | ChannelGeometry | TurekHronGeometry
+
+
+MESH_LEVELS = {"coarse": 0, "medium": 1, "fine": 2, "finest": 3}
+
+
+@dataclass(frozen=True)
+class MeshSettings:
+    """gmsh sizes of the coarse mesh: ``size`` away from, ``local_size`` at the plaque (or the
+    obstacle); ``level`` adds uniform refinements (medium = coarse × 4, fine = coarse × 16,
+    finest = coarse × 64: the third level of the performance study, docs/performance.md).
+
+    ``max_cells``: validation refuses a mesh whose :func:`fsi.config.run_size.estimated_cells`
+    exceeds it, before gmsh starts (memory grows with the cells: the fine stenosis, 51k
+    triangles, took ~0.9 GB in a serial coupled run, ~18 kB per triangle, so the default 10⁶ is
+    ~18 GB)."""
+
+    level: Literal["coarse", "medium", "fine", "finest"] = "coarse"
+    size: float = positive(6.0e-4, " (m)")
+    local_size: float = positive(2.2e-4, " (m)")
+    max_cells: int = at_least(1_000_000, 1)
+
+    @property
+    def refinements(self) -> int:
+        return MESH_LEVELS[self.level]

@@ -1,0 +1,137 @@
+"""The sections that say how a run advances and what it writes: ``time`` (the step schedule
+and the heartbeats, :class:`Time`), ``coupling`` (the fluid–structure iterations of a step),
+``mesh_motion`` (the ALE extension done in each of them) and ``output``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Literal
+
+from fsi.config.reader import at_least, checked, non_negative, open_interval, positive
+from fsi.config.solver_settings import direct_solver_options
+
+
+@dataclass(frozen=True)
+class TimeSegment:
+    """Steps of ``dt`` until time ``until`` (the last step of a segment ends exactly on it)."""
+
+    until: float = positive(0.4, " (s)")
+    dt: float = positive(5.0e-3, " (s)")
+
+
+MAX_CYCLES = 1000
+"""The most heartbeats ``time.cycles`` may ask for (each repeats the schedule's segments)."""
+
+
+@dataclass(frozen=True)
+class Time:
+    """The step schedule; the default is the study's: 5 ms to 0.4 s, then 10 ms to 0.8 s.
+
+    ``scheme``: the fluid's time scheme. ``steady`` drops ∂u/∂t and the mesh velocity: every
+    step solves the steady equations with the boundary data at its time (a continuation through
+    an inflow ramp); with a ``quasi_static`` structure a coupled step is a steady FSI solve.
+
+    ``retries``: how often a step whose solve fails is taken again as two steps of half its
+    size, from the state before it (each half may be halved again while retries remain: up to
+    2^retries substeps); the metrics row is the scheduled step's. 0: a failed step ends the run.
+
+    ``max_steps``: validation refuses a schedule of more steps to ``end``
+    (:func:`fsi.config.run_size.count_steps`), so a mistyped ``dt`` fails at once instead of
+    running for ever.
+
+    ``cycles``: N >= 1 runs N heartbeats of the inlet's ``period`` T (``fluid.inlet.period``),
+    to t = N T. ``schedule`` is then one heartbeat's: its steps from 0 to T are repeated in
+    every heartbeat (:meth:`run_schedule`), and ``end`` must be T (one heartbeat, as a case
+    file for one beat has it) or N T (the whole run); :func:`fsi.config.validate` refuses
+    anything else, and N > 1 without a period. 0 (the default): ``end`` and ``schedule`` as
+    written.
+    """
+
+    end: float = positive(0.8, " (s)")
+    scheme: Literal["backward_euler", "bdf2", "steady"] = "bdf2"
+    schedule: tuple[TimeSegment, ...] = (TimeSegment(0.4, 5.0e-3), TimeSegment(0.8, 1.0e-2))
+    retries: int = checked(0, lambda v: 0 <= v <= 8, "an integer in [0, 8]")
+    max_steps: int = at_least(1_000_000, 1)
+    cycles: int = checked(
+        0,
+        lambda v: 0 <= v <= MAX_CYCLES,
+        f"an integer in [0, {MAX_CYCLES}] (0: time.end sets the end)",
+    )
+
+    def run_schedule(self, period: float) -> Time:
+        """The schedule the run steps through (:func:`fsi.numerics.timestepping.steps` of it): this
+        one when ``cycles`` is 0 or there is no ``period``; else ``cycles`` copies of this
+        schedule's steps from 0 to ``period`` T, the k-th shifted by (k − 1) T so that every
+        heartbeat ends exactly on k T, and ``end`` = ``cycles`` × T."""
+        if self.cycles < 1 or not period > 0:
+            return self
+        beat = []  # one heartbeat's segments: (until within (0, T], dt)
+        for segment in self.schedule:
+            beat.append((min(segment.until, period), segment.dt))
+            if segment.until >= period:
+                break
+        segments = []
+        for k in range(self.cycles):
+            for until, dt in beat:
+                end_of_beat = until >= period
+                segments.append(
+                    TimeSegment((k + 1) * period if end_of_beat else k * period + until, dt)
+                )
+        return dataclasses.replace(
+            self, end=self.cycles * period, schedule=tuple(segments), cycles=0
+        )
+
+
+@dataclass(frozen=True)
+class Coupling:
+    """Dirichlet–Neumann iterations per step (MODEL.md §5; fsi/coupled/coupling.py).
+
+    ``initial_relaxation``: ω of constant relaxation, Aitken's first ω and IQN-ILS's relaxed
+    first iteration; ``max_relaxation``: Aitken's cap |ω| <= ω_max; ``iqn_reuse``: time steps
+    whose secant columns IQN-ILS reuses; ``iqn_filter``: its QR filter threshold (relative);
+    ``predictor``: extrapolation of the interface displacement from previous steps.
+    """
+
+    acceleration: Literal["constant", "aitken", "iqn-ils"] = "aitken"
+    tolerance: float = positive(1.0e-6)
+    max_iterations: int = at_least(50, 1)
+    initial_relaxation: float = checked(0.5, lambda v: 0 < v <= 1, "a number in (0, 1]")
+    max_relaxation: float = positive(1.0)
+    iqn_reuse: int = at_least(4, 0)
+    iqn_filter: float = positive(1.0e-2)  # 1e-8 kept stale columns: IQN diverged on the stenosis
+    predictor: Literal["constant", "linear", "quadratic"] = "linear"
+
+
+@dataclass(frozen=True)
+class MeshMotion:
+    """ALE extension of the interface displacement into the fluid (MODEL.md §5;
+    fsi/physics/mesh_motion.py): ``harmonic`` −∇·(k ∇d) = 0, ``elastic`` −∇·(k σ(d)) = 0 with
+    σ = 2 ε + λ' tr(ε) I, λ' = 2ν/(1 − 2ν) from ``poisson_ratio``, or ``biharmonic`` Δ²d = 0
+    (the minimiser of ∫ k |∇∇d|², mixed with the Hessian as auxiliary field; natural condition
+    ∂²d/∂n² = 0 where d is given, so affine motions are extended exactly). Stiffening k (per cell):
+    ``none`` k = 1; ``jacobian`` k = (J_max/J)^e with J the reference cell area (small cells
+    stiffer); ``distance`` k = (δ_max/δ)^e with δ the centroid's distance to the moving boundary;
+    e = ``stiffening_exponent``. ``min_jacobian_ratio``: the quality guard stops when a cell's
+    area falls below this fraction of its reference area (or the cell inverts).
+    ``petsc_options``: the linear solver's options (prefix ``mesh_``)."""
+
+    method: Literal["harmonic", "elastic", "biharmonic"] = "harmonic"
+    stiffening: Literal["none", "jacobian", "distance"] = "jacobian"
+    stiffening_exponent: float = non_negative(1.0)
+    poisson_ratio: float = open_interval(0.3, -1.0, 0.5)
+    min_jacobian_ratio: float = open_interval(0.05, 0.0, 1.0)
+    petsc_options: dict[str, str | int | float] = field(default_factory=direct_solver_options)
+
+
+@dataclass(frozen=True)
+class Output:
+    # XDMF only: Debian 12's dolfinx has no ADIOS2 (no VTX), and 0.9's VTX writer takes one
+    # element per file, where a run writes P1 and per-cell fields side by side.
+    fields: Literal["xdmf"] = "xdmf"
+    fields_every: int = at_least(1, 1)
+    checkpoint_every: int = at_least(10, 1)
+    report_times: tuple[float, ...] = checked(
+        (0.01, 0.02, 0.05, 0.1, 0.8), lambda v: all(t >= 0 for t in v), "a list of times >= 0 (s)"
+    )

@@ -1,0 +1,332 @@
+"""The checks of a case that involve several keys (:func:`validate`); each single value is
+checked while it is built (:mod:`fsi.config.reader`). Every failure is a :class:`ConfigError`
+naming the key; :func:`fsi.config.from_dict` adds the file (or ``--set``).
+"""
+
+from __future__ import annotations
+
+import math
+
+from fsi.config.boundary_data import FormulaError, time_function
+from fsi.config.case import Case, heartbeat_period, run_time
+from fsi.config.domain import StenosisGeometry, TurekHronGeometry
+from fsi.config.fluid_section import (
+    InletPressure,
+    InletPressureFile,
+    InletPressureTable,
+    ParabolicInflow,
+)
+from fsi.config.petsc_options import check_petsc_options
+from fsi.config.reader import ConfigError
+from fsi.config.run_size import BYTES_PER_CELL, count_steps, estimated_cells, format_count
+from fsi.config.stepping import Time
+from fsi.numerics.timestepping import steps
+from geometry import stenosis as stenosis_geometry
+
+
+def validate(case: Case) -> None:
+    """Checks that involve several keys (single values are checked while building), in the
+    order of the sections: geometry, structure load, mesh size, schedule, solvers, inlet."""
+    _validate_geometry(case)
+    _validate_structure_load(case)
+    _validate_cell_count(case)  # before the size order: mesh.size 1e-6 gets the estimate
+    if case.mesh.local_size > case.mesh.size:
+        raise ConfigError(
+            "", "mesh.local_size", f"at most mesh.size = {case.mesh.size} m", case.mesh.local_size
+        )
+    _validate_schedule(case)
+    _validate_solvers(case)
+    check_petsc_options(case.fluid.solver.petsc_options, "fluid.solver.petsc_options")
+    check_petsc_options(case.structure.solver.petsc_options, "structure.solver.petsc_options")
+    check_petsc_options(case.mesh_motion.petsc_options, "mesh_motion.petsc_options")
+    _validate_inlet(case)  # last: it walks the schedule, now known to be of bounded length
+
+
+def _validate_geometry(case: Case) -> None:
+    g = case.geometry
+    if isinstance(g, StenosisGeometry):
+        _validate_stenosis(g)
+    elif isinstance(g, TurekHronGeometry):
+        # Any structure mode: 'rigid' is the CFD benchmark, the others make the flag elastic.
+        _validate_turek_hron(g)
+    elif case.structure.mode != "rigid":
+        raise ConfigError(
+            "",
+            "structure.mode",
+            f"'rigid' for geometry.kind '{g.kind}' (it has no structure)",
+            case.structure.mode,
+        )
+
+
+def _validate_stenosis(g: StenosisGeometry) -> None:
+    """Plaque sides once each; the stenosis inside the segment; the cap thinner than the
+    plaque and nowhere thinner than ``cap_thickness`` over the lipid pool."""
+    if len(set(g.plaque_sides)) != len(g.plaque_sides) or not g.plaque_sides:
+        raise ConfigError(
+            "", "geometry.plaque_sides", "'bottom', 'top' or both, once each", list(g.plaque_sides)
+        )
+    _refuse_not_shorter(g, "stenosis_length", than="length")
+    plaque = stenosis_geometry.plaque_height(g)
+    if g.cap_thickness >= plaque:
+        raise ConfigError(
+            "",
+            "geometry.cap_thickness",
+            f"less than the plaque height {plaque:g} m (stenosis_degree × height / plaque sides)",
+            g.cap_thickness,
+        )
+    _refuse_not_shorter(g, "lipid_length", than="stenosis_length")
+    thinnest = stenosis_geometry.min_cap_thickness(g)
+    if thinnest < g.cap_thickness * (1 - 1e-4):
+        raise ConfigError(
+            "",
+            "geometry.lipid_length",
+            "a lipid pool short enough that the fibrous cap is nowhere thinner"
+            f" than cap_thickness = {g.cap_thickness} m (it would be"
+            f" {thinnest:.3g} m)",
+            g.lipid_length,
+        )
+
+
+def _refuse_not_shorter(g: StenosisGeometry, key: str, than: str) -> None:
+    """Refuse ``geometry.<key>`` unless it is less than ``geometry.<than>`` (lengths, m)."""
+    length, limit = getattr(g, key), getattr(g, than)
+    if length >= limit:
+        raise ConfigError("", f"geometry.{key}", f"less than geometry.{than} = {limit} m", length)
+
+
+def _validate_turek_hron(g: TurekHronGeometry) -> None:
+    """The cylinder inside the channel, the flag attached to it and ending inside the channel."""
+    if len(g.cylinder_centre) != 2:
+        raise ConfigError(
+            "",
+            "geometry.cylinder_centre",
+            "a list of two numbers [x, y] (m)",
+            list(g.cylinder_centre),
+        )
+    cx, cy = g.cylinder_centre
+    r = g.cylinder_radius
+    if not (r < cx and r < cy < g.height - r):
+        raise ConfigError(
+            "",
+            "geometry.cylinder_radius",
+            f"a cylinder of centre {list(g.cylinder_centre)} inside the channel"
+            f" [0, {g.length}] x [0, {g.height}] m",
+            r,
+        )
+    if g.flag_thickness >= 2 * r:
+        raise ConfigError(
+            "",
+            "geometry.flag_thickness",
+            f"less than the cylinder diameter {2 * r} m",
+            g.flag_thickness,
+        )
+    if cx + r + g.flag_length >= g.length:
+        raise ConfigError(
+            "",
+            "geometry.flag_length",
+            f"a flag tip (x = centre + radius + length) before the outlet x = {g.length} m",
+            g.flag_length,
+        )
+
+
+def _validate_structure_load(case: Case) -> None:
+    if case.structure.interface_load != "fluid":
+        if case.structure.mode == "rigid":
+            raise ConfigError(
+                "",
+                "structure.interface_load",
+                "'fluid' when structure.mode is 'rigid' (there is no structure to load)",
+                case.structure.interface_load,
+            )
+        if case.structure.interface_load == "inlet_pressure" and isinstance(
+            case.fluid.inlet, ParabolicInflow
+        ):
+            raise ConfigError(
+                "",
+                "structure.interface_load",
+                "'fluid' or 'none' with a velocity inlet ('inlet_pressure' needs a traction inlet)",
+                case.structure.interface_load,
+            )
+
+
+def _validate_cell_count(case: Case) -> None:
+    """Refuse a mesh whose :func:`fsi.config.run_size.estimated_cells` exceeds
+    ``mesh.max_cells``, before gmsh."""
+    cells = estimated_cells(case)
+    if cells > case.mesh.max_cells:
+        m = case.mesh
+        gigabytes = cells * BYTES_PER_CELL / 1e9
+        memory = (
+            f"{gigabytes:.2g} GB"
+            if gigabytes < 10
+            else f"{gigabytes:,.0f} GB"
+            if gigabytes < 1e9
+            else "too much"
+        )
+        raise ConfigError(
+            "",
+            "mesh",
+            reason=(
+                f"{format_count(cells)} triangles estimated (mesh.size = {m.size:g} m, "
+                f"mesh.local_size = {m.local_size:g} m, mesh.level = {m.level}), more than "
+                f"mesh.max_cells = {m.max_cells:,} (a coupled run needs "
+                f"~{BYTES_PER_CELL / 1e3:.0f} kB per triangle: {memory}): use larger sizes or a "
+                "coarser level, or raise mesh.max_cells if you "
+                "mean it"
+            ),
+        )
+
+
+def _validate_schedule(case: Case) -> None:
+    """Segments in increasing order covering the run (one heartbeat's with ``time.cycles``),
+    and at most ``time.max_steps`` steps."""
+    schedule = case.time.schedule
+    if not schedule:
+        raise ConfigError("", "time.schedule", "at least one {until, dt} segment", [])
+    for i in range(1, len(schedule)):
+        if schedule[i].until <= schedule[i - 1].until:
+            raise ConfigError(
+                "",
+                f"time.schedule[{i}].until",
+                f"greater than time.schedule[{i - 1}].until = {schedule[i - 1].until} s",
+                schedule[i].until,
+            )
+    period = heartbeat_period(case)
+    _validate_cycles(case.time, period)
+    if case.time.cycles >= 1 and period > 0:  # the schedule is one heartbeat's
+        if schedule[-1].until < period * (1 - 1e-12):
+            raise ConfigError(
+                "",
+                f"time.schedule[{len(schedule) - 1}].until",
+                f"at least fluid.inlet.period = {period} s (with time.cycles the "
+                "schedule is one heartbeat's)",
+                schedule[-1].until,
+            )
+    elif schedule[-1].until < case.time.end * (1 - 1e-12):
+        raise ConfigError(
+            "",
+            f"time.schedule[{len(schedule) - 1}].until",
+            f"at least time.end = {case.time.end} s",
+            schedule[-1].until,
+        )
+    run = run_time(case)
+    count = count_steps(run)
+    if count > case.time.max_steps:
+        raise_limit = (
+            f"raise the limit (--set time.max_steps={int(count)}) if you mean it"
+            if math.isfinite(count)
+            else "no limit can be that high"
+        )
+        to = (
+            f"time.end = {case.time.end:g} s"
+            if run is case.time
+            else f"the end of time.cycles = {case.time.cycles} heartbeats, {run.end:g} s"
+        )
+        raise ConfigError(
+            "",
+            "time.schedule",
+            reason=(
+                f"{format_count(count)} steps to {to}, more than "
+                f"time.max_steps = {case.time.max_steps:,}: use larger dt, or {raise_limit}"
+            ),
+        )
+
+
+def _validate_cycles(time: Time, period: float) -> None:
+    """``time.cycles`` N > 1 needs an inlet ``period`` T > 0; with N >= 1 and T, ``time.end``
+    is one heartbeat (T) or the whole run (N T), within 1e-9 relative (:class:`Time`)."""
+    n = time.cycles
+    if n > 1 and not period > 0:
+        raise ConfigError(
+            "",
+            "time.cycles",
+            reason=(
+                f"{n} heartbeats need a periodic inlet (a pressure_table or pressure_file "
+                "fluid.inlet with period > 0); this inlet does not repeat: use time.end instead"
+            ),
+        )
+    if n >= 1 and period > 0:
+        whole = n * period
+        if not any(abs(time.end - t) <= 1e-9 * t for t in (period, whole)):
+            raise ConfigError(
+                "",
+                "time.end",
+                f"fluid.inlet.period = {period:g} s (one "
+                f"heartbeat) or time.cycles × period = {whole:g} s (the whole "
+                f"run) when time.cycles is {n}",
+                time.end,
+            )
+
+
+def _validate_solvers(case: Case) -> None:
+    if (
+        case.time.scheme == "steady"
+        and case.structure.mode != "rigid"
+        and case.structure.time_integration.scheme != "quasi_static"
+    ):
+        raise ConfigError(
+            "",
+            "structure.time_integration.scheme",
+            "'quasi_static' when "
+            "time.scheme is 'steady' (a steady fluid cannot load a structure "
+            "with inertia)",
+            case.structure.time_integration.scheme,
+        )
+
+    if case.coupling.max_relaxation < case.coupling.initial_relaxation:
+        raise ConfigError(
+            "",
+            "coupling.max_relaxation",
+            f"at least coupling.initial_relaxation = {case.coupling.initial_relaxation}",
+            case.coupling.max_relaxation,
+        )
+
+    # Sub-solvers must be well below the coupling tolerance or the coupling stalls near it.
+    for name in ("fluid", "structure"):
+        rtol = getattr(case, name).solver.rtol
+        if rtol > case.coupling.tolerance / 10:
+            raise ConfigError(
+                "",
+                f"{name}.solver.rtol",
+                f"at most coupling.tolerance / 10 = {case.coupling.tolerance / 10:g}",
+                rtol,
+            )
+
+
+def _validate_inlet(case: Case) -> None:
+    """Evaluate an inlet formula at t = 0 and at every step time of the schedule: one that
+    fails (division by zero, log(0), overflow, ...) is refused now, not mid-run."""
+    inlet = case.fluid.inlet
+    if isinstance(inlet, (InletPressureTable, InletPressureFile)):
+        _validate_period(inlet)
+    if not isinstance(inlet, InletPressure):
+        return  # the pulse is closed-form; a table holds finite numbers and interpolates
+    pressure = time_function(inlet.formula)
+    try:
+        pressure(0.0)
+        for step in steps(case.time):
+            pressure(step.t)
+    except FormulaError as e:
+        raise ConfigError(
+            "", "fluid.inlet.formula", reason=f"evaluation fails at t = {e.t:.6g} s ({e.reason})"
+        ) from None
+
+
+def _validate_period(inlet: InletPressureTable | InletPressureFile) -> None:
+    """A periodic table must cover one period: first t <= 0 and last t >= period."""
+    period = inlet.period
+    first, last = inlet.table[0][0], inlet.table[-1][0]
+    if period > 0 and not (first <= 0 <= period <= last):
+        rows = (
+            f"the rows of {inlet.file}"
+            if isinstance(inlet, InletPressureFile)
+            else "fluid.inlet.table"
+        )
+        raise ConfigError(
+            "",
+            "fluid.inlet.period",
+            reason=(
+                f"{rows} cover t in [{first:g}, {last:g}] s, not the whole period "
+                f"[0, {period:g}] s (the first t must be <= 0 and the last >= period)"
+            ),
+        )
