@@ -27,7 +27,7 @@ from fsi.config import Material, SolverSettings
 from fsi.config import reader as config_reader
 from fsi.numerics.timestepping import NewmarkFamily, steps
 from fsi.physics import materials, mesh, solid
-from fsi.run import simulation
+from fsi.run import steppers
 from geometry import turek_hron
 from geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 
@@ -567,9 +567,9 @@ def _first_mode(s: solid.SolidSolver, material: Material = FLAG) -> tuple[PETSc.
         (lmbda * ufl.tr(eps(du)) * ufl.tr(eps(deta)) + 2 * mu * ufl.inner(eps(du), eps(deta))) * dx
     )
     m = dolfinx.fem.form(material.density * ufl.inner(du, deta) * dx)
-    K = dolfinx.fem.petsc.assemble_matrix(k, bcs=s._homogeneous)
+    K = dolfinx.fem.petsc.assemble_matrix(k, bcs=s.dirichlet.homogeneous)
     K.assemble()
-    M = dolfinx.fem.petsc.assemble_matrix(m, bcs=s._homogeneous, diagonal=0.0)
+    M = dolfinx.fem.petsc.assemble_matrix(m, bcs=s.dirichlet.homogeneous, diagonal=0.0)
     M.assemble()
     ksp = PETSc.KSP().create(comm)
     ksp.setOptionsPrefix("test_mode_")
@@ -599,7 +599,7 @@ def _first_mode(s: solid.SolidSolver, material: Material = FLAG) -> tuple[PETSc.
 def _tip_load_vector(s: solid.SolidSolver, traction: np.ndarray) -> np.ndarray:
     """Nodal forces ∫ t·δη ds over the interface at the owned interface dofs (n, 2)."""
     t = dolfinx.fem.Constant(s.V.mesh, np.asarray(traction, dtype=PETSc.ScalarType))
-    form = dolfinx.fem.form(ufl.inner(t, ufl.TestFunction(s.V)) * s._ds_interface)
+    form = dolfinx.fem.form(ufl.inner(t, ufl.TestFunction(s.V)) * s.residual.ds_interface)
     b = dolfinx.fem.petsc.assemble_vector(form)
     b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     forces = b.getArray().reshape(-1, 2)[s.interface_dofs].copy()
@@ -692,7 +692,7 @@ def test_structure_only_run_under_the_pulse_pressure(mode):
     stresses; the plaque moves; the wall is held (fixed wall) or moves too (moving wall)."""
     case = _pulse_case(mode)
     start = time.perf_counter()
-    stepper = simulation.StructureStepper(case, MPI.COMM_WORLD)
+    stepper = steppers.StructureStepper(case, MPI.COMM_WORLD)
     s = stepper.solver
     rows, cap, wall, cap_von_mises = [], 0.0, 0.0, 0.0
     for st in steps(case.time):
@@ -811,7 +811,7 @@ def test_turek_hron_csm3_oscillation():
     dt, end = 0.005, 10.0
     t, u, iterations = [0.0], [np.zeros(2)], []
     # Total energy with gravity's potential −∫ρ g·η: 0 at rest, conserved by the scheme.
-    potential = dolfinx.fem.form(-s.rho * ufl.inner(s._gravity, s.eta_n) * s.dx)
+    potential = dolfinx.fem.form(-s.rho * ufl.inner(s.residual.gravity, s.eta_n) * s.residual.dx)
     energy, kinetic_max = [], 0.0
     start = time.perf_counter()
     for n in range(1, int(round(end / dt)) + 1):
@@ -990,14 +990,14 @@ def test_damping_is_off_by_default_and_the_elastic_forms_are_unchanged():
     """τ = 0 everywhere and no support: neither term is built (the residual is the elastic one,
     so the energy-conservation test above checks it); a τ > 0 in one region builds it."""
     s = _cantilever(NewmarkFamily.newmark())
-    assert s.viscous is None and s._support is None
+    assert s.viscous is None and s.residual.support is None
     damped = solid.SolidSolver(
         rectangle(*BEAM),
         {Region.FLAG: dataclasses.replace(FLAG, viscous_relaxation_time=1e-3)},
         solid.SolidBoundaryConditions(support=solid.Support(damping=1.0)),
         NewmarkFamily.newmark(),
     )
-    assert damped.viscous is not None and damped._support is not None
+    assert damped.viscous is not None and damped.residual.support is not None
 
 
 def test_kelvin_voigt_stress_is_objective_and_linearises_to_tau_times_hooke():
@@ -1059,7 +1059,7 @@ def test_kelvin_voigt_discrete_rate_is_objective_for_finite_rotation_steps():
 
     bcs = solid.SolidBoundaryConditions(dirichlet=(solid.PrescribedDisplacement(motion),))
     s = solid.SolidSolver(domain, {Region.FLAG: m}, bcs, NewmarkFamily.quasi_static(), solver=TIGHT)
-    residual = dolfinx.fem.form(s.residual_form)
+    residual = dolfinx.fem.form(s.residual.form)
 
     def reactions() -> float:
         b = dolfinx.fem.petsc.assemble_vector(residual)
@@ -1163,7 +1163,7 @@ def test_kelvin_voigt_energy_leaves_only_through_the_viscous_work():
         identity + ufl.grad(s.eta_n)
     )
     work = dolfinx.fem.form(
-        tau * (lmbda * ufl.tr(dE) ** 2 + 2 * mu * ufl.inner(dE, dE)) / dt * s.dx
+        tau * (lmbda * ufl.tr(dE) ** 2 + 2 * mu * ufl.inner(dE, dE)) / dt * s.residual.dx
     )
     dissipated, drift, tip, steps_losing = 0.0, 0.0, 0.0, 0
     previous = energy0
@@ -1215,7 +1215,7 @@ def test_tissue_support_is_a_mass_spring_damper():
     assert omega0 == pytest.approx(20.0) and zeta == pytest.approx(0.1)
     v0 = 1e-3  # m/s
     s.set_initial_conditions(v0=lambda x: np.stack([0 * x[0], v0 + 0 * x[0]]))
-    mean_y = dolfinx.fem.form(s.eta_n[1] / (L * h) * s.dx)
+    mean_y = dolfinx.fem.form(s.eta_n[1] / (L * h) * s.residual.dx)
     per_period, periods = 40, 2
     dt = 2 * math.pi / omega0 / per_period
     # The trapezoidal rule on (x, ẋ): z_{n+1} = (I − dt B/2)⁻¹ (I + dt B/2) z_n.

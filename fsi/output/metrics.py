@@ -522,14 +522,7 @@ class FluidFields:
         self.wall_shear_stress = dolfinx.fem.Function(
             compat.function_space(mesh, "Lagrange", 1), name="wall_shear_stress"
         )
-        walls = [int(w) for w in walls]
-        ds = ufl.Measure(
-            "ds",
-            domain=mesh,
-            subdomain_data=facet_tags,
-            metadata={"quadrature_degree": quadrature_degree},
-        )
-        on_walls = sum((ds(w) for w in walls[1:]), ds(walls[0]))
+        on_walls = boundary_measure(mesh, facet_tags, walls, quadrature_degree)
         n = ufl.FacetNormal(mesh)
         along = ufl.as_vector((n[1], -n[0]))
         t = ufl.conditional(ufl.ge(along[0], 0.0), 1.0, -1.0) * along

@@ -35,21 +35,31 @@ STRUCTURE_REGIONS = {r.label: int(r) for r in (Region.WALL, Region.CAP, Region.L
 REGIONS = ("fluid", *STRUCTURE_REGIONS)
 COMPONENTS = ("x", "y", "magnitude")
 
-# Field name -> (label, quantity): the quantity picks the unit (:func:`_unit`).
-FIELDS = {
-    "velocity": ("velocity", "velocity"),
-    "pressure": ("pressure", "stress"),
-    "wall_shear_stress": ("wall shear stress", "stress"),
-    "viscosity": ("viscosity", "viscosity"),
-    "shear_rate": ("shear rate", "rate"),
-    "mesh_displacement": ("mesh displacement", "displacement"),
-    "eta": ("displacement η", "displacement"),
-    "displacement": ("displacement", "displacement"),
-    "sss": ("structural shear stress σ₁₂", "stress"),
-    "von_mises": ("von Mises stress", "stress"),
-    "max_principal": ("maximum principal stress", "stress"),
-    "region": ("region tag", "tag"),
+LABELS_BY_QUANTITY = {
+    "velocity": {"velocity": "velocity"},
+    "stress": {
+        "pressure": "pressure",
+        "wall_shear_stress": "wall shear stress",
+        "sss": "structural shear stress σ₁₂",
+        "von_mises": "von Mises stress",
+        "max_principal": "maximum principal stress",
+    },
+    "viscosity": {"viscosity": "viscosity"},
+    "rate": {"shear_rate": "shear rate"},
+    "displacement": {
+        "mesh_displacement": "mesh displacement",
+        "eta": "displacement η",
+        "displacement": "displacement",
+    },
+    "tag": {"region": "region tag"},
 }
+"""Each field's label, grouped by its quantity, which picks the unit (:func:`_unit`)."""
+FIELDS = {
+    name: (label, quantity)
+    for quantity, labels in LABELS_BY_QUANTITY.items()
+    for name, label in labels.items()
+}
+"""Field name -> (label, quantity)."""
 
 
 class PlotError(ValueError):

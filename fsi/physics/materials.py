@@ -86,10 +86,6 @@ class StVenantKirchhoff:
     mu: Parameter
     name: str = "svk"
 
-    @classmethod
-    def from_young_poisson(cls, young_modulus: float, poisson_ratio: float) -> StVenantKirchhoff:
-        return cls(*lame(young_modulus, poisson_ratio))
-
     def strain_energy(self, F):
         E = green_lagrange(F)
         return 0.5 * self.lmbda * ufl.tr(E) ** 2 + self.mu * ufl.inner(E, E)
@@ -111,10 +107,6 @@ class NeoHookean:
     lmbda: Parameter
     mu: Parameter
     name: str = "neo_hookean"
-
-    @classmethod
-    def from_young_poisson(cls, young_modulus: float, poisson_ratio: float) -> NeoHookean:
-        return cls(*lame(young_modulus, poisson_ratio))
 
     def strain_energy(self, F):
         J = ufl.det(F)

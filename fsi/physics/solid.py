@@ -43,7 +43,9 @@ when τ ≪ dt.
 
 Newton's method is dolfinx's NonlinearProblem/NewtonSolver (options prefix ``solid_``). The
 coupler drives a :class:`SolidSolver` through ``step`` / ``advance`` / ``save_state`` /
-``restore_state`` and the interface vectors (owned interface dofs, shape (n, 2)).
+``restore_state`` and the interface vectors (owned interface dofs, shape (n, 2)). The solver
+is built from the materials as cell fields (:func:`material_fields`), the
+:class:`DirichletConditions` and the :class:`SolidResidual`, the weak form above term by term.
 """
 
 from __future__ import annotations
@@ -195,7 +197,7 @@ def region_materials(case: Case) -> dict[Region, Material]:
 
 
 # --------------------------------------------------------------------------------------------
-# Per-region laws
+# Per-region laws and material fields
 
 
 @dataclass(frozen=True)
@@ -216,6 +218,74 @@ class RegionwiseLaw:
 
     def second_piola_zz(self, F):
         return self._sum("second_piola_zz", F)
+
+
+@dataclass(frozen=True)
+class MaterialFields:
+    """The materials of a structure's regions as fields on its cells.
+
+    ``regions``: the regions present on any rank; ``rho``: the density (DG0, kg/m³); ``law``:
+    the hyperelastic law with DG0 Lamé parameters (a :class:`RegionwiseLaw` where the regions'
+    laws differ); ``viscous``: the stiffness-proportional Kelvin–Voigt stress, None when every
+    relaxation time is 0 (then no viscous term is built at all); ``cells``: the DG0 space;
+    ``cell_region``: each local cell's region tag (−1 for an untagged cell).
+    """
+
+    regions: tuple[Region, ...]
+    rho: dolfinx.fem.Function
+    law: HyperelasticLaw
+    viscous: KelvinVoigt | None
+    cells: dolfinx.fem.FunctionSpace
+    cell_region: np.ndarray
+
+
+def material_fields(domain: TaggedMesh, materials: Mapping[Region, Material]) -> MaterialFields:
+    """The :class:`MaterialFields` of ``materials`` on ``domain``'s cell tags. Collective; a
+    ValueError names the regions present without a material."""
+    mesh, tags = domain.mesh, domain.cell_tags
+    present = [
+        int(r) for r in np.unique(np.concatenate(mesh.comm.allgather(np.unique(tags.values))))
+    ]
+    missing = [r for r in present if Region(r) not in materials]
+    if missing:
+        raise ValueError(f"no material for regions {[Region(r).label for r in missing]}")
+    Q = compat.function_space(mesh, "DG", 0)
+    dofs = compat.cell_dofs(Q)[:, 0]
+
+    def dg0(values_by_region: Mapping[int, float], name: str) -> dolfinx.fem.Function:
+        f = dolfinx.fem.Function(Q)
+        f.name = name
+        f.x.array[dofs[tags.indices]] = [values_by_region.get(int(v), 0.0) for v in tags.values]
+        f.x.scatter_forward()
+        return f
+
+    mats = {r: materials[Region(r)] for r in present}
+    lmbda_mu = {r: lame(m.young_modulus, m.poisson_ratio) for r, m in mats.items()}
+    rho = dg0({r: m.density for r, m in mats.items()}, "density")
+    lmbda = dg0({r: lm[0] for r, lm in lmbda_mu.items()}, "lambda")
+    mu = dg0({r: lm[1] for r, lm in lmbda_mu.items()}, "mu")
+    laws = sorted({m.law for m in mats.values()})
+    if len(laws) == 1:
+        law: HyperelasticLaw = make_law(laws[0], lmbda, mu)
+    else:
+        law = RegionwiseLaw(
+            tuple(
+                (
+                    dg0({r: 1.0 for r, m in mats.items() if m.law == name}, f"chi_{name}"),
+                    make_law(name, lmbda, mu),
+                )
+                for name in laws
+            )
+        )
+    # Kelvin–Voigt, stiffness-proportional per region: λ_v = τλ, μ_v = τμ (DG0). Left out
+    # of the forms when every τ is 0, so the elastic residual is unchanged bit for bit.
+    tau = {r: m.viscous_relaxation_time for r, m in mats.items()}
+    viscous = None
+    if any(value > 0 for value in tau.values()):
+        viscous = KelvinVoigt.stiffness_proportional(dg0(tau, "viscous_relaxation_time"), lmbda, mu)
+    cell_region = np.full(len(dofs), -1, dtype=np.int32)
+    cell_region[tags.indices] = tags.values
+    return MaterialFields(tuple(Region(r) for r in present), rho, law, viscous, Q, cell_region)
 
 
 # --------------------------------------------------------------------------------------------
@@ -255,6 +325,207 @@ class _Problem(dolfinx.fem.petsc.NonlinearProblem):
 
 
 # --------------------------------------------------------------------------------------------
+# Dirichlet conditions on the displacement space
+
+
+def _facets(domain: TaggedMesh, boundaries: Sequence[Boundary] | None) -> np.ndarray:
+    """The local facets of ``boundaries`` (``None``: the whole boundary of the mesh)."""
+    if boundaries is None:
+        return dolfinx.mesh.exterior_facet_indices(domain.mesh.topology)
+    return domain.facets(*boundaries)
+
+
+class DirichletConditions:
+    """The structure's :data:`Dirichlet` conditions on the displacement space ``V``.
+
+    :attr:`bcs`: as Newton solves with them (η = 0, or the prescribed value that
+    :meth:`update` sets); :attr:`homogeneous`: the same dofs held at 0 (the initial
+    acceleration's mass matrix); :attr:`constrained`: every constrained dof (local block
+    index), sorted.
+    """
+
+    def __init__(
+        self, domain: TaggedMesh, V: dolfinx.fem.FunctionSpace, conditions: Sequence[Dirichlet]
+    ):
+        tdim = domain.mesh.topology.dim
+        self.bcs, self._prescribed = [], []
+        constrained = []
+        zero = np.zeros(domain.mesh.geometry.dim, dtype=PETSc.ScalarType)
+        for item in conditions:
+            if isinstance(item, HoldRegions):
+                dofs = dolfinx.fem.locate_dofs_topological(V, tdim, domain.cells(*item.regions))
+                self.bcs.append(dolfinx.fem.dirichletbc(zero, dofs, V))
+            elif isinstance(item, Clamp):
+                dofs = dolfinx.fem.locate_dofs_topological(
+                    V, tdim - 1, _facets(domain, item.boundaries)
+                )
+                self.bcs.append(dolfinx.fem.dirichletbc(zero, dofs, V))
+            elif isinstance(item, PrescribedDisplacement):
+                dofs = dolfinx.fem.locate_dofs_topological(
+                    V, tdim - 1, _facets(domain, item.boundaries)
+                )
+                g = dolfinx.fem.Function(V)
+                self.bcs.append(dolfinx.fem.dirichletbc(g, dofs))
+                self._prescribed.append((item.value, g))
+            else:  # pragma: no cover
+                raise TypeError(f"unknown Dirichlet condition {item!r}")
+            constrained.append(dofs)
+        self.constrained = (
+            np.unique(np.concatenate(constrained)) if constrained else np.zeros(0, dtype=np.int32)
+        )
+        self.homogeneous = [dolfinx.fem.dirichletbc(zero, dofs, V) for dofs in constrained]
+
+    def update(self, t: float) -> None:
+        """The prescribed displacements at time ``t``."""
+        for value, g in self._prescribed:
+            g.interpolate(lambda x, value=value: value(x, t))
+            g.x.scatter_forward()  # a ghost dof may lie in no local cell of a submesh
+
+
+# --------------------------------------------------------------------------------------------
+# The residual, term by term
+
+
+class SolidResidual:
+    """The balance of momentum of a :class:`SolidSolver` (the module docstring's weak form) as
+    a sum of named terms: :attr:`form`, the residual at n+1−αf, and :attr:`jacobian`, its
+    derivative in η; :meth:`initial_acceleration_forms`, the same balance at the committed
+    state n. A term whose data is absent (no source, no follower pressure, no support, no
+    inertia in the quasi-static scheme, no viscous stress when every τ is 0) is not built.
+
+    It reads the solver's functions (η, η_n, η̇_n, η̈_n, the tractions), materials (ρ, the law,
+    the viscous stress), time step ``dt`` and boundary data, and owns what the terms add: the
+    measures :attr:`dx` and :attr:`ds` (with the cell and facet tags) and
+    :attr:`ds_interface`, all at ``quadrature_degree``; the body force :attr:`gravity`
+    (m/s²); the follower pressure at t_{n+1} and t_n, :attr:`pressure` and
+    :attr:`pressure_n` (Pa); and the support's ``(k_s, c_s, ds)``, :attr:`support` (None
+    without one).
+    """
+
+    def __init__(self, solver: SolidSolver, quadrature_degree: int):
+        self.solver = solver
+        mesh, bcs = solver.domain.mesh, solver.bcs_data
+        metadata = {"quadrature_degree": quadrature_degree}
+        cell_tags, facet_tags = solver.domain.cell_tags, solver.domain.facet_tags
+        self.dx = ufl.Measure("dx", domain=mesh, subdomain_data=cell_tags, metadata=metadata)
+        self.ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags, metadata=metadata)
+        self.ds_interface = self._ds(bcs.interface)
+        self.gravity = dolfinx.fem.Constant(
+            mesh, np.asarray(bcs.body_force, dtype=PETSc.ScalarType)
+        )
+        self.pressure = dolfinx.fem.Constant(mesh, PETSc.ScalarType(0.0))
+        self.pressure_n = dolfinx.fem.Constant(mesh, PETSc.ScalarType(0.0))
+        self.support = None
+        if bcs.support is not None:
+            self.support = (
+                dolfinx.fem.Constant(mesh, PETSc.ScalarType(bcs.support.stiffness)),
+                dolfinx.fem.Constant(mesh, PETSc.ScalarType(bcs.support.damping)),
+                self._ds(bcs.support.boundaries),
+            )
+        self.form = self._residual()
+        self.jacobian = ufl.derivative(self.form, solver.eta, ufl.TrialFunction(solver.V))
+
+    def _ds(self, boundaries: Sequence[Boundary]) -> ufl.Measure:
+        return sum((self.ds(int(b)) for b in boundaries[1:]), self.ds(int(boundaries[0])))
+
+    def _residual(self) -> ufl.Form:
+        """stress + inertia − body force − source − interface traction + follower pressure
+        + support, each at n+1−αf."""
+        s, scheme = self.solver, self.solver.scheme
+        af = scheme.alpha_f
+        deta = ufl.TestFunction(s.V)
+        I = ufl.Identity(s.domain.mesh.geometry.dim)
+        F_new, F_old = I + ufl.grad(s.eta), I + ufl.grad(s.eta_n)
+        S_alpha, v_alpha = self._second_piola_alpha(F_new, F_old)
+        residual = self._stress(scheme.at(F_new, F_old, af), S_alpha, deta)
+        if scheme.dynamic:
+            residual += self._inertia(deta)
+        residual -= self._body_force(deta)
+        if s.bcs_data.source is not None:
+            residual -= self._source(deta)
+        residual -= self._traction(scheme.at(s.traction, s.traction_n, af), deta)
+        if s.bcs_data.pressure is not None:
+            p_alpha = scheme.at(self.pressure, self.pressure_n, af)
+            residual += self._follower_pressure(p_alpha, scheme.at(F_new, F_old, af), deta)
+        if self.support is not None:
+            residual += self._support(scheme.at(s.eta, s.eta_n, af), v_alpha, deta)
+        return residual
+
+    def initial_acceleration_forms(self) -> tuple[ufl.Form, ufl.Form]:
+        """The mass form ``∫ ρ a·δη dx`` (bilinear in the acceleration a) and the force
+        ``f_ext(t_n) − f_int(η_n, η̇_n)`` of the committed state n (the follower pressure at
+        :attr:`pressure_n`): the balance ``M a_n = f`` that the acceleration a_n satisfies."""
+        s = self.solver
+        deta, da = ufl.TestFunction(s.V), ufl.TrialFunction(s.V)
+        F = ufl.Identity(s.domain.mesh.geometry.dim) + ufl.grad(s.eta_n)
+        S = s.law.second_piola(F)
+        if s.viscous is not None:
+            S = S + s.viscous.second_piola(F, ufl.grad(s.v_n))
+        force = -self._stress(F, S, deta)
+        if self.support is not None:
+            force -= self._support(s.eta_n, s.v_n, deta)
+        force += self._body_force(deta)
+        force += self._traction(s.traction_n, deta)
+        if s.bcs_data.source is not None:
+            force += self._source(deta)
+        if s.bcs_data.pressure is not None:
+            force -= self._follower_pressure(self.pressure_n, F, deta)
+        return s.rho * ufl.inner(da, deta) * self.dx, force
+
+    # -- the terms
+
+    def _second_piola_alpha(self, F_new, F_old):
+        """The generalized energy-momentum stress ``Σ_{n+1-αf} = (1 − αf) Σ(F_{n+1}) + αf Σ(F_n)``
+        plus the Kelvin–Voigt stress of η̇_{n+1-αf} (if any); and η̇_{n+1-αf}."""
+        s, scheme = self.solver, self.solver.scheme
+        af = scheme.alpha_f
+        S_alpha = scheme.at(s.law.second_piola(F_new), s.law.second_piola(F_old), af)
+        # η̇ at n+1-αf, with η̇_{n+1} the scheme's function of the unknown η_{n+1}.
+        v_alpha = scheme.at(scheme.velocity(s.eta, s.eta_n, s.v_n, s.a_n, s._dt), s.v_n, af)
+        if s.viscous is not None:
+            # The rate pulled back with the mid-step F̄: Ė = (E_{n+1} − E_n)/dt exactly when
+            # η̇_{n+1-αf} = (η_{n+1} − η_n)/dt (trapezoidal, quasi-static): see the docstring.
+            S_alpha = S_alpha + s.viscous.second_piola(
+                scheme.at(F_new, F_old, 0.5), ufl.grad(v_alpha)
+            )
+        return S_alpha, v_alpha
+
+    def _stress(self, F, S, deta):
+        """``∫ F S : ∇δη dx``, the first Piola stress ``F S`` tested."""
+        return ufl.inner(F * S, ufl.grad(deta)) * self.dx
+
+    def _inertia(self, deta):
+        """``∫ ρ a_{n+1-αm}·δη dx``."""
+        s, scheme = self.solver, self.solver.scheme
+        a_new = scheme.acceleration(s.eta, s.eta_n, s.v_n, s.a_n, s._dt)
+        return s.rho * ufl.inner(scheme.at(a_new, s.a_n, scheme.alpha_m), deta) * self.dx
+
+    def _body_force(self, deta):
+        """``∫ ρ b·δη dx``."""
+        return self.solver.rho * ufl.inner(self.gravity, deta) * self.dx
+
+    def _source(self, deta):
+        """``∫ f(x)·δη dx`` (a manufactured solution's force per reference volume)."""
+        x = ufl.SpatialCoordinate(self.solver.domain.mesh)
+        return ufl.inner(self.solver.bcs_data.source(x), deta) * self.dx
+
+    def _traction(self, t0, deta):
+        """``∫ t₀·δη ds`` over the interface."""
+        return ufl.inner(t0, deta) * self.ds_interface
+
+    def _follower_pressure(self, p, F, deta):
+        """``∫ p J F⁻ᵀ N·δη ds`` over the interface (the pressure's traction is its negative)."""
+        N = ufl.FacetNormal(self.solver.domain.mesh)
+        return p * ufl.inner(ufl.det(F) * ufl.inv(F).T * N, deta) * self.ds_interface
+
+    def _support(self, eta, v, deta):
+        """``∫ (k_s η·N + c_s η̇·N)(δη·N) ds`` over the supported boundary."""
+        k_s, c_s, ds_support = self.support
+        N = ufl.FacetNormal(self.solver.domain.mesh)
+        return (k_s * ufl.dot(eta, N) + c_s * ufl.dot(v, N)) * ufl.dot(deta, N) * ds_support
+
+
+# --------------------------------------------------------------------------------------------
 # The solver
 
 
@@ -275,6 +546,11 @@ class SolidSolver:
         quadrature_degree: of every integral (4 integrates the P2 SVK residual exactly).
         solver: Newton tolerances and the PETSc options of the linear solves.
         prefix: PETSc options prefix of the Newton's linear solver.
+
+    Its parts: the materials as cell fields (:func:`material_fields`: ``regions``, ``rho``,
+    ``law``, ``viscous``), the :class:`DirichletConditions` (``dirichlet``), the interface dofs
+    and their loads, the :class:`SolidResidual` (``residual``), Newton (``newton``) and the
+    :class:`StressFields` (``stress``).
     """
 
     def __init__(
@@ -314,104 +590,21 @@ class SolidSolver:
         self.traction = function("traction")  # t₀ at t_{n+1} (first Piola, on the interface)
         self.traction_n = function("traction_n")
 
-        self._build_materials(materials)
-        self._build_dirichlet()
+        m = material_fields(domain, materials)
+        self.regions, self.rho, self.law, self.viscous = m.regions, m.rho, m.law, m.viscous
+        self.Q0, self._cell_region = m.cells, m.cell_region
+        self.dirichlet = DirichletConditions(domain, self.V, bcs.dirichlet)
         self._build_interface()
-        self._build_forms(quadrature_degree)
-        self._build_newton(solver)
-        self.stress = StressFields(self, self.law)
-        self._jacobian = None
-        self._energy_forms = None
-
-    # -- set-up ---------------------------------------------------------------------------
-
-    def _build_materials(self, materials: Mapping[Region, Material]) -> None:
-        mesh, tags = self.domain.mesh, self.domain.cell_tags
-        present = [
-            int(r) for r in np.unique(np.concatenate(self.comm.allgather(np.unique(tags.values))))
-        ]
-        missing = [r for r in present if Region(r) not in materials]
-        if missing:
-            raise ValueError(f"no material for regions {[Region(r).label for r in missing]}")
-        self.regions = tuple(Region(r) for r in present)
-        Q = compat.function_space(mesh, "DG", 0)
-        dofs = compat.cell_dofs(Q)[:, 0]
-
-        def dg0(values_by_region: Mapping[int, float], name: str) -> dolfinx.fem.Function:
-            f = dolfinx.fem.Function(Q)
-            f.name = name
-            f.x.array[dofs[tags.indices]] = [values_by_region.get(int(v), 0.0) for v in tags.values]
-            f.x.scatter_forward()
-            return f
-
-        mats = {r: materials[Region(r)] for r in present}
-        lmbda_mu = {r: lame(m.young_modulus, m.poisson_ratio) for r, m in mats.items()}
-        self.rho = dg0({r: m.density for r, m in mats.items()}, "density")
-        lmbda = dg0({r: lm[0] for r, lm in lmbda_mu.items()}, "lambda")
-        mu = dg0({r: lm[1] for r, lm in lmbda_mu.items()}, "mu")
-        laws = sorted({m.law for m in mats.values()})
-        if len(laws) == 1:
-            self.law: HyperelasticLaw = make_law(laws[0], lmbda, mu)
-        else:
-            parts = tuple(
-                (
-                    dg0({r: 1.0 for r, m in mats.items() if m.law == name}, f"chi_{name}"),
-                    make_law(name, lmbda, mu),
-                )
-                for name in laws
-            )
-            self.law = RegionwiseLaw(parts)
-        # Kelvin–Voigt, stiffness-proportional per region: λ_v = τλ, μ_v = τμ (DG0). Left out
-        # of the forms when every τ is 0, so the elastic residual is unchanged bit for bit.
-        tau = {r: m.viscous_relaxation_time for r, m in mats.items()}
-        self.viscous: KelvinVoigt | None = None
-        if any(value > 0 for value in tau.values()):
-            self.viscous = KelvinVoigt.stiffness_proportional(
-                dg0(tau, "viscous_relaxation_time"), lmbda, mu
-            )
-        self.Q0 = Q
-        self._cell_region = np.full(len(dofs), -1, dtype=np.int32)
-        self._cell_region[tags.indices] = tags.values
-
-    def _facets(self, boundaries: Sequence[Boundary] | None) -> np.ndarray:
-        mesh = self.domain.mesh
-        if boundaries is None:
-            return dolfinx.mesh.exterior_facet_indices(mesh.topology)
-        return self.domain.facets(*boundaries)
-
-    def _build_dirichlet(self) -> None:
-        mesh = self.domain.mesh
-        tdim = mesh.topology.dim
-        self._bcs, self._prescribed = [], []
-        constrained = []
-        zero = np.zeros(mesh.geometry.dim, dtype=PETSc.ScalarType)
-        for item in self.bcs_data.dirichlet:
-            if isinstance(item, HoldRegions):
-                dofs = dolfinx.fem.locate_dofs_topological(
-                    self.V, tdim, self.domain.cells(*item.regions)
-                )
-                self._bcs.append(dolfinx.fem.dirichletbc(zero, dofs, self.V))
-            elif isinstance(item, Clamp):
-                dofs = dolfinx.fem.locate_dofs_topological(
-                    self.V, tdim - 1, self._facets(item.boundaries)
-                )
-                self._bcs.append(dolfinx.fem.dirichletbc(zero, dofs, self.V))
-            elif isinstance(item, PrescribedDisplacement):
-                dofs = dolfinx.fem.locate_dofs_topological(
-                    self.V, tdim - 1, self._facets(item.boundaries)
-                )
-                g = dolfinx.fem.Function(self.V)
-                self._bcs.append(dolfinx.fem.dirichletbc(g, dofs))
-                self._prescribed.append((item.value, g))
-            else:  # pragma: no cover
-                raise TypeError(f"unknown Dirichlet condition {item!r}")
-            constrained.append(dofs)
-        self._constrained = (
-            np.unique(np.concatenate(constrained)) if constrained else np.zeros(0, dtype=np.int32)
+        self.residual = SolidResidual(self, quadrature_degree)
+        self.problem = _Problem(
+            self.residual.form, self.eta, self.dirichlet.bcs, self.residual.jacobian, self._nodal
         )
-        self._homogeneous = [
-            dolfinx.fem.dirichletbc(zero, bc_dofs, self.V) for bc_dofs in constrained
-        ]
+        # dolfinx's "residual" test divides by the first increment's norm (mixed units), so test
+        # the increments: converged when |δη_k| < atol (m) or |δη_k| < rtol |δη_1|.
+        self.newton = Newton(self.comm, self.problem, solver, self.prefix, "incremental")
+        self.stress = StressFields(self, self.law)
+        self._det_F = None
+        self._energy_forms = None
 
     def _build_interface(self) -> None:
         """The owned interface dofs (the order of every interface vector) and their points."""
@@ -422,119 +615,16 @@ class SolidSolver:
         )
         self.interface_dofs = dofs[dofs < self.V.dofmap.index_map.size_local]
         self.interface_points = self.V.tabulate_dof_coordinates()[self.interface_dofs, :2]
-        free = ~np.isin(self.interface_dofs, self._constrained)
+        free = ~np.isin(self.interface_dofs, self.dirichlet.constrained)
         bs = self.V.dofmap.index_map_bs
         self._force_rows = (self.interface_dofs[free, None] * bs + np.arange(bs)).ravel()
         self._force_free = free
         self.forces = np.zeros((len(self.interface_dofs), bs))
         self.forces_n = np.zeros_like(self.forces)
 
-    def _build_forms(self, quadrature_degree: int) -> None:
-        """The residual of the balance of momentum at n+1−αf (:attr:`residual_form`: stress,
-        inertia, loads, pressure and support) and its Jacobian in η (:attr:`jacobian_form`)."""
-        mesh, s = self.domain.mesh, self.scheme
-        self._build_measures(quadrature_degree)
-        ds_interface = self._ds_interface
-        d = mesh.geometry.dim
-        I = ufl.Identity(d)
-        deta = ufl.TestFunction(self.V)
-        af = s.alpha_f
-        F_new, F_old = I + ufl.grad(self.eta), I + ufl.grad(self.eta_n)
-        residual, v_alpha = self._stress_residual(F_new, F_old, deta)
-        self._gravity = dolfinx.fem.Constant(
-            mesh, np.asarray(self.bcs_data.body_force, dtype=PETSc.ScalarType)
-        )
-        residual -= self.rho * ufl.inner(self._gravity, deta) * self.dx
-        if self.bcs_data.source is not None:
-            residual -= ufl.inner(self.bcs_data.source(ufl.SpatialCoordinate(mesh)), deta) * self.dx
-        residual -= ufl.inner(s.at(self.traction, self.traction_n, af), deta) * ds_interface
-        self._pressure = dolfinx.fem.Constant(mesh, PETSc.ScalarType(0.0))
-        self._pressure_n = dolfinx.fem.Constant(mesh, PETSc.ScalarType(0.0))
-        if self.bcs_data.pressure is not None:
-            N = ufl.FacetNormal(mesh)
-            F_a = s.at(F_new, F_old, af)
-            p_a = s.at(self._pressure, self._pressure_n, af)
-            residual += p_a * ufl.inner(ufl.det(F_a) * ufl.inv(F_a).T * N, deta) * ds_interface
-        support_term = self._support_residual(v_alpha, deta)
-        if support_term is not None:
-            residual += support_term
-        self.residual_form = residual
-        self.jacobian_form = ufl.derivative(residual, self.eta, ufl.TrialFunction(self.V))
-
-    def _build_measures(self, quadrature_degree: int) -> None:
-        """The measures :attr:`dx` and :attr:`ds` (with the cell and facet tags) and the
-        interface's ``ds``, all at ``quadrature_degree``."""
-        mesh = self.domain.mesh
-        metadata = {"quadrature_degree": quadrature_degree}
-        self.dx = ufl.Measure(
-            "dx", domain=mesh, subdomain_data=self.domain.cell_tags, metadata=metadata
-        )
-        self.ds = ufl.Measure(
-            "ds", domain=mesh, subdomain_data=self.domain.facet_tags, metadata=metadata
-        )
-        ds_interface = sum(
-            (self.ds(int(b)) for b in self.bcs_data.interface[1:]),
-            self.ds(int(self.bcs_data.interface[0])),
-        )
-        self._ds_interface = ds_interface
-
-    def _stress_residual(self, F_new, F_old, deta):
-        """The stress (elastic, plus Kelvin–Voigt if any) and inertia terms of the residual at
-        n+1−αf, and the velocity η̇ at n+1−αf."""
-        s, law = self.scheme, self.law
-        af, am = s.alpha_f, s.alpha_m
-        # Generalized energy-momentum stress: F at n+1-αf times the interpolated Σ.
-        S_alpha = s.at(law.second_piola(F_new), law.second_piola(F_old), af)
-        # η̇ at n+1-αf, with η̇_{n+1} the scheme's function of the unknown η_{n+1}.
-        v_alpha = s.at(s.velocity(self.eta, self.eta_n, self.v_n, self.a_n, self._dt), self.v_n, af)
-        if self.viscous is not None:
-            # The rate pulled back with the mid-step F̄: Ė = (E_{n+1} − E_n)/dt exactly when
-            # η̇_{n+1-αf} = (η_{n+1} − η_n)/dt (trapezoidal, quasi-static): see the docstring.
-            S_alpha = S_alpha + self.viscous.second_piola(
-                s.at(F_new, F_old, 0.5), ufl.grad(v_alpha)
-            )
-        P_alpha = s.at(F_new, F_old, af) * S_alpha
-        residual = ufl.inner(P_alpha, ufl.grad(deta)) * self.dx
-        if s.dynamic:
-            a_new = s.acceleration(self.eta, self.eta_n, self.v_n, self.a_n, self._dt)
-            residual += self.rho * ufl.inner(s.at(a_new, self.a_n, am), deta) * self.dx
-        return residual, v_alpha
-
-    def _support_residual(self, v_alpha, deta):
-        """The elastic support's term of the residual, or None without a support; its
-        constants, normal and measure go to :attr:`_support` (None without one)."""
-        mesh, s = self.domain.mesh, self.scheme
-        support = self.bcs_data.support
-        self._support = None
-        if support is None:
-            return None
-        # P N = −(k_s η·N + c_s η̇·N) N on the supported boundary, at n+1-αf.
-        N = ufl.FacetNormal(mesh)
-        k_s = dolfinx.fem.Constant(mesh, PETSc.ScalarType(support.stiffness))
-        c_s = dolfinx.fem.Constant(mesh, PETSc.ScalarType(support.damping))
-        ds_support = sum(
-            (self.ds(int(b)) for b in support.boundaries[1:]),
-            self.ds(int(support.boundaries[0])),
-        )
-        self._support = (k_s, c_s, N, ds_support)
-        eta_alpha = s.at(self.eta, self.eta_n, s.alpha_f)
-        return (
-            (k_s * ufl.dot(eta_alpha, N) + c_s * ufl.dot(v_alpha, N))
-            * ufl.dot(deta, N)
-            * ds_support
-        )
-
     def _nodal(self) -> tuple[np.ndarray, np.ndarray]:
         f = self.scheme.at(self.forces, self.forces_n, self.scheme.alpha_f)
         return self._force_rows, f[self._force_free].ravel()
-
-    def _build_newton(self, settings: SolverSettings) -> None:
-        self.problem = _Problem(
-            self.residual_form, self.eta, self._bcs, self.jacobian_form, self._nodal
-        )
-        # dolfinx's "residual" test divides by the first increment's norm (mixed units), so test
-        # the increments: converged when |δη_k| < atol (m) or |δη_k| < rtol |δη_1|.
-        self.newton = Newton(self.comm, self.problem, settings, self.prefix, "incremental")
 
     # -- loads ----------------------------------------------------------------------------
 
@@ -556,7 +646,7 @@ class SolidSolver:
 
     def set_body_force(self, g: Sequence[float]) -> None:
         """Force per unit mass (m/s²), e.g. to ramp gravity in a static solve."""
-        self._gravity.value[:] = np.asarray(g, dtype=float)
+        self.residual.gravity.value[:] = np.asarray(g, dtype=float)
 
     # -- stepping -------------------------------------------------------------------------
 
@@ -568,11 +658,9 @@ class SolidSolver:
         """
         self._dt.value = dt
         if self.bcs_data.pressure is not None:
-            self._pressure.value = self.bcs_data.pressure(t)
-            self._pressure_n.value = self.bcs_data.pressure(self.t)
-        for value, g in self._prescribed:
-            g.interpolate(lambda x, value=value: value(x, t))
-            g.x.scatter_forward()  # a ghost dof may lie in no local cell of a submesh
+            self.residual.pressure.value = self.bcs_data.pressure(t)
+            self.residual.pressure_n.value = self.bcs_data.pressure(self.t)
+        self.dirichlet.update(t)
         guess = self.eta.x.array.copy()
         result = self.newton.solve(self.eta, lambda: self.problem.residual_norm, step=self.t)
         if result.converged:
@@ -648,43 +736,19 @@ class SolidSolver:
         """Solve ``M a_n = f_ext(t_n) − f_int(η_n, η̇_n)`` (a_n = 0 on constrained dofs; f_int
         with the viscous stress and the support's force), so that the committed state satisfies
         the equation of motion (e.g. a flag released under gravity)."""
-        mesh, I = self.domain.mesh, ufl.Identity(self.domain.mesh.geometry.dim)
-        deta, da = ufl.TestFunction(self.V), ufl.TrialFunction(self.V)
-        F = I + ufl.grad(self.eta_n)
-        S = self.law.second_piola(F)
-        if self.viscous is not None:
-            S = S + self.viscous.second_piola(F, ufl.grad(self.v_n))
-        rhs = -ufl.inner(F * S, ufl.grad(deta)) * self.dx
-        if self._support is not None:
-            k_s, c_s, N, ds_support = self._support
-            rhs -= (
-                (k_s * ufl.dot(self.eta_n, N) + c_s * ufl.dot(self.v_n, N))
-                * ufl.dot(deta, N)
-                * ds_support
-            )
-        rhs += self.rho * ufl.inner(self._gravity, deta) * self.dx
-        rhs += ufl.inner(self.traction_n, deta) * self._ds_interface
-        if self.bcs_data.source is not None:
-            rhs += ufl.inner(self.bcs_data.source(ufl.SpatialCoordinate(mesh)), deta) * self.dx
         if self.bcs_data.pressure is not None:
-            N = ufl.FacetNormal(mesh)
-            self._pressure_n.value = self.bcs_data.pressure(self.t)
-            rhs -= (
-                self._pressure_n
-                * ufl.inner(ufl.det(F) * ufl.inv(F).T * N, deta)
-                * self._ds_interface
-            )
-        mass = self.rho * ufl.inner(da, deta) * self.dx
-        a_form, L_form = dolfinx.fem.form(mass), dolfinx.fem.form(rhs)
-        M = dolfinx.fem.petsc.assemble_matrix(a_form, bcs=self._homogeneous)
+            self.residual.pressure_n.value = self.bcs_data.pressure(self.t)
+        mass, force = self.residual.initial_acceleration_forms()
+        a_form, L_form = dolfinx.fem.form(mass), dolfinx.fem.form(force)
+        homogeneous = self.dirichlet.homogeneous
+        M = dolfinx.fem.petsc.assemble_matrix(a_form, bcs=homogeneous)
         M.assemble()
         b = dolfinx.fem.petsc.assemble_vector(L_form)
         array = b.getArray(readonly=False)
-        f = self.forces_n[self._force_free].ravel()
-        array[self._force_rows] += f
-        dolfinx.fem.petsc.apply_lifting(b, [a_form], [self._homogeneous])
+        array[self._force_rows] += self.forces_n[self._force_free].ravel()
+        dolfinx.fem.petsc.apply_lifting(b, [a_form], [homogeneous])
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        dolfinx.fem.petsc.set_bc(b, self._homogeneous)
+        dolfinx.fem.petsc.set_bc(b, homogeneous)
         ksp = PETSc.KSP().create(self.comm)
         ksp.setOperators(M)
         ksp.setOptionsPrefix(self.prefix + "mass_")
@@ -722,13 +786,13 @@ class SolidSolver:
 
     def min_jacobian(self) -> float:
         """min det F at the cell midpoints (DG0 interpolation), over all ranks."""
-        if self._jacobian is None:
+        if self._det_F is None:
             F = ufl.Identity(2) + ufl.grad(self.eta)
-            self._jacobian = (
+            self._det_F = (
                 dolfinx.fem.Function(self.Q0),
                 dolfinx.fem.Expression(ufl.det(F), compat.interpolation_points(self.Q0)),
             )
-        J, expression = self._jacobian
+        J, expression = self._det_F
         J.interpolate(expression)
         n = self.Q0.dofmap.index_map.size_local
         return float(self.comm.allreduce(float(J.x.array[:n].min(initial=np.inf)), op=MPI.MIN))
@@ -738,8 +802,8 @@ class SolidSolver:
         if self._energy_forms is None:
             F = ufl.Identity(2) + ufl.grad(self.eta_n)
             self._energy_forms = [
-                dolfinx.fem.form(0.5 * self.rho * ufl.inner(self.v_n, self.v_n) * self.dx),
-                dolfinx.fem.form(self.law.strain_energy(F) * self.dx),
+                dolfinx.fem.form(0.5 * self.rho * ufl.inner(self.v_n, self.v_n) * self.residual.dx),
+                dolfinx.fem.form(self.law.strain_energy(F) * self.residual.dx),
             ]
         kinetic, stored = (
             float(self.comm.allreduce(dolfinx.fem.assemble_scalar(form), op=MPI.SUM))
