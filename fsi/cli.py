@@ -41,15 +41,31 @@ def _parser() -> argparse.ArgumentParser:
         help="show the versions of fsi (and its git revision), dolfinx, Python",
     )
     sub = parser.add_subparsers(dest="command", required=True)
-    _add_run_parser(sub)
-    _add_sweep_parser(sub)
-    p = sub.add_parser("mesh", help="build the case's mesh: DIR/mesh.xdmf and DIR/mesh.json")
-    _add_config_arguments(p)
-    p.add_argument("--out", type=Path, required=True, metavar="DIR")
-    p = sub.add_parser("check", help="validate a case without running it")
-    _add_config_arguments(p)
-    _add_report_parser(sub)
-    _add_plot_parser(sub)
+    commands = {  # name: (what it does, its arguments)
+        "run": (
+            "run a case: DIR/metrics.csv, summary.json, fields.xdmf, checkpoint/",
+            _add_run_arguments,
+        ),
+        "sweep": (
+            "run a case for every combination of the --vary values (a folder each, resuming), "
+            "then DIR/sweep.csv, sweep.md and sweep_<quantity>.png",
+            _add_sweep_arguments,
+        ),
+        "mesh": ("build the case's mesh: DIR/mesh.xdmf and DIR/mesh.json", _add_mesh_arguments),
+        "check": ("validate a case without running it", _add_config_arguments),
+        "report": (
+            "the study's tables (peaks at the report times, solver effort) and plots from run "
+            "folders",
+            _add_report_arguments,
+        ),
+        "plot": (
+            "a picture (PNG) of one field of a run at one time: filled contours, colour bar "
+            "with units, axes in mm",
+            _add_plot_arguments,
+        ),
+    }
+    for name, (summary, add_arguments) in commands.items():
+        add_arguments(sub.add_parser(name, help=summary))
     return parser
 
 
@@ -66,13 +82,21 @@ def _add_config_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _add_run_parser(sub) -> None:
-    """The ``fsi run`` sub-command: a case, ``--out``, ``--restart``, ``--overwrite``."""
-    p = sub.add_parser(
-        "run", help="run a case: DIR/metrics.csv, summary.json, fields.xdmf, checkpoint/"
-    )
+def _add_out(
+    p: argparse.ArgumentParser,
+    help: str | None = None,
+    *,
+    required: bool = True,
+    metavar: str = "DIR",
+) -> None:
+    """``--out``: where the command writes (a folder unless ``metavar`` says otherwise)."""
+    p.add_argument("--out", type=Path, required=required, metavar=metavar, help=help)
+
+
+def _add_run_arguments(p: argparse.ArgumentParser) -> None:
+    """``fsi run``: a case, ``--out``, ``--restart``, ``--overwrite``."""
     _add_config_arguments(p)
-    p.add_argument("--out", type=Path, required=True, metavar="DIR")
+    _add_out(p)
     p.add_argument(
         "--restart",
         type=Path,
@@ -89,53 +113,17 @@ def _add_run_parser(sub) -> None:
     )
 
 
-def _add_sweep_parser(sub) -> None:
-    """The ``fsi sweep`` sub-command: a case, ``--vary``, ``--out``, ``--dry-run``."""
-    p = sub.add_parser(
-        "sweep",
-        help="run a case for every combination of the --vary values "
-        "(a folder each, resuming), then DIR/sweep.csv, sweep.md "
-        "and sweep_<quantity>.png",
-    )
+def _add_mesh_arguments(p: argparse.ArgumentParser) -> None:
+    """``fsi mesh``: a case and ``--out``."""
     _add_config_arguments(p)
-    p.add_argument(
-        "--vary",
-        action="append",
-        required=True,
-        metavar="KEY.PATH=V1,V2,...",
-        help="a key (as --set takes it) and its values, comma-separated (commas "
-        "inside [...] or {...} belong to the value); repeatable: the runs are "
-        "the product of the lists",
-    )
-    p.add_argument(
-        "--out",
-        type=Path,
-        required=True,
-        metavar="DIR",
-        help="DIR/<key=value,...>/ for each run, DIR/sweep.csv and sweep.md",
-    )
-    p.add_argument(
-        "-n",
-        "--dry-run",
-        action="store_true",
-        help="validate every run and list what the sweep would do with each (skip, "
-        "resume, start); run and write nothing",
-    )
+    _add_out(p)
 
 
-def _add_report_parser(sub) -> None:
-    """The ``fsi report`` sub-command: run folders, ``--out``, ``--times``."""
-    p = sub.add_parser(
-        "report",
-        help="the study's tables (peaks at the report times, solver "
-        "effort) and plots from run folders",
-    )
+def _add_report_arguments(p: argparse.ArgumentParser) -> None:
+    """``fsi report``: run folders, ``--out``, ``--times``."""
     p.add_argument("runs", type=Path, nargs="+", metavar="RUN_DIR")
-    p.add_argument(
-        "--out",
-        type=Path,
-        metavar="DIR",
-        help="write DIR/report.md and PNG plots (default: print the tables only)",
+    _add_out(
+        p, "write DIR/report.md and PNG plots (default: print the tables only)", required=False
     )
     p.add_argument(
         "--times",
@@ -146,13 +134,8 @@ def _add_report_parser(sub) -> None:
     )
 
 
-def _add_plot_parser(sub) -> None:
-    """The ``fsi plot`` sub-command: a run folder, the field, time, view options and ``--out``."""
-    p = sub.add_parser(
-        "plot",
-        help="a picture (PNG) of one field of a run at one time: filled "
-        "contours, colour bar with units, axes in mm",
-    )
+def _add_plot_arguments(p: argparse.ArgumentParser) -> None:
+    """``fsi plot``: a run folder, the field, time, view options and ``--out``."""
     p.add_argument("run", type=Path, metavar="RUN_DIR")
     p.add_argument(
         "--field",
@@ -192,7 +175,29 @@ def _add_plot_parser(sub) -> None:
         choices=["x", "y", "magnitude"],
         help="of a vector field (default: magnitude)",
     )
-    p.add_argument("--out", type=Path, required=True, metavar="FILE.png")
+    _add_out(p, metavar="FILE.png")
+
+
+def _add_sweep_arguments(p: argparse.ArgumentParser) -> None:
+    """``fsi sweep``: a case, ``--vary``, ``--out``, ``--dry-run``."""
+    _add_config_arguments(p)
+    p.add_argument(
+        "--vary",
+        action="append",
+        required=True,
+        metavar="KEY.PATH=V1,V2,...",
+        help="a key (as --set takes it) and its values, comma-separated (commas "
+        "inside [...] or {...} belong to the value); repeatable: the runs are "
+        "the product of the lists",
+    )
+    _add_out(p, "DIR/<key=value,...>/ for each run, DIR/sweep.csv and sweep.md")
+    p.add_argument(
+        "-n",
+        "--dry-run",
+        action="store_true",
+        help="validate every run and list what the sweep would do with each (skip, "
+        "resume, start); run and write nothing",
+    )
 
 
 class _Version(argparse.Action):
@@ -326,7 +331,7 @@ def run_case(request: RunRequest, case: config.Case) -> RunOutcome:
     """Run ``case`` as ``fsi run`` does (the same checks, messages, files and stops; SIGINT,
     SIGTERM and SIGUSR1 stop it after the current step). Collective."""
     from fsi.output import io
-    from fsi.run import checkpoint, simulation
+    from fsi.run import checkpoint, simulation, stops
 
     comm = MPI.COMM_WORLD
     reason = simulation.unsupported(case)
@@ -357,7 +362,7 @@ def run_case(request: RunRequest, case: config.Case) -> RunOutcome:
             result = simulation.run(case, request.out, comm, restart, stop)
     except checkpoint.CheckpointError as e:
         return _refused(comm, f"--restart: {e}")
-    except simulation.RunStopped as e:
+    except stops.RunStopped as e:
         return _stopped(request, e)
     except KeyboardInterrupt:  # a second interrupt: at once, without a checkpoint
         log.error(
@@ -382,13 +387,13 @@ def _stopped(request: RunRequest, e: Exception) -> RunOutcome:
     """Say why a run stopped early and where its checkpoint is (rank 0: every rank has the
     same exception; also into DIR/run.log); return the exit status and why, in one line."""
     from fsi.output import io
-    from fsi.run import simulation
+    from fsi.run import stops
 
-    if isinstance(e, simulation.Interrupted):
+    if isinstance(e, stops.Interrupted):
         status = 128 + e.signal
         reason = f"stopped by signal {e.signal} ({signal.Signals(e.signal).name})"
         lines = [f"fsi: {reason}."]
-    elif isinstance(e, simulation.OutputFailed):
+    elif isinstance(e, stops.OutputFailed):
         status = EXIT_OUTPUT_FAILED
         reason = f"cannot write the run's files: {e}"
         lines = [f"fsi: {reason}"]

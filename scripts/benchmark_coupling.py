@@ -2,9 +2,9 @@
 
 For each acceleration (Aitken, IQN-ILS and, optionally, constant relaxation) it runs the first
 ``--steps`` steps of the case's resolved schedule through the steppers ``fsi run`` uses
-(:class:`fsi.run.simulation.CoupledStepper`, the partitioned problem of fsi/coupled/partitioned.py),
+(:class:`fsi.run.steppers.CoupledStepper`, the partitioned problem of fsi/coupled/partitioned.py),
 then the rigid-wall fluid-only run of the same case (``structure.mode=rigid``,
-:class:`fsi.run.simulation.RigidStepper`) on the same mesh and the same steps, and prints:
+:class:`fsi.run.steppers.RigidStepper`) on the same mesh and the same steps, and prints:
 
 * per acceleration: mean and max coupling iterations per step, mean fluid and solid Newton
   iterations per step (summed over the step's coupling iterations), fluid/solid Jacobian
@@ -66,7 +66,7 @@ from benchmarking import (  # noqa: E402 (this folder, on the path of a script r
 
 from fsi import config  # noqa: E402
 from fsi.numerics.timestepping import steps  # noqa: E402
-from fsi.run import simulation  # noqa: E402
+from fsi.run import steppers, stops  # noqa: E402
 
 CASE = Path(__file__).resolve().parents[1] / "configs" / "stenosis_moving_carreau.yaml"
 
@@ -91,9 +91,7 @@ def run(case: config.Case, comm: MPI.Comm) -> dict:
 def _run(case: config.Case, comm: MPI.Comm) -> dict:
     tic = time.perf_counter()
     coupled = case.structure.mode != "rigid"
-    stepper = (
-        simulation.CoupledStepper(case, comm) if coupled else simulation.RigidStepper(case, comm)
-    )
+    stepper = steppers.CoupledStepper(case, comm) if coupled else steppers.RigidStepper(case, comm)
     setup = comm.allreduce(time.perf_counter() - tic, op=MPI.MAX)
     profiler = Profiler()
     (attach_coupled if coupled else attach_rigid)(stepper, profiler)
@@ -103,7 +101,7 @@ def _run(case: config.Case, comm: MPI.Comm) -> dict:
         tic, cpu_tic = time.perf_counter(), time.process_time()
         try:
             rows.append(stepper.step(step))
-        except simulation.StepFailed as e:
+        except stops.StepFailed as e:
             failure = f"step {step.index}: {str(e).splitlines()[0][:200]}"
             break
         times.append(comm.allreduce(time.perf_counter() - tic, op=MPI.MAX))

@@ -49,7 +49,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from fsi import compat, config
 from fsi.numerics.timestepping import steps  # noqa: E402
 from fsi.physics import fluid, mesh
-from fsi.run import simulation
+from fsi.run import steppers
 from geometry.tags import Region  # noqa: E402
 
 CASE = Path(__file__).resolve().parents[1] / "configs" / "stenosis_fixed_newtonian.yaml"
@@ -212,7 +212,7 @@ def degree_study(
         part.mesh,
         part.facet_tags,
         case.fluid,
-        simulation.fluid_boundaries(case),
+        steppers.fluid_boundaries(case),
         scheme=case.time.scheme,
     )
     bcs = list(solver.problem.bcs)
@@ -302,11 +302,11 @@ def main(argv: list[str] | None = None) -> int:
                 part.mesh,
                 part.facet_tags,
                 case.fluid,
-                simulation.fluid_boundaries(case),
+                steppers.fluid_boundaries(case),
                 scheme=case.time.scheme,
             )
             setup = comm.allreduce(time.perf_counter() - tic, op=MPI.MAX)
-            dofs = simulation.global_dofs(solver.W)
+            dofs = steppers.global_dofs(solver.W)
             say(
                 f"[{level}/{model}] {dofs} dofs, solver set-up {setup:.1f} s (JIT if not cached);"
                 f" {args.steps} steps of {args.dt:g} s"
@@ -334,7 +334,7 @@ def main(argv: list[str] | None = None) -> int:
         if "carreau" in args.models and args.degrees:
             case = load_case(level, "carreau", args.steps, args.dt)
             studies[level] = (
-                simulation.global_dofs(
+                steppers.global_dofs(
                     compat.mixed_space(part.mesh, [("Lagrange", 2, (2,)), ("Lagrange", 1, ())])
                 ),
                 degree_study(part, case, args.degrees, args.repeats),

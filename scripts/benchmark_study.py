@@ -98,7 +98,7 @@ def worker(args: argparse.Namespace) -> int:
 
     from fsi import config
     from fsi.output import io
-    from fsi.run import simulation
+    from fsi.run import outputs, simulation, steppers, stops
 
     comm = MPI.COMM_WORLD
     logging.disable(logging.WARNING)
@@ -121,20 +121,18 @@ def worker(args: argparse.Namespace) -> int:
         return original_progress(*a, **k)
 
     simulation._report_progress = progress
-    profiler.wrap(io.RunFiles, "write_row", "output: metrics row")
-    profiler.wrap(io.RunFiles, "write_fields", "output: fields")
+    profiler.wrap(outputs.RunOutputs, "write_row", "output: metrics row")
+    profiler.wrap(outputs.RunOutputs, "write_fields", "output: fields")
     profiler.wrap(simulation._Checkpoints, "after", "output: checkpoint")
     tic = time.perf_counter()
-    stepper = (
-        simulation.CoupledStepper(case, comm) if coupled else simulation.RigidStepper(case, comm)
-    )
+    stepper = steppers.CoupledStepper(case, comm) if coupled else steppers.RigidStepper(case, comm)
     setup = time.perf_counter() - tic
     (attach_coupled if coupled else attach_rigid)(stepper, profiler)
     failure = ""
     start = time.perf_counter()
     try:
         simulation.march(case, out, comm, stepper, start)
-    except simulation.RunStopped as e:
+    except stops.RunStopped as e:
         failure = str(e).splitlines()[0][:200]
     rows = io.read_metrics(out / "metrics.csv") if comm.rank == 0 else []
     if comm.rank == 0:

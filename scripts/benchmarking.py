@@ -15,7 +15,7 @@ import numpy as np
 
 from fsi import config
 from fsi.numerics.timestepping import steps
-from fsi.run import simulation
+from fsi.run import steppers
 
 LU_EVENTS = ("MatLUFactorNum", "MatLUFactorSym", "MatSolve")
 
@@ -72,7 +72,7 @@ def _lu_events() -> dict[str, tuple[int, float]]:
     return out
 
 
-def attach_coupled(stepper: simulation.CoupledStepper, profiler: Profiler) -> None:
+def attach_coupled(stepper: steppers.CoupledStepper, profiler: Profiler) -> None:
     """Time the pieces of a coupled step (see the module docstring)."""
     p = stepper.problem
     wrap = profiler.wrap
@@ -98,7 +98,7 @@ def attach_coupled(stepper: simulation.CoupledStepper, profiler: Profiler) -> No
     wrap(p, "step", "coupling loop (rest)")
 
 
-def attach_rigid(stepper: simulation.RigidStepper, profiler: Profiler) -> None:
+def attach_rigid(stepper: steppers.RigidStepper, profiler: Profiler) -> None:
     s = stepper.solver
     profiler.wrap(s.problem, "J", "fluid Jacobian assembly")
     profiler.wrap(s.problem, "F", "fluid residual assembly")

@@ -29,7 +29,7 @@ import pytest
 from fsi import compat, config
 from fsi.numerics.timestepping import steps
 from fsi.physics import fluid, mesh, solid
-from fsi.run import simulation
+from fsi.run.steppers import CoupledStepper, fluid_boundaries
 from geometry.tags import Region
 
 CASE = "configs/stenosis_moving_carreau.yaml"
@@ -120,7 +120,7 @@ def test_fluid_with_reused_jacobians_finds_newtons_solution(whole):
     for reuse in ("none", "step", "run"):
         case = case_with("structure.mode=rigid", f"fluid.solver.jacobian_reuse={reuse}")
         solvers[reuse] = fluid.FluidSolver(
-            part.mesh, part.facet_tags, case.fluid, simulation.fluid_boundaries(case)
+            part.mesh, part.facet_tags, case.fluid, fluid_boundaries(case)
         )
     newton = solvers["none"]
     iterations = {"step": 0, "run": 0}
@@ -212,7 +212,7 @@ def test_coupled_run_with_reuse_matches_plain_newton():
             f"fluid.solver.jacobian_reuse={reuse}",
             f"structure.solver.jacobian_reuse={reuse}",
         )
-        steppers[reuse] = simulation.CoupledStepper(case, comm)
+        steppers[reuse] = CoupledStepper(case, comm)
         rows[reuse] = [steppers[reuse].step(st) for st in steps(case.time)]
     tolerance = case.coupling.tolerance
     for a, b in zip(rows["step"], rows["none"]):
@@ -240,7 +240,7 @@ def test_step_reuse_makes_a_step_depend_only_on_its_start(whole):
     case = case_with("structure.mode=rigid", "fluid.solver.jacobian_reuse=step")
     schedule = list(steps(case.time))
     runs = [
-        fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid, simulation.fluid_boundaries(case))
+        fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid, fluid_boundaries(case))
         for _ in range(2)
     ]
     through, restarted = runs
@@ -266,7 +266,7 @@ def test_a_failed_solve_with_a_reused_jacobian_is_repeated_with_fresh_ones(whole
             f"fluid.solver.jacobian_reuse={reuse}",
         )
         solvers[reuse] = fluid.FluidSolver(
-            part.mesh, part.facet_tags, case.fluid, simulation.fluid_boundaries(case)
+            part.mesh, part.facet_tags, case.fluid, fluid_boundaries(case)
         )
     st = next(iter(steps(case.time)))
     results = {reuse: s.step(st.t, st.dt) for reuse, s in solvers.items()}

@@ -20,7 +20,7 @@ from fsi.config import reader as config_reader
 from fsi.numerics.timestepping import steps
 from fsi.output import metrics
 from fsi.physics import fluid, rheology
-from fsi.run import simulation
+from fsi.run import steppers
 from geometry.tags import Boundary
 
 STUDY = {
@@ -55,7 +55,7 @@ def march_channel(
         5e-4, {**fluid_section, "inlet": {"kind": "pressure", "formula": repr(gradient * L)}}
     )
     solver = fluid.FluidSolver(
-        submesh, tags, case.fluid, simulation.fluid_boundaries(case), scheme="bdf2"
+        submesh, tags, case.fluid, steppers.fluid_boundaries(case), scheme="bdf2"
     )
     exact = exact_flow_rate(solver.law, gradient)
     t, late = 0.0, []
@@ -133,7 +133,7 @@ def test_steady_carreau_channel_converges_from_rest():
         5e-4, study_fluid("carreau", inlet={"kind": "pressure", "formula": repr(G * L)})
     )
     solver = fluid.FluidSolver(
-        submesh, tags, case.fluid, simulation.fluid_boundaries(case), scheme="steady"
+        submesh, tags, case.fluid, steppers.fluid_boundaries(case), scheme="steady"
     )
     result = solver.step(1.0, 1.0)
     assert result.converged, result.reason
@@ -168,7 +168,7 @@ def rigid_stenosis(overrides: list[str], times: tuple[float, ...]) -> dict:
     case = config.load(
         STUDY["newtonian"], ["structure.mode=rigid", f"time.end={max(times)}", *overrides]
     )
-    stepper = simulation.RigidStepper(case, MPI.COMM_WORLD)
+    stepper = steppers.RigidStepper(case, MPI.COMM_WORLD)
     solver = stepper.solver
     found = {}
     for step in steps(case.time):
@@ -227,7 +227,7 @@ def test_supg_leaves_poiseuille_flow_exact():
         ),
     )
     solver = fluid.FluidSolver(
-        submesh, tags, case.fluid, simulation.fluid_boundaries(case), scheme="steady"
+        submesh, tags, case.fluid, steppers.fluid_boundaries(case), scheme="steady"
     )
     result = solver.step(1.0, 1.0)
     assert result.converged and result.iterations >= 1, result

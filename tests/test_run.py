@@ -11,7 +11,7 @@ import pytest
 import fsi
 from fsi import cli, config
 from fsi.output import io
-from fsi.run import simulation
+from fsi.run import simulation, stops
 
 SHORT = ["structure.mode=rigid", "time.end=0.004", "time.schedule=[{until: 0.004, dt: 0.001}]"]
 CASE = "configs/stenosis_fixed_newtonian.yaml"
@@ -161,8 +161,9 @@ def test_interface_load_needs_a_structure_and_a_pressure(overrides, expected):
 
 
 class HalfStepOnly:
-    """A stepper whose solve fails for steps longer than ``limit`` (a :class:`simulation.Stepper`
-    as far as :func:`simulation.advance` uses it): its state is the time it has reached."""
+    """A stepper whose solve fails for steps longer than ``limit`` (a
+    :class:`fsi.run.steppers.Stepper` as far as :func:`simulation.advance` uses it): its state is
+    the time it has reached."""
 
     def __init__(self, limit: float):
         self.limit, self.t, self.taken = limit, 0.0, []
@@ -170,7 +171,7 @@ class HalfStepOnly:
     def step(self, step):
         if step.dt > self.limit * (1 + 1e-12):
             self.t = float("nan")  # a failed solve leaves garbage behind
-            raise simulation.StepFailed(f"dt = {step.dt} is too long")
+            raise stops.StepFailed(f"dt = {step.dt} is too long")
         assert step.t - step.dt == pytest.approx(self.t)  # continues from where it is
         self.t = step.t
         self.taken.append(step.dt)
@@ -194,10 +195,10 @@ def test_a_failed_step_is_retried_as_halves_from_the_state_before_it():
     assert [(s.index, s.dt) for s in retried] == [(3, 0.4), (3, 0.2), (3, 0.2)]
     # One retry is not enough: the failure is raised (march then checkpoints the state before).
     stepper = HalfStepOnly(limit=0.1)
-    with pytest.raises(simulation.StepFailed, match="too long"):
+    with pytest.raises(stops.StepFailed, match="too long"):
         simulation.advance(stepper, Step(1, 0.4, 0.4), stepper.state(), 1, [])
     # No retries: the first failure ends it, as before time.retries existed.
-    with pytest.raises(simulation.StepFailed):
+    with pytest.raises(stops.StepFailed):
         simulation.advance(HalfStepOnly(0.1), Step(1, 0.2, 0.2), {"t": np.array(0.0)}, 0, [])
 
 

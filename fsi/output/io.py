@@ -1,5 +1,6 @@
-"""Files: the mesh (XDMF with tags) and its summary, metrics tables (CSV) and field time series
-(XDMF). Physics modules never open files.
+"""Files: the mesh (XDMF with tags) and its summary, metrics tables (CSV), field time series
+(XDMF), ``run.log`` and what ``fsi run`` writes into its folder (:data:`RUN_FILES`; the run owns
+them, fsi/run/outputs.py). Physics modules never open files.
 
 Most files are written by rank 0 alone. A write that fails there (a full disk, a read-only
 folder) must stop every rank, not leave the others waiting in the next collective: writes go
@@ -27,9 +28,8 @@ import dolfinx.fem
 import dolfinx.io
 
 from fsi import compat
+from fsi.output import provenance
 from fsi.physics.mesh import TaggedMesh
-
-log = logging.getLogger("fsi")
 
 log = logging.getLogger("fsi")
 
@@ -411,108 +411,6 @@ class FieldWriter:
         self._xdmf.close()
 
 
-class RunFiles:
-    """The files of ``fsi run`` in ``out`` while it steps: config.yaml, metrics.csv
-    (:class:`MetricsTable`) and a :class:`FieldWriter` per entry of ``field_files`` (file name
-    → (mesh, fields)). Opening makes the folder and deletes an earlier run's files
-    (:data:`RUN_FILES`) or, when ``continuing`` the run restarted from step ``first``, only the
-    field segments after it. Every write is agreed by all ranks (:func:`collectively`): a failure
-    raises :class:`OutputError` on every rank. Collective."""
-
-    def __init__(
-        self,
-        comm: MPI.Comm,
-        out: Path,
-        config_yaml: str,
-        columns: list[str],
-        field_files: dict[str, tuple[object, list]],
-        first: int | None,
-        *,
-        continuing: bool,
-        metrics_source: Path | None,
-    ):
-        self.comm = comm
-
-        def prepare() -> None:
-            out.mkdir(parents=True, exist_ok=True)
-            if continuing:
-                remove_later_segments(out, list(field_files), first)
-            else:
-                remove_run_files(out)
-            (out / "config.yaml").write_text(config_yaml)
-
-        on_rank0(comm, prepare, out)
-        self._log: logging.Handler | None = None
-        on_rank0(comm, lambda: self._start_log(out / "run.log"), out / "run.log")
-        path = out / "metrics.csv"
-        self.table = collectively(
-            comm,
-            lambda: MetricsTable(comm, path, columns, keep_until_step=first, source=metrics_source),
-            path,
-        )
-        self.writers: list[tuple[FieldWriter, list]] = []
-        try:
-            for name, (mesh, fields) in field_files.items():
-                path = out / field_segment(name, first)
-                self.writers.append(
-                    (
-                        collectively(
-                            comm, lambda path=path, mesh=mesh: FieldWriter(comm, path, mesh), path
-                        ),
-                        fields,
-                    )
-                )
-        except OutputError:
-            self.close()
-            raise
-
-    def _start_log(self, path: Path) -> None:
-        """``run.log``: what the progress lines and warnings say (rank 0's log), appended to
-        by a restart that continues the run."""
-        handler = logging.FileHandler(path, mode="a", encoding="utf-8")
-        handler.setFormatter(logging.Formatter("%(asctime)s %(message)s", "%Y-%m-%d %H:%M:%S"))
-        handler.setLevel(logging.INFO)
-        from fsi.output import provenance
-
-        with path.open("a", encoding="utf-8") as f:
-            describe = provenance.describe()
-            f.write(
-                f"{time.strftime('%Y-%m-%d %H:%M:%S')} {provenance.version_line()}: "
-                f"{describe['command']}\n"
-            )
-        log.addHandler(handler)
-        self._log = handler
-
-    @property
-    def kept(self) -> list[dict]:
-        """The metrics rows kept from before a restart (:attr:`MetricsTable.kept`)."""
-        return self.table.kept
-
-    def write_row(self, row: dict) -> None:
-        on_rank0(self.comm, lambda: self.table.write(row), self.table.path)
-
-    def write_fields(self, t: float) -> None:
-        for writer, fields in self.writers:
-            collectively(self.comm, lambda w=writer, f=fields: w.write(t, f), writer.path)
-
-    def close(self) -> None:
-        """Close every file; a failure is only logged (each row was flushed when written). The
-        run's last words (why it stopped, fsi/cli.py) are added by :func:`append_to_log`."""
-        if self._log is not None:
-            log.removeHandler(self._log)
-            self._log.close()
-            self._log = None
-        for close, path in [
-            (self.table.close, self.table.path),
-            *[(w.close, w.path) for w, _ in self.writers],
-        ]:
-            try:
-                collectively(self.comm, close, path)
-            except OutputError as e:  # raised on every rank: said once
-                if self.comm.rank == 0:
-                    log.warning("fsi: %s", e)
-
-
 SPACE_MARGIN = 64 * 1024
 """Bytes kept free beyond what a write needs (:func:`ensure_space`)."""
 
@@ -535,6 +433,30 @@ RUN_FILES = (
 )
 """What ``fsi run`` writes into its ``--out`` folder (glob patterns); ``--overwrite`` deletes
 these and nothing else."""
+
+
+def start_log(path: Path) -> logging.Handler:
+    """Start ``path`` (``run.log``; appended to by a restart that continues the run): a line
+    with the versions and the command line, then what the ``fsi`` logger says (the progress
+    lines, warnings; INFO and above) until :func:`stop_log` with the handler returned. Rank 0
+    alone."""
+    with path.open("a", encoding="utf-8") as f:
+        describe = provenance.describe()
+        f.write(
+            f"{time.strftime('%Y-%m-%d %H:%M:%S')} {provenance.version_line()}: "
+            f"{describe['command']}\n"
+        )
+    handler = logging.FileHandler(path, mode="a", encoding="utf-8")
+    handler.setFormatter(logging.Formatter("%(asctime)s %(message)s", "%Y-%m-%d %H:%M:%S"))
+    handler.setLevel(logging.INFO)
+    log.addHandler(handler)
+    return handler
+
+
+def stop_log(handler: logging.Handler) -> None:
+    """The end of :func:`start_log`'s logging into ``run.log``."""
+    log.removeHandler(handler)
+    handler.close()
 
 
 def append_to_log(out: Path, lines: list[str]) -> None:

@@ -1,5 +1,5 @@
 """Checkpoints of ``fsi run``: the files. The state itself comes from the run's stepper
-(:meth:`fsi.run.simulation.Stepper.state`) as named numpy arrays of its local dofs, with a
+(:meth:`fsi.run.steppers.Stepper.state`) as named numpy arrays of its local dofs, with a
 :class:`Layout` for each distributed array; this module writes, finds, reads and redistributes
 them, and opens nothing else.
 
@@ -55,11 +55,11 @@ FORMAT = 1
 DIRECTORY, PARTIAL, PREVIOUS = "checkpoint", "checkpoint.partial", "checkpoint.previous"
 METADATA = "checkpoint.json"
 VARIABLE = ("coupling.", "predictor.", "counters.", "fluid.outlet_state")
-ADDED = ("wall_indices.",)
-"""Groups of state arrays added after checkpoints were first written: a checkpoint without
-them still restarts (the stepper starts those from the restart; fsi.run.simulation.FluidOutputs)."""
 """Groups of state arrays whose number and shape may change between runs (accelerations,
 predictor order, counters); every other array of a fresh stepper's state must be restored."""
+ADDED = ("wall_indices.",)
+"""Groups of state arrays added after checkpoints were first written: a checkpoint without
+them still restarts (the stepper starts those from the restart; fsi.run.steppers.FluidOutputs)."""
 MATCH_TOLERANCE = 1e-9
 """Keys match within this fraction of the extent of the stored keys (they are equal bit for bit
 when the mesh is the same; 1e-9 of a 2 cm artery is 20 pm, far below any mesh size)."""
