@@ -68,6 +68,11 @@ def flow_rate(solver: fluid.FluidSolver, tag: int) -> float:
     return metrics.flow_rate(solver.u, solver.facet_tags, [tag])
 
 
+def _walls(solver: fluid.FluidSolver) -> metrics.WallFlow:
+    """The solution of ``solver`` on the channel's walls."""
+    return metrics.WallFlow(solver.u, solver.p, solver.law, solver.facet_tags, [WALL])
+
+
 def pressure_driven(size: float, rheology_section: dict, gradient: float):
     """Fully developed flow driven by Δp = G L between do-nothing inlet and outlet, which the
     fully developed profile satisfies exactly. ρ = 1: the profile does not depend on ρ, and a
@@ -252,7 +257,7 @@ def test_newtonian_poiseuille_is_exact(drive):
     assert np.abs(t[:, 1] - outward * G * (L - xw[:, 0])).max() < 1e-9 * G * L
     assert solver.comm.allreduce(int(inner.sum())) > 0
 
-    wss = metrics.wall_shear_stress(solver.u, solver.p, solver.law, tags, [WALL])
+    wss = metrics.wall_shear_stress(metrics.WallFlow(solver.u, solver.p, solver.law, tags, [WALL]))
     assert len(wss.tau) == 2 * submesh.comm.allreduce(  # two Gauss points per facet
         int(
             np.count_nonzero(
@@ -271,7 +276,7 @@ def test_newtonian_poiseuille_is_exact(drive):
 def test_reversed_poiseuille_has_negative_wall_shear_stress():
     G, H = 1.0, 0.007
     _, solver = pressure_driven(1e-3, {"model": "newtonian"}, -G)
-    wss = metrics.wall_shear_stress(solver.u, solver.p, solver.law, solver.facet_tags, [WALL])
+    wss = metrics.wall_shear_stress(_walls(solver))
     assert np.allclose(wss.tau, -G * H / 2, rtol=1e-9, atol=0)
     assert metrics.recirculation_zones(wss.s, wss.tau) == [(wss.s[0], wss.s[-1])]
 
@@ -286,7 +291,7 @@ def test_output_fields_on_poiseuille_flow(G):
     H, L = 0.007, 0.02
     _, solver = pressure_driven(1e-3, {"model": "newtonian"}, G)
     mu = solver.law.viscosity
-    fields = metrics.FluidFields(solver.u, solver.p, solver.law, solver.facet_tags, [WALL])
+    fields = metrics.FluidFields(_walls(solver))
     fields.update()
     tau = fields.wall_shear_stress
     x = tau.function_space.tabulate_dof_coordinates()
@@ -299,9 +304,7 @@ def test_output_fields_on_poiseuille_flow(G):
     assert np.abs(fields.shear_rate.x.array - exact).max() < 1e-6 * abs(G) * H / mu
     assert np.all(fields.viscosity.x.array == mu)
 
-    summary = metrics.wall_shear_summary(
-        metrics.wall_shear_stress(solver.u, solver.p, solver.law, solver.facet_tags, [WALL])
-    )
+    summary = metrics.wall_shear_summary(metrics.wall_shear_stress(_walls(solver)))
     assert summary["min_wss"] == pytest.approx(G * H / 2, rel=1e-9)
     assert summary["max_wss"] == pytest.approx(G * H / 2, rel=1e-9)
     if G > 0:
@@ -312,7 +315,7 @@ def test_output_fields_on_poiseuille_flow(G):
 
 def test_carreau_viscosity_field_is_the_law_of_the_shear_rate_field():
     _, solver = pressure_driven(1e-3, {"model": "carreau"}, 100.0)
-    fields = metrics.FluidFields(solver.u, solver.p, solver.law, solver.facet_tags, [WALL])
+    fields = metrics.FluidFields(_walls(solver))
     fields.update()
     s = fields.shear_rate.x.array
     assert s.max() > 10 * s.min()  # a real range of shear rates
@@ -321,7 +324,7 @@ def test_carreau_viscosity_field_is_the_law_of_the_shear_rate_field():
 
 def test_lumen_sides_split_samples_by_their_normal():
     _, solver = pressure_driven(1e-3, {"model": "newtonian"}, 1.0)
-    wss = metrics.wall_shear_stress(solver.u, solver.p, solver.law, solver.facet_tags, [WALL])
+    wss = metrics.wall_shear_stress(_walls(solver))
     sides = metrics.lumen_sides(wss)
     assert np.all(np.abs(sides["bottom"].x[:, 1]) < 1e-12)
     assert np.all(np.abs(sides["top"].x[:, 1] - 0.007) < 1e-12)
@@ -814,7 +817,8 @@ def turek_hron_forces(name: str, mean_velocity: float, level: str = "coarse"):
     assert result.converged, result
     residual_based = solver.boundary_force(wetted)
     surface = metrics.surface_force(
-        solver.u, solver.p, solver.law, tags, wetted, case.fluid.quadrature_degree
+        metrics.WallFlow(solver.u, solver.p, solver.law, tags, wetted),
+        case.fluid.quadrature_degree,
     )
     return residual_based, surface, result
 

@@ -67,6 +67,32 @@ def nodal_value(f: dolfinx.fem.Function, point: Sequence[float]) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class WallFlow:
+    """A fluid solution at tagged boundary facets of its mesh (the walls, or a body's
+    surface): the velocity ``u``, the pressure ``p`` and the viscosity ``law``, whose Cauchy
+    stress σ = −p I + 2 μ(s(u)) D(u) (:meth:`stress`) the wall quantities read, and the facets
+    ``tags`` of ``facet_tags``."""
+
+    u: dolfinx.fem.Function
+    p: dolfinx.fem.Function
+    law: rheology.ViscosityLaw
+    facet_tags: dolfinx.mesh.MeshTags
+    tags: Sequence[int]
+
+    @property
+    def mesh(self) -> dolfinx.mesh.Mesh:
+        return self.u.function_space.mesh
+
+    def stress(self) -> ufl.core.expr.Expr:
+        """σ(u, p) as a UFL expression."""
+        return rheology.cauchy_stress(self.u, self.p, self.law)
+
+    def measure(self, quadrature_degree: int) -> ufl.Measure:
+        """ds over the facets ``tags``, at ``quadrature_degree``."""
+        return boundary_measure(self.mesh, self.facet_tags, self.tags, quadrature_degree)
+
+
+@dataclass(frozen=True)
 class WallShearStress:
     """Samples along a wall (gathered on every rank), ordered by ``s``, the position along the
     flow ``direction``: points ``x`` (n, 2), ``tau`` the signed wall shear stress (Pa),
@@ -96,10 +122,10 @@ def _facet_points() -> np.ndarray:
 
 class WallSampler:
     """The wall shear stress τ_w = t·(σ n) at two Gauss points of every facet of the walls
-    ``tags`` that this rank owns, always in the same order: this rank's wall facets in facet-tag
-    order, two points each. The Gauss points are fixed in the reference cell, so on a moving
-    mesh (affine cells) each sample stays at the same fraction of its facet: it follows the
-    same material wall point.
+    ``flow.tags`` that this rank owns, always in the same order: this rank's wall facets in
+    facet-tag order, two points each. The Gauss points are fixed in the reference cell, so on a
+    moving mesh (affine cells) each sample stays at the same fraction of its facet: it follows
+    the same material wall point.
 
     ``n`` is the wall's unit normal pointing into the fluid, so σ n is the traction the blood
     exerts on the wall, and ``t`` the unit tangent with t·direction ≥ 0: τ_w > 0 where the flow
@@ -111,22 +137,14 @@ class WallSampler:
     local sample's facet tag, ``reference`` its coordinates when the sampler was built (the
     reference configuration if built before the mesh moves), both (size,) and (size, 2)."""
 
-    def __init__(
-        self,
-        u: dolfinx.fem.Function,
-        p: dolfinx.fem.Function,
-        law: rheology.ViscosityLaw,
-        facet_tags: dolfinx.mesh.MeshTags,
-        tags: Sequence[int],
-        direction: Sequence[float] = (1.0, 0.0),
-    ):
-        mesh = u.function_space.mesh
+    def __init__(self, flow: WallFlow, direction: Sequence[float] = (1.0, 0.0)):
+        mesh, facet_tags = flow.mesh, flow.facet_tags
         self.mesh, self.comm = mesh, mesh.comm
         tdim = mesh.topology.dim
         fdim = tdim - 1
         mesh.topology.create_connectivity(fdim, tdim)
         mesh.topology.create_connectivity(tdim, fdim)
-        chosen = np.isin(facet_tags.values, [int(t) for t in tags])
+        chosen = np.isin(facet_tags.values, [int(t) for t in flow.tags])
         facets, values = facet_tags.indices[chosen], facet_tags.values[chosen]
         owned = facets < mesh.topology.index_map(fdim).size_local
         self.facets = facets[owned].astype(np.int32)
@@ -139,7 +157,7 @@ class WallSampler:
         )
         self._rows = np.stack([2 * local_facet, 2 * local_facet + 1], axis=1)  # (nf, 2)
         x = ufl.SpatialCoordinate(mesh)
-        sigma = rheology.cauchy_stress(u, p, law)
+        sigma = flow.stress()
         values_at = ufl.as_vector([sigma[0, 0], sigma[0, 1], sigma[1, 0], sigma[1, 1], x[0], x[1]])
         self._expression = dolfinx.fem.Expression(values_at, _facet_points())
         self._direction = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
@@ -189,18 +207,11 @@ class WallSampler:
         return WallShearStress(s[order], points[order], tau[order], normal[order])
 
 
-def wall_shear_stress(
-    u: dolfinx.fem.Function,
-    p: dolfinx.fem.Function,
-    law: rheology.ViscosityLaw,
-    facet_tags: dolfinx.mesh.MeshTags,
-    tags: Sequence[int],
-    direction: Sequence[float] = (1.0, 0.0),
-) -> WallShearStress:
-    """τ_w = t·(σ n) at two Gauss points of every facet of the walls ``tags``, gathered on
+def wall_shear_stress(flow: WallFlow, direction: Sequence[float] = (1.0, 0.0)) -> WallShearStress:
+    """τ_w = t·(σ n) at two Gauss points of every facet of the walls ``flow.tags``, gathered on
     every rank and ordered by ``s`` (:class:`WallSampler`, built for this one call: a loop
     keeps a sampler instead). Collective."""
-    return WallSampler(u, p, law, facet_tags, tags, direction).gather()
+    return WallSampler(flow, direction).gather()
 
 
 def lumen_sides(wss: WallShearStress) -> dict[str, WallShearStress]:
@@ -368,20 +379,12 @@ def boundary_measure(
     return sum((ds(t) for t in tags[1:]), ds(tags[0]))
 
 
-def surface_force(
-    u: dolfinx.fem.Function,
-    p: dolfinx.fem.Function,
-    law: rheology.ViscosityLaw,
-    facet_tags: dolfinx.mesh.MeshTags,
-    tags: Sequence[int],
-    quadrature_degree: int = 4,
-) -> np.ndarray:
-    """(F_x, F_y) = ∫ σ n_b ds over ``tags``, the force of the fluid on a body whose outward
+def surface_force(flow: WallFlow, quadrature_degree: int = 4) -> np.ndarray:
+    """(F_x, F_y) = ∫ σ n_b ds over ``flow.tags``, the force of the fluid on a body whose outward
     normal n_b = −n points into the fluid (Turek–Hron's drag and lift, N/m). The residual-based
     :meth:`fsi.physics.fluid.FluidSolver.boundary_force` is the more accurate variant."""
-    mesh = u.function_space.mesh
-    measure = boundary_measure(mesh, facet_tags, tags, quadrature_degree)
-    traction = -rheology.cauchy_stress(u, p, law) * ufl.FacetNormal(mesh)
+    mesh, measure = flow.mesh, flow.measure(quadrature_degree)
+    traction = -flow.stress() * ufl.FacetNormal(mesh)
     force = [
         dolfinx.fem.assemble_scalar(dolfinx.fem.form(traction[i] * measure))
         for i in range(mesh.geometry.dim)
@@ -489,8 +492,8 @@ def viscosity_field(
 
 class FluidFields:
     """The shear rate s(u) (1/s), the effective viscosity μ(s) (Pa s) and the signed wall shear
-    stress τ_w (Pa) of a fluid solution as fields for output; :meth:`update` recomputes them in
-    place (also on a moved mesh).
+    stress τ_w (Pa) on the walls ``flow.tags`` of a fluid solution as fields for output;
+    :meth:`update` recomputes them in place (also on a moved mesh).
 
     s and μ are cell values (DG0, at each cell's midpoint). τ_w is a P1 field that is zero off the
     walls: at a wall vertex i, τ_i = ∫_Γ τ_w φ_i ds / ∫_Γ φ_i ds (the lumped L² projection onto
@@ -498,22 +501,14 @@ class FluidFields:
     tangent with t·e_x ≥ 0, the sign convention of :func:`wall_shear_stress`.
     """
 
-    def __init__(
-        self,
-        u: dolfinx.fem.Function,
-        p: dolfinx.fem.Function,
-        law: rheology.ViscosityLaw,
-        facet_tags: dolfinx.mesh.MeshTags,
-        walls: Sequence[int],
-        quadrature_degree: int = 2,
-    ):
-        mesh = u.function_space.mesh
+    def __init__(self, flow: WallFlow, quadrature_degree: int = 2):
+        mesh = flow.mesh
         cells = compat.function_space(mesh, "DG", 0)
         self.shear_rate = dolfinx.fem.Function(cells, name="shear_rate")
         self.viscosity = dolfinx.fem.Function(cells, name="viscosity")
         points = compat.interpolation_points(cells)
-        s = rheology.shear_rate(u)
-        mu = law.mu(s)
+        s = rheology.shear_rate(flow.u)
+        mu = flow.law.mu(s)
         self._expressions = [(self.shear_rate, dolfinx.fem.Expression(s, points))]
         if isinstance(mu, ufl.constantvalue.ConstantValue):  # Newtonian: set once
             self.viscosity.x.array[:] = float(mu)
@@ -522,11 +517,11 @@ class FluidFields:
         self.wall_shear_stress = dolfinx.fem.Function(
             compat.function_space(mesh, "Lagrange", 1), name="wall_shear_stress"
         )
-        on_walls = boundary_measure(mesh, facet_tags, walls, quadrature_degree)
+        on_walls = flow.measure(quadrature_degree)
         n = ufl.FacetNormal(mesh)
         along = ufl.as_vector((n[1], -n[0]))
         t = ufl.conditional(ufl.ge(along[0], 0.0), 1.0, -1.0) * along
-        tau = -ufl.dot(t, ufl.dot(rheology.cauchy_stress(u, p, law), n))
+        tau = -ufl.dot(t, ufl.dot(flow.stress(), n))
         v = ufl.TestFunction(self.wall_shear_stress.function_space)
         self._weighted = dolfinx.fem.form(tau * v * on_walls)
         self._mass = dolfinx.fem.form(v * on_walls)

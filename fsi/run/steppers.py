@@ -227,12 +227,9 @@ class FluidOutputs:
             + list(self.pressures)
             + list(solver.outlet_values())
         )
-        self.derived = metrics.FluidFields(
-            solver.u, solver.p, solver.law, solver.facet_tags, self.walls
-        )
-        self.sampler = metrics.WallSampler(
-            solver.u, solver.p, solver.law, solver.facet_tags, self.walls
-        )
+        flow = metrics.WallFlow(solver.u, solver.p, solver.law, solver.facet_tags, self.walls)
+        self.derived = metrics.FluidFields(flow)
+        self.sampler = metrics.WallSampler(flow)
         self.indices = metrics.WallIndices(self.sampler.size, time=solver.time)
         self.period = config.heartbeat_period(case)
         self.past: list[metrics.WallIndices] = []  # heartbeats 1, 2, ... before self.indices'
