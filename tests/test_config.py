@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 from fsi import cli, config
-from fsi.config import reader as config_reader
+from fsi.config import reader
 
 CONFIGS = sorted((Path(__file__).parents[1] / "configs").glob("*.yaml"))
 
@@ -154,7 +154,7 @@ def test_yaml_keys_mirror_the_dataclasses():
 
 def test_scientific_notation_without_a_dot_is_a_number():
     # PyYAML follows YAML 1.1, where a plain 4e6 is a string; the loader reads YAML 1.2 floats.
-    case = config.from_dict(config_reader.parse_yaml("structure: {wall: {young_modulus: 4e6}}"))
+    case = config.from_dict(reader.parse_yaml("structure: {wall: {young_modulus: 4e6}}"))
     assert case.structure.wall.young_modulus == 4.0e6
 
 

@@ -12,8 +12,7 @@ from mpi4py import MPI
 import pytest
 
 from fsi import cli, config
-from fsi.config import boundary_data, petsc_options, run_size
-from fsi.config import reader as config_reader
+from fsi.config import boundary_data, petsc_options, reader, run_size
 from fsi.numerics.timestepping import steps
 
 ROOT = Path(__file__).parents[1]
@@ -273,7 +272,7 @@ def test_binary_and_non_utf8_files_exit_2_naming_the_file(shared_tmp, capsys):
 
 
 def test_a_file_over_1_mib_is_refused_unread(shared_tmp, capsys):
-    path = write(shared_tmp / "big.yaml", "#" * config_reader.MAX_FILE_BYTES + "\n")
+    path = write(shared_tmp / "big.yaml", "#" * reader.MAX_FILE_BYTES + "\n")
     assert_refused(*cli_error(capsys, "check", str(path)), str(path), "", "larger than 1048576")
 
 

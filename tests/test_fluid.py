@@ -13,7 +13,7 @@ import pytest
 import ufl
 
 from fsi import compat, config
-from fsi.config import reader as config_reader
+from fsi.config import reader
 from fsi.numerics import newton
 from fsi.output import metrics
 from fsi.physics import fluid, mesh, rheology
@@ -194,7 +194,7 @@ def test_inlet_pressure_laws():
 )
 def test_bad_inlet_is_refused_naming_the_key(text, key, expected):
     with pytest.raises(config.ConfigError) as error:
-        config.from_dict(config_reader.parse_yaml(f"fluid: {{inlet: {text}}}"), "case.yaml")
+        config.from_dict(reader.parse_yaml(f"fluid: {{inlet: {text}}}"), "case.yaml")
     assert error.value.key == key and expected in str(error.value), str(error.value)
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from fsi import cli, config
-from fsi.config import reader as config_reader
+from fsi.config import reader
 from fsi.output import io
 from fsi.physics import fluid
 
@@ -202,9 +202,9 @@ def test_a_periodic_inline_table_must_cover_its_period():
         match=r"case.yaml: fluid.inlet.period: "
         r"fluid.inlet.table cover t in \[0, 0.5\] s",
     ):
-        config.from_dict(config_reader.parse_yaml(f"fluid: {{inlet: {inlet}}}"), "case.yaml")
+        config.from_dict(reader.parse_yaml(f"fluid: {{inlet: {inlet}}}"), "case.yaml")
     periodic = config.from_dict(
-        config_reader.parse_yaml(
+        reader.parse_yaml(
             "fluid: {inlet: {kind: pressure_table, table: [[0, 1], [0.5, 2]], period: 0.5}}"
         )
     )

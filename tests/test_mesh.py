@@ -9,7 +9,7 @@ import pytest
 from mesh_checks import boundary_vertices
 
 from fsi import cli, compat, config
-from fsi.config import reader as config_reader
+from fsi.config import reader
 from fsi.physics import mesh
 from geometry import stenosis
 from geometry.tags import STRUCTURE_REGIONS, Boundary, Region
@@ -114,7 +114,7 @@ def test_plaque_on_the_top_or_both_sides(sides):
 
 def test_channel_mesh():
     case = config.from_dict(
-        config_reader.parse_yaml(
+        reader.parse_yaml(
             "geometry: {kind: channel, length: 0.02, height: 0.007}\nstructure: {mode: rigid}"
         )
     )

@@ -16,7 +16,7 @@ import pytest
 from test_fluid import carreau_flow_rate_1d, channel
 
 from fsi import config
-from fsi.config import reader as config_reader
+from fsi.config import reader
 from fsi.numerics.timestepping import steps
 from fsi.output import metrics
 from fsi.physics import fluid, rheology
@@ -33,7 +33,7 @@ L, H = 0.02, 0.007  # the channel (configs/channel_poiseuille.yaml)
 
 def study_fluid(rheology: str, **changes) -> dict:
     """The fluid section of the study config with ``rheology``, with ``changes``."""
-    fluid_section = config_reader.parse_yaml(open(STUDY[rheology]).read())["fluid"]
+    fluid_section = reader.parse_yaml(open(STUDY[rheology]).read())["fluid"]
     return {**fluid_section, **changes}
 
 

@@ -11,7 +11,7 @@ import pytest
 import ufl
 
 from fsi import compat, config
-from fsi.config import reader as config_reader
+from fsi.config import reader
 from fsi.output import metrics
 from fsi.physics import rheology
 
@@ -155,7 +155,7 @@ def test_shear_rate_is_regularised_at_rest():
 )
 def test_bad_rheology_is_refused_naming_the_key(text, key, expected):
     with pytest.raises(config.ConfigError) as error:
-        config.from_dict(config_reader.parse_yaml(f"fluid: {{rheology: {text}}}"), "case.yaml")
+        config.from_dict(reader.parse_yaml(f"fluid: {{rheology: {text}}}"), "case.yaml")
     assert error.value.key == key and expected in str(error.value)
     assert str(error.value).startswith(f"case.yaml: {key}: expected")
 

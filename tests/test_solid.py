@@ -23,8 +23,7 @@ import pytest
 import ufl
 
 from fsi import compat, config
-from fsi.config import Material, SolverSettings
-from fsi.config import reader as config_reader
+from fsi.config import Material, SolverSettings, reader
 from fsi.numerics.timestepping import NewmarkFamily, steps
 from fsi.physics import materials, mesh, solid
 from fsi.run import steppers
@@ -156,7 +155,7 @@ def value_at_point(V, f: dolfinx.fem.Function, point) -> np.ndarray:
 )
 def test_structure_config_errors_name_the_key(text, key, words):
     with pytest.raises(config.ConfigError) as error:
-        config.from_dict(config_reader.parse_yaml(text), "case.yaml")
+        config.from_dict(reader.parse_yaml(text), "case.yaml")
     assert error.value.key == key
     assert words in str(error.value) and str(error.value).startswith("case.yaml: ")
 
@@ -168,7 +167,7 @@ def test_structure_config_defaults_and_partial_materials():
     assert (s.flag.density, s.flag.young_modulus, s.flag.poisson_ratio) == (1000, 1.4e6, 0.4)
     # A partial mapping keeps the region's own defaults (not the plaque's).
     s = config.from_dict(
-        config_reader.parse_yaml(
+        reader.parse_yaml(
             "structure: {wall: {density: 1100}, flag: {young_modulus: 5.6e6},"
             " time_integration: {scheme: newmark}, body_force: [0, -2]}"
         )
@@ -185,7 +184,7 @@ def test_structure_config_defaults_and_partial_materials():
     )
     assert (s.support.stiffness, s.support.damping) == (0.0, 0.0)
     case = config.from_dict(
-        config_reader.parse_yaml(
+        reader.parse_yaml(
             "structure: {wall: {viscous_relaxation_time: 3.0e-4}, support: {damping: 100}}"
         )
     )

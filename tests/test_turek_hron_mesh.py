@@ -10,7 +10,7 @@ import pytest
 from mesh_checks import boundary_vertices
 
 from fsi import cli, compat, config
-from fsi.config import reader as config_reader
+from fsi.config import reader
 from fsi.physics import mesh
 from geometry import turek_hron
 from geometry.tags import Boundary, Region
@@ -198,7 +198,7 @@ def test_benchmark_configs_are_valid(path):
 ])  # fmt: skip
 def test_invalid_geometry_is_rejected(text, key, expected):
     with pytest.raises(config.ConfigError) as e:
-        config.from_dict(config_reader.parse_yaml(text + "\nstructure: {mode: rigid}"))
+        config.from_dict(reader.parse_yaml(text + "\nstructure: {mode: rigid}"))
     assert e.value.key == key and expected in e.value.expected
 
 

@@ -46,7 +46,7 @@ import yaml
 
 import fsi
 from fsi import compat, config
-from fsi.config import reader as config_reader
+from fsi.config import reader
 from fsi.output import io
 
 log = logging.getLogger("fsi")
@@ -488,7 +488,7 @@ class Checkpoint:
         change them, but the fluid mesh is then re-extended at the first step and its mesh
         velocity (and so the forces of that step) carries the jump."""
         try:
-            written = config_reader.parse_yaml((self.run_dir / "config.yaml").read_text())
+            written = reader.parse_yaml((self.run_dir / "config.yaml").read_text())
             before = written["mesh_motion"]
         except (OSError, ValueError, KeyError, TypeError, yaml.YAMLError):
             return []
