@@ -15,9 +15,11 @@ its LU factorisation: a reused iteration costs one residual assembly and one pai
 solves instead of an assembly, a factorisation and the solves.
 
 With ``step`` the path of a step depends only on the state at its start, so a run restarted
-from a checkpoint repeats the uninterrupted run's arithmetic; with ``run`` the restarted run
-starts with a fresh Jacobian where the uninterrupted one had an older Jacobian (the same answer
-to the solver's tolerance, not to the bit).
+from a checkpoint repeats the uninterrupted run's arithmetic. With ``run`` that holds for the
+checkpoints after which every run drops its kept Jacobian (:meth:`NewtonCallbacks.forget`;
+``fsi run`` does so at its periodic checkpoints, fsi/run/simulation.py); from any other state
+the restarted run starts with a fresh Jacobian where the uninterrupted one had an older one (the
+same answer to the solver's tolerance, not to the bit).
 
 Only the path changes, not the answer: the solver's own stopping test (dolfinx's: |F(x_k)|, or
 the increment |δx_k|, below ``atol`` or below ``rtol`` times the first increment |δx_1|) decides
@@ -90,6 +92,11 @@ class NewtonCallbacks:
         self.problem.J(x, A)
         self.jacobian_assemblies += 1
         self._have_jacobian = True
+
+    def forget(self) -> None:
+        """Drop the kept Jacobian: the next Jacobian call assembles (and the solve factorises)
+        anew, as a solver built at this point would."""
+        self._have_jacobian = False
 
     def _contracting(self) -> bool:
         """The last iteration (if any in this solve) reduced |F| by at least ``max_rate``."""

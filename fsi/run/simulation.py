@@ -93,7 +93,9 @@ def march(
     another), from t = 0 or after ``restart``'s step k: each step's row and fields go to the
     run's files (:class:`fsi.run.outputs.RunOutputs`, opened once; ``summary.json`` once every
     step is done), its state to the checkpoints (:class:`_Checkpoints`: every
-    ``output.checkpoint_every`` steps, at the end and when the run stops early). ``start`` is
+    ``output.checkpoint_every`` steps, at the end and when the run stops early); after each
+    periodic checkpoint the solvers drop the Jacobians they keep across steps, so a restart from
+    it repeats this run's arithmetic (:meth:`Stepper.forget_jacobians`). ``start`` is
     the wall clock (``time.perf_counter``) when the run began. With ``restart`` the
     checkpoint's arrays are placed on this run's dofs and checked
     (:func:`fsi.run.checkpoint.localize`) before any file is touched, then loaded.
@@ -125,6 +127,8 @@ def march(
                 final = step.index == last
                 outputs.write_step(row, final)
                 saved.after(_Snapshot(step.index, step.t, step.dt, stepper.state()), final)
+                if step.index % case.output.checkpoint_every == 0:
+                    stepper.forget_jacobians()  # restarts from these checkpoints stay exact
                 taken += 1
                 _report_progress(stepper, row, last, (wallclock.perf_counter() - start) / taken)
                 _stop_if_requested(comm, stop_requested, final)

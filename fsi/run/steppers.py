@@ -171,6 +171,10 @@ class Stepper(Protocol):
         """Continue from :meth:`state`'s arrays (on this run's dofs, :func:`fsi.run.checkpoint.
         localize`); the output fields are brought up to date."""
 
+    def forget_jacobians(self) -> None:
+        """Drop the Jacobians the solvers keep across steps (``solver.jacobian_reuse: run``), so
+        the next step goes on as one restarted from :meth:`state` would."""
+
 
 # --------------------------------------------------------------------------------------------
 # Fluid outputs shared by the rigid and the coupled runs
@@ -456,6 +460,9 @@ class RigidStepper:
     def field_files(self) -> dict[str, tuple[object, list]]:
         return {"fields.xdmf": (self.part.mesh, self.outputs.fields)}
 
+    def forget_jacobians(self) -> None:
+        self.solver.newton.callbacks.forget()
+
     def step(self, step: Step) -> dict:
         solver = self.solver
         result = solver.step(step.t, step.dt)
@@ -546,6 +553,10 @@ class CoupledStepper:
                 [p.solid.eta, *p.solid.stress.cell_fields.values()],
             ),
         }
+
+    def forget_jacobians(self) -> None:
+        self.problem.fluid.newton.callbacks.forget()
+        self.problem.solid.newton.callbacks.forget()
 
     def step(self, step: Step) -> dict:
         p = self.problem
@@ -682,6 +693,9 @@ class StructureStepper:
     def field_files(self) -> dict[str, tuple[object, list]]:
         s = self.solver
         return {"solid.xdmf": (s.domain.mesh, [s.eta, *s.stress.cell_fields.values()])}
+
+    def forget_jacobians(self) -> None:
+        self.solver.newton.callbacks.forget()
 
     def step(self, step: Step) -> dict:
         s = self.solver
