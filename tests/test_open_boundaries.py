@@ -128,9 +128,9 @@ def test_pressure_driven_channel_reaches_the_exact_flow_rate_and_stays(rheology)
 def steady_carreau_channel(gradient: float, jacobian_reuse: str):
     """The study's Carreau fluid section (with ``jacobian_reuse``) in the channel under
     ``gradient`` (Pa/m), solved steadily by one Newton solve from rest. Returns the result, the
-    solver, and ``polish``: the outlet flow rate relative to the 1D quadrature's minus 1, and a
-    function that solves again with a fresh Jacobian at every iteration from the solution found
-    (on the same mesh) and returns that result and relative flow rate."""
+    outlet flow rate relative to the 1D quadrature's minus 1, and ``polish``: a function that
+    solves again from the solution found, on the same mesh, with a fresh Jacobian at every
+    iteration, and returns that result and relative flow rate."""
     section = study_fluid("carreau", inlet={"kind": "pressure", "formula": repr(gradient * L)})
     section["solver"] = {**section["solver"], "jacobian_reuse": jacobian_reuse}
     case, submesh, tags = channel(5e-4, section)
@@ -165,10 +165,10 @@ def test_steady_carreau_channel_converges_from_rest():
     answer is a root, not an early stop: plain Newton started from it stays there (0.3 on
     0.5.2: residual 6e-9 → 1.5e-12 → 1.7e-16 N/m, the flow rate unchanged to 1e-15; 0.7,
     stopped at 8.7e-8 N/m: the flow rate moves by 3.6e-7; 0.3 on 0.9, stopped at 3.8e-8 N/m:
-    1.2e-5). With the inflow stabilization β = 1
-    every path reaches the same, unique root, 79 % low (why the study does without it). The
-    study marches instead, and there the time derivative makes each step's root unique: the
-    marched channel above holds 0.5 % with the study's kept Jacobian.
+    1.2e-5). With the inflow stabilization β = 1 every path reaches the same, unique root, 79 %
+    low (why the study does without it). The study marches instead, and there the time
+    derivative makes each step's root unique: the marched channel above holds 0.5 % with the
+    study's kept Jacobian.
 
     So: the kept Jacobian converges from rest to a root (plain Newton from it takes at most 2
     iterations and moves the flow rate by < 1e-4, 30 times less than the nearest roots measured
