@@ -36,11 +36,11 @@ from fsi.run import checkpoint, simulation
 
 RIGID = "configs/stenosis_fixed_newtonian.yaml"
 COUPLED = "configs/stenosis_moving_newtonian.yaml"
-# BDF2 with dt 1 ms then 0.5 ms: the restart after step 2 needs dt_previous and u^{n-1}.
 # A checkpoint after every step: the configs keep their Jacobians across steps
 # (``jacobian_reuse: run``) and drop them at every periodic checkpoint, so a restart from any
 # step is exact (test_a_restart_from_a_periodic_checkpoint_is_exact covers a longer period).
 EVERY_STEP = "output.checkpoint_every=1"
+# BDF2 with dt 1 ms then 0.5 ms: the restart after step 2 needs dt_previous and u^{n-1}.
 RIGID_SET = [
     "structure.mode=rigid",
     "time.schedule=[{until: 0.002, dt: 0.001}, {until: 0.004, dt: 0.0005}]",
@@ -199,7 +199,7 @@ def test_checkpoints_every_n_steps_and_at_the_end(shared_tmp, monkeypatch):
     assert summary(out)["checkpoint"] == str(out / "checkpoint")
 
 
-def test_a_restart_from_a_periodic_checkpoint_is_exact(rigid, shared_tmp):
+def test_a_restart_from_a_periodic_checkpoint_is_exact(shared_tmp):
     """With ``jacobian_reuse: run`` (the configs') the solvers keep their Jacobians across steps
     and drop them at every periodic checkpoint (here every 3 steps): restarted from step 3's
     checkpoint the run continues bit for bit like the uninterrupted one. From step 2's (the end
