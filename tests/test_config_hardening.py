@@ -733,3 +733,27 @@ def test_refused_petsc_options_name_the_key_and_why(name, value, why):
             {"ksp_type": "cg", name: value}, "structure.solver.petsc_options"
         )
     assert error.value.key.startswith("structure.solver.petsc_options." + name[:40])
+
+
+def test_adaptive_steps_refuse_what_they_cannot_control(capsys):
+    """time.step_control: adaptive estimates a second-order scheme's error (bdf2 only) and
+    never makes a step shorter than time.adaptive.min_dt, which must allow the first step."""
+    adaptive = ["--set", "time.step_control=adaptive"]
+    status, err = cli_error(
+        capsys, "check", str(CHANNEL), *adaptive, "--set", "time.scheme=backward_euler"
+    )
+    assert_refused(status, err, "--set", "time.step_control", "bdf2", "'backward_euler'")
+    status, err = cli_error(
+        capsys,
+        "check",
+        str(CHANNEL),
+        *adaptive,
+        "--set",
+        "time.adaptive={first_dt: 1.0e-4, min_dt: 1.0e-3}",
+    )
+    assert_refused(status, err, "--set", "time.adaptive.min_dt", "at most", "first_dt")
+    status, err = cli_error(
+        capsys, "check", str(CHANNEL), *adaptive, "--set", "time.adaptive.tolerance=0"
+    )
+    assert_refused(status, err, "--set", "time.adaptive.tolerance", "positive")
+    assert cli.main(["check", str(CHANNEL), *adaptive]) == 0

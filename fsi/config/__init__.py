@@ -69,7 +69,15 @@ from fsi.config.fluid_section import (
 )
 from fsi.config.reader import ConfigError
 from fsi.config.solver_settings import MAX_QUADRATURE_DEGREE, SolverSettings
-from fsi.config.stepping import MAX_CYCLES, Coupling, MeshMotion, Output, Time, TimeSegment
+from fsi.config.stepping import (
+    MAX_CYCLES,
+    AdaptiveStepping,
+    Coupling,
+    MeshMotion,
+    Output,
+    Time,
+    TimeSegment,
+)
 from fsi.config.structure_section import (
     FlagMaterial,
     GeneralizedAlpha,
@@ -133,6 +141,7 @@ __all__ = [
     "QuasiStatic",
     "TissueSupport",
     # time, coupling, mesh motion, output; solver settings
+    "AdaptiveStepping",
     "Time",
     "TimeSegment",
     "MAX_CYCLES",

@@ -21,6 +21,29 @@ class TimeSegment:
     dt: float = positive(5.0e-3, " (s)")
 
 
+@dataclass(frozen=True)
+class AdaptiveStepping:
+    """``time.adaptive``: the step size control of ``time.step_control: adaptive``
+    (fsi.numerics.timestepping: :class:`~fsi.numerics.timestepping.LocalError`,
+    :class:`~fsi.numerics.timestepping.StepSizeControl`; docs/time-stepping.md).
+
+    ``tolerance``: the largest local error a step may make in each controlled field (the
+    fluid's velocity, the structure's displacement), relative to the largest entry the field
+    has had, or to ``velocity_scale`` (m/s) / ``displacement_scale`` (m) while it is smaller: a
+    run that starts from rest needs these, the size the fields are expected to reach, else the
+    first steps are held to the tolerance relative to fields that are still tiny. A step above
+    the tolerance is taken again shorter. ``first_dt``: the size of the first steps (the first
+    two have no estimate yet). ``min_dt``: no step is made shorter; a step whose error is still
+    above the tolerance there fails the run (with a checkpoint).
+    """
+
+    tolerance: float = positive(1.0e-3)
+    first_dt: float = positive(1.0e-4, " (s)")
+    min_dt: float = positive(1.0e-7, " (s)")
+    velocity_scale: float = non_negative(0.0, " (m/s)")
+    displacement_scale: float = non_negative(0.0, " (m)")
+
+
 MAX_CYCLES = 1000
 """The most heartbeats ``time.cycles`` may ask for (each repeats the schedule's segments)."""
 
@@ -32,6 +55,11 @@ class Time:
     ``scheme``: the fluid's time scheme. ``steady`` drops ∂u/∂t and the mesh velocity: every
     step solves the steady equations with the boundary data at its time (a continuation through
     an inflow ramp); with a ``quasi_static`` structure a coupled step is a steady FSI solve.
+
+    ``step_control``: ``schedule`` steps exactly as ``schedule`` says; ``adaptive`` chooses every
+    step from a local error estimate (``adaptive``: :class:`AdaptiveStepping`), each segment's
+    ``dt`` then the largest step allowed before its ``until``; the steps end on every segment's
+    ``until``, on ``output.report_times`` and on ``end``.
 
     ``retries``: how often a step whose solve fails is taken again as two steps of half its
     size, from the state before it (each half may be halved again while retries remain: up to
@@ -52,6 +80,8 @@ class Time:
     end: float = positive(0.8, " (s)")
     scheme: Literal["backward_euler", "bdf2", "steady"] = "bdf2"
     schedule: tuple[TimeSegment, ...] = (TimeSegment(0.4, 5.0e-3), TimeSegment(0.8, 1.0e-2))
+    step_control: Literal["schedule", "adaptive"] = "schedule"
+    adaptive: AdaptiveStepping = field(default_factory=AdaptiveStepping)
     retries: int = checked(0, lambda v: 0 <= v <= 8, "an integer in [0, 8]")
     max_steps: int = at_least(1_000_000, 1)
     cycles: int = checked(

@@ -191,6 +191,7 @@ def _validate_schedule(case: Case) -> None:
                 f"greater than time.schedule[{i - 1}].until = {schedule[i - 1].until} s",
                 schedule[i].until,
             )
+    _validate_step_control(case.time)
     period = heartbeat_period(case)
     _validate_cycles(case.time, period)
     if case.time.cycles >= 1 and period > 0:  # the schedule is one heartbeat's
@@ -229,6 +230,29 @@ def _validate_schedule(case: Case) -> None:
                 f"{format_count(count)} steps to {to}, more than "
                 f"time.max_steps = {case.time.max_steps:,}: use larger dt, or {raise_limit}"
             ),
+        )
+
+
+def _validate_step_control(time: Time) -> None:
+    """Adaptive steps need the second-order fluid scheme (the error estimate's order,
+    fsi.numerics.timestepping.LocalError) and ``min_dt <= first_dt``."""
+    if time.step_control != "adaptive":
+        return
+    if time.scheme != "bdf2":
+        raise ConfigError(
+            "",
+            "time.step_control",
+            reason=(
+                "adaptive steps estimate a second-order scheme's error: they need "
+                f"time.scheme bdf2, got {time.scheme!r}"
+            ),
+        )
+    if time.adaptive.min_dt > time.adaptive.first_dt:
+        raise ConfigError(
+            "",
+            "time.adaptive.min_dt",
+            f"at most time.adaptive.first_dt = {time.adaptive.first_dt} s",
+            time.adaptive.min_dt,
         )
 
 

@@ -34,6 +34,8 @@ from mpi4py import MPI
 
 import numpy as np
 
+from fsi.numerics.timestepping import extrapolation_weights
+
 if TYPE_CHECKING:
     from fsi.config import Coupling
 
@@ -347,9 +349,7 @@ class Predictor:
         m = len(values)
         if t is None or np.isnan(times).any():
             times, t = np.arange(m, dtype=float), float(m)
-        weights = [np.prod([(t - times[j]) / (times[i] - times[j]) for j in range(m) if j != i])
-                   for i in range(m)]  # fmt: skip
-        return sum(w * v for w, v in zip(weights, values))
+        return sum(w * v for w, v in zip(extrapolation_weights(times, t), values))
 
     def state(self) -> dict[str, np.ndarray]:
         """The recorded values (``values``: local interface entries × recorded steps, oldest

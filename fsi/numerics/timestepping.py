@@ -5,13 +5,22 @@
   ``∂u/∂t (t_{n+1}) ≈ Σ_k w_k u^{n+1-k}``.
 * :class:`BdfHistory` keeps a field's accepted levels u^n, u^{n−1} and forms that sum (the
   fluid's velocity, the ALE mesh displacement).
+* :func:`extrapolation_weights` extrapolates a field from its past levels (the interface
+  predictor, the local error estimate).
+* :class:`LocalError` estimates a step's local time error from its distance to the quadratic
+  extrapolation of the last three accepted levels, and :class:`StepSizeControl` turns that
+  estimate into the next step size (adaptive time stepping, ``time.step_control: adaptive``).
 """
 
 from __future__ import annotations
 
+import math
+from collections import deque
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Protocol
+
+from mpi4py import MPI
 
 import numpy as np
 
@@ -111,6 +120,195 @@ class BdfHistory:
         """Set the accepted levels to ``x_n``, ``x_nm1`` (e.g. from :meth:`save`)."""
         self.x_n[:] = x_n
         self.x_nm1[:] = x_nm1
+
+
+# --------------------------------------------------------------------------------------------
+# Adaptive time stepping: a local error estimate and the step size it asks for
+
+
+def extrapolation_weights(times: Sequence[float], t: float) -> list[float]:
+    """Weights ``w`` of the polynomial through ``(times[i], x_i)`` evaluated at ``t``:
+    ``x(t) ≈ Σ_i w_i x_i`` (Lagrange; degree ``len(times) − 1``, distinct times)."""
+    m = len(times)
+    return [
+        float(np.prod([(t - times[j]) / (times[i] - times[j]) for j in range(m) if j != i]))
+        for i in range(m)
+    ]
+
+
+class LocalError:
+    """The local time error of a second-order step of one field, by Milne's device.
+
+    The step's result ``x`` at ``t`` and the quadratic extrapolation ``P(t)`` of the last three
+    accepted levels differ by ``C h³ x⁽³⁾`` to leading order, as the step's own local error
+    does (equal steps h: BDF2's error is ``−(2/9) h³ x⁽³⁾``, the extrapolation's ``−h³ x⁽³⁾``,
+    so the difference is 7/2 of BDF2's error; generalized-α is second order as well). The
+    estimate is that difference relative to the field's size::
+
+        e = ‖x − P(t)‖ / max(floor, max_k ‖x_k‖)
+
+    in the largest absolute entry over the owned entries (``owned``: how many of the local
+    array's first entries this rank owns; the maximum is reduced over ``comm``, so it does not
+    depend on how the entries are distributed), the maximum taken over the accepted levels and
+    ``x``: an error relative to the largest the field has been, so a decaying field is followed
+    to a fixed absolute accuracy, not an ever finer relative one. ``floor`` (the size the field
+    is expected to reach) keeps a field that starts from rest from being followed to a fixed
+    relative accuracy while it is still tiny, where the solvers' own tolerances dominate the
+    difference. e scales with h³ (:class:`StepSizeControl`, order 2).
+
+    Until three levels are accepted there is no estimate (:meth:`estimate` returns None): a
+    run's first two steps.
+    """
+
+    LEVELS = 3
+
+    def __init__(self, comm, owned: int, floor: float = 0.0):
+        self.comm, self.owned, self.floor = comm, owned, floor
+        self._values: deque[np.ndarray] = deque(maxlen=self.LEVELS)
+        self._times: deque[float] = deque(maxlen=self.LEVELS)
+        self.scale = 0.0
+
+    def norm(self, x: np.ndarray) -> float:
+        """‖x‖: the largest |entry| over the owned entries. Collective."""
+        owned = x[: self.owned]
+        local = float(np.abs(owned).max()) if owned.size else 0.0
+        return float(self.comm.allreduce(local, op=MPI.MAX))
+
+    def estimate(self, x: np.ndarray, t: float) -> float | None:
+        """e for the result ``x`` at time ``t`` (None with fewer than three accepted levels).
+        Collective."""
+        if len(self._values) < self.LEVELS:
+            return None
+        weights = extrapolation_weights(list(self._times), t)
+        predicted = sum(w * v for w, v in zip(weights, self._values))
+        scale = max(self.floor, self.scale, self.norm(x))
+        return self.norm(x - predicted) / scale if scale > 0 else 0.0
+
+    def accept(self, x: np.ndarray, t: float) -> None:
+        """Record ``x`` as the accepted level at ``t``. Collective."""
+        self._values.append(np.array(x, dtype=float))
+        self._times.append(float(t))
+        self.scale = max(self.scale, self.norm(x))
+
+    def state(self) -> dict[str, np.ndarray]:
+        """``values`` (local entries × levels, oldest first), their ``times``, ``scale``."""
+        values = np.column_stack(list(self._values)) if self._values else np.zeros((0, 0))
+        return {
+            "values": values,
+            "times": np.array(self._times, dtype=float),
+            "scale": np.array(self.scale),
+        }
+
+    def load_state(self, state: dict[str, np.ndarray]) -> None:
+        """Take back :meth:`state`."""
+        self._values.clear()
+        self._times.clear()
+        for x, t in zip(state["values"].T, state["times"]):
+            self._values.append(np.array(x, dtype=float))
+            self._times.append(float(t))
+        self.scale = float(state["scale"])
+
+
+@dataclass(frozen=True)
+class StepSizeControl:
+    """The step size from a local error estimate ``e`` ∝ ``dt^(order+1)``
+    (:class:`LocalError`: order 2), keeping e near ``tolerance``::
+
+        dt_next = dt · clip(safety · (tolerance / e)^(1/(order+1)), max_shrink, max_growth)
+
+    A step with ``e > tolerance`` is rejected (:meth:`accepts`) and taken again with that
+    smaller step; no step is made shorter than ``min_dt`` or longer than the ``max_dt`` given.
+    """
+
+    tolerance: float
+    min_dt: float
+    order: int = 2
+    safety: float = 0.9
+    max_shrink: float = 0.2
+    max_growth: float = 2.0
+
+    def accepts(self, error: float | None) -> bool:
+        """Whether a step with estimate ``error`` (None: none yet) stands."""
+        return error is None or error <= self.tolerance
+
+    def next_dt(self, dt: float, error: float | None, max_dt: float) -> float:
+        """The step after (or instead of) one of ``dt`` with ``error`` (None: no estimate,
+        ``dt`` again), within [min_dt, max_dt]."""
+        if error is None:
+            factor = 1.0
+        elif error <= 0:
+            factor = self.max_growth
+        else:
+            factor = self.safety * (self.tolerance / error) ** (1.0 / (self.order + 1))
+            factor = min(self.max_growth, max(self.max_shrink, factor))
+        return min(max_dt, max(self.min_dt, dt * factor))
+
+
+def fit_to_stop(t: float, dt: float, stop: float) -> float:
+    """The step from ``t`` towards ``stop``: ``dt``; all that is left when that is at most
+    ``dt`` (a remainder below 1e-9 dt is not left behind); half of it when it is less than
+    2 dt (no sliver of a step just before ``stop``)."""
+    left = stop - t
+    if left <= dt * (1 + 1e-9):
+        return left
+    if left < 2 * dt:
+        return left / 2
+    return dt
+
+
+class AdaptiveSteps:
+    """The steps of an adaptive run (``time.step_control: adaptive``), one at a time: each as
+    long as ``control`` last asked for (:meth:`accept`, :meth:`retry`), at most the ``dt`` of
+    the schedule's segment it lies in, and shortened (:func:`fit_to_stop`) to end exactly on
+    every segment's ``until``, on each of ``stops`` (report times) and on ``time.end``.
+
+    ``t0``, ``index0``: the time and number of the last step taken (0, 0 at the start);
+    ``dt``: the size to try first."""
+
+    def __init__(
+        self,
+        time: Schedule,
+        control: StepSizeControl,
+        stops: Sequence[float],
+        t0: float,
+        index0: int,
+        dt: float,
+    ):
+        self.time, self.control = time, control
+        self.stops = sorted(s for s in stops if 0 < s < time.end)
+        self.t, self.index, self.dt = t0, index0, dt
+
+    def _limit(self) -> tuple[float, float]:
+        """The largest step allowed from ``t`` and the next time a step must end on."""
+        for segment in self.time.schedule:
+            if segment.until - self.t > 1e-9 * segment.dt:
+                break
+        stop = min(segment.until, self.time.end)
+        later = [s for s in self.stops if s - self.t > 1e-9 * segment.dt]
+        return segment.dt, min([stop, *later])
+
+    def _step(self, index: int, dt: float) -> Step:
+        max_dt, stop = self._limit()
+        dt = fit_to_stop(self.t, min(dt, max_dt), stop)
+        return Step(index, stop if dt == stop - self.t else self.t + dt, dt)
+
+    def next_step(self) -> Step | None:
+        """The next step, or None at ``time.end``."""
+        if self.time.end - self.t <= 1e-9 * self.dt:
+            return None
+        return self._step(self.index + 1, self.dt)
+
+    def accept(self, step: Step, error: float | None) -> None:
+        """``step`` stands, with the error estimate ``error`` (None: none yet, the next step
+        as long as this one was meant to be)."""
+        self.t, self.index = step.t, step.index
+        if error is not None:
+            self.dt = self.control.next_dt(step.dt, error, math.inf)
+
+    def retry(self, step: Step, error: float) -> Step:
+        """``step``, rejected for ``error``, taken again shorter (never below ``min_dt``)."""
+        self.dt = self.control.next_dt(step.dt, error, step.dt)
+        return self._step(step.index, self.dt)
 
 
 # --------------------------------------------------------------------------------------------

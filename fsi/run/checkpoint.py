@@ -54,9 +54,10 @@ log = logging.getLogger("fsi")
 FORMAT = 1
 DIRECTORY, PARTIAL, PREVIOUS = "checkpoint", "checkpoint.partial", "checkpoint.previous"
 METADATA = "checkpoint.json"
-VARIABLE = ("coupling.", "predictor.", "counters.", "fluid.outlet_state")
+VARIABLE = ("coupling.", "predictor.", "counters.", "fluid.outlet_state", "time_error.")
 """Groups of state arrays whose number and shape may change between runs (accelerations,
-predictor order, counters); every other array of a fresh stepper's state must be restored."""
+predictor order, counters, adaptive steps' error levels); every other array of a fresh
+stepper's state must be restored."""
 ADDED = ("wall_indices.",)
 """Groups of state arrays added after checkpoints were first written: a checkpoint without
 them still restarts (the stepper starts those from the restart; fsi.run.steppers.FluidOutputs)."""
@@ -190,13 +191,22 @@ def dependencies(case: config.Case) -> dict:
     return json.loads(json.dumps(sections))  # as it reads back from JSON (tuples as lists)
 
 
-def metadata(case: config.Case, comm: MPI.Comm, step: int, t: float, dt: float | None) -> dict:
-    """checkpoint.json's content for the state after step ``step`` (at time ``t``)."""
+def metadata(
+    case: config.Case,
+    comm: MPI.Comm,
+    step: int,
+    t: float,
+    dt: float | None,
+    next_dt: float | None = None,
+) -> dict:
+    """checkpoint.json's content for the state after step ``step`` (at time ``t``, of size
+    ``dt``; with adaptive steps ``next_dt`` is the size the next step tries)."""
     return {
         "format": FORMAT,
         "step": int(step),
         "t": float(t),
         "dt": None if dt is None else float(dt),
+        "next_dt": None if next_dt is None else float(next_dt),
         "ranks": comm.size,
         "case": case.name,
         "config": dependencies(case),
@@ -232,15 +242,20 @@ def check_metadata(meta: dict, case: config.Case, source: Path) -> None:
 
 def check_position(meta: dict, source: Path) -> None:
     """Raise :class:`CheckpointError` (naming ``source`` and the key) unless checkpoint.json's
-    ``step`` is a whole number >= 0, ``t`` a finite number >= 0 (0 at step 0), ``dt`` null or a
-    finite number > 0, and ``files`` the rank files of its ``ranks`` (rank0000.npz, ...)."""
-    step, t, dt, ranks = (meta.get(k) for k in ("step", "t", "dt", "ranks"))
+    ``step`` is a whole number >= 0, ``t`` a finite number >= 0 (0 at step 0), ``dt`` and
+    ``next_dt`` null (or absent) or finite numbers > 0, and ``files`` the rank files of its
+    ``ranks`` (rank0000.npz, ...)."""
+    step, t, ranks = (meta.get(k) for k in ("step", "t", "ranks"))
     if not _whole(step) or step < 0:
         raise CheckpointError(f"{source}: step: expected a whole number >= 0, got {step!r}")
     if not _real(t) or not math.isfinite(t) or t < 0 or (step == 0 and t != 0):
         raise CheckpointError(f"{source}: t: expected a finite time >= 0 (0 at step 0), got {t!r}")
-    if dt is not None and (not _real(dt) or not math.isfinite(dt) or dt <= 0):
-        raise CheckpointError(f"{source}: dt: expected null or a finite step > 0, got {dt!r}")
+    for key in ("dt", "next_dt"):
+        dt = meta.get(key)
+        if dt is not None and (not _real(dt) or not math.isfinite(dt) or dt <= 0):
+            raise CheckpointError(
+                f"{source}: {key}: expected null or a finite step > 0, got {dt!r}"
+            )
     if not _whole(ranks) or ranks < 1:
         raise CheckpointError(f"{source}: ranks: expected a whole number >= 1, got {ranks!r}")
     expected = [rank_file(r) for r in range(ranks)]
@@ -477,6 +492,11 @@ class Checkpoint:
     @property
     def dt(self) -> float | None:
         return self.meta.get("dt")
+
+    @property
+    def next_dt(self) -> float | None:
+        """With adaptive steps, the size of the step the run would have tried next."""
+        return self.meta.get("next_dt")
 
     def continues(self, out: Path) -> bool:
         """Whether a restart into ``out`` continues this checkpoint's own run folder."""

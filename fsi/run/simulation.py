@@ -10,7 +10,7 @@ from __future__ import annotations
 import logging
 import math
 import time as wallclock
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,9 +18,9 @@ from mpi4py import MPI
 
 from fsi import config
 from fsi.config import boundary_data
-from fsi.numerics.timestepping import Step, steps
+from fsi.numerics.timestepping import AdaptiveSteps, Step, StepSizeControl, steps
 from fsi.output import io
-from fsi.run import checkpoint
+from fsi.run import checkpoint, time_control
 from fsi.run.outputs import RunOutputs
 from fsi.run.steppers import (
     CoupledStepper,
@@ -110,27 +110,45 @@ def march(
     written; the exception says where it is. Collective."""
     schedule = config.run_time(case)
     t0, first, last = _step_range(schedule, restart)
+    adaptive = case.time.step_control == "adaptive"
     layouts = stepper.layouts()
     if restart is not None:  # before any file is touched
         loaded = checkpoint.localize(restart, layouts, stepper.state(), comm)
     with RunOutputs(case, out, comm, stepper, restart) as outputs:
         if restart is not None:
             stepper.load_state(loaded)
-        before = _Snapshot(first, t0, None if restart is None else restart.dt, stepper.state())
+        clock = _clock(case, schedule, t0, first, restart) if adaptive else None
+        before = _Snapshot(
+            first,
+            t0,
+            None if restart is None else restart.dt,
+            stepper.state(),
+            clock.dt if clock else None,
+        )
         saved = _Checkpoints(out, comm, case, layouts, before)
         retried: list[Step] = []  # the steps that had to be split
         taken = 0
         try:
             outputs.write_fields(t0)
-            for step in steps(schedule, t0, first):
-                row = _take_step(stepper, step, saved.good.state, case.time.retries, retried)
-                final = step.index == last
+            if clock is None:
+                taken_steps = _scheduled_steps(stepper, schedule, t0, first, saved, retried)
+            else:
+                taken_steps = _adaptive_steps(stepper, clock, saved, retried)
+            for step, row in taken_steps:
+                final = step.index == last if clock is None else clock.next_step() is None
                 outputs.write_step(row, final)
-                saved.after(_Snapshot(step.index, step.t, step.dt, stepper.state()), final)
+                saved.after(
+                    _Snapshot(
+                        step.index, step.t, step.dt, stepper.state(), clock.dt if clock else None
+                    ),
+                    final,
+                )
                 if step.index % case.output.checkpoint_every == 0:
                     stepper.forget_jacobians()  # restarts from these checkpoints stay exact
                 taken += 1
-                _report_progress(stepper, row, last, (wallclock.perf_counter() - start) / taken)
+                _report_progress(
+                    stepper, row, schedule.end, last if clock is None else None, start, t0, taken
+                )
                 _stop_if_requested(comm, stop_requested, final)
             if taken == 0:  # restarted at (or past) the end: the checkpoint goes to out as well
                 saved.write_good()
@@ -154,6 +172,75 @@ def _step_range(
     for last_step in steps(schedule, t0, first):  # counted, never stored (time.max_steps)
         last = last_step.index
     return t0, first, last
+
+
+def _clock(
+    case: config.Case,
+    schedule: config.Time,
+    t0: float,
+    first: int,
+    restart: checkpoint.Checkpoint | None,
+) -> AdaptiveSteps:
+    """The adaptive steps from step ``first`` at ``t0``: the first of ``time.adaptive.first_dt``,
+    after a restart of the size the restarted run would have tried next."""
+    settings = case.time.adaptive
+    control = StepSizeControl(settings.tolerance, settings.min_dt)
+    dt = settings.first_dt
+    if restart is not None and restart.next_dt is not None:
+        dt = restart.next_dt
+    return AdaptiveSteps(schedule, control, case.output.report_times, t0, first, dt)
+
+
+def _scheduled_steps(
+    stepper: Stepper,
+    schedule: config.Time,
+    t0: float,
+    first: int,
+    saved: _Checkpoints,
+    retried: list[Step],
+) -> Iterator[tuple[Step, dict]]:
+    """Each step of ``schedule`` after step ``first`` (at ``t0``) taken (:func:`_take_step`)
+    and its row. A generator: each step is taken from ``saved``'s good state when the loop asks
+    for it."""
+    retries = saved.case.time.retries
+    for step in steps(schedule, t0, first):
+        yield step, _take_step(stepper, step, saved.good.state, retries, retried)
+
+
+def _adaptive_steps(
+    stepper: Stepper, clock: AdaptiveSteps, saved: _Checkpoints, retried: list[Step]
+) -> Iterator[tuple[Step, dict]]:
+    """The steps ``clock`` chooses, each taken and its row: a step whose local error
+    (``time_error``) is above the tolerance is undone (the stepper goes back to ``saved``'s good
+    state) and taken again as short as the error asks for; one that is still above it at
+    ``time.adaptive.min_dt`` fails the run (:class:`StepFailed`). A generator, as
+    :func:`_scheduled_steps`."""
+    retries, control = saved.case.time.retries, clock.control
+    while (step := clock.next_step()) is not None:
+        while True:
+            row = _take_step(stepper, step, saved.good.state, retries, retried)
+            error = None if row[time_control.COLUMN] == "" else row[time_control.COLUMN]
+            if control.accepts(error):
+                break
+            if step.dt <= control.min_dt * (1 + 1e-9):
+                raise StepFailed(
+                    f"step {step.index} to t = {step.t:g} s: its local time error "
+                    f"{error:.3g} is above time.adaptive.tolerance = {control.tolerance:g} "
+                    f"at time.adaptive.min_dt = {control.min_dt:g} s"
+                )
+            stepper.load_state(saved.good.state)
+            rejected = step
+            step = clock.retry(step, error)
+            log.info(
+                "step %d to t = %.6g s rejected (time error %.3g > %.3g); taking dt = %.3g s",
+                rejected.index,
+                rejected.t,
+                error,
+                control.tolerance,
+                step.dt,
+            )
+        clock.accept(step, error)
+        yield step, row
 
 
 def _stop_if_requested(
@@ -185,16 +272,32 @@ def _take_step(
     return row
 
 
-def _report_progress(stepper: Stepper, row: dict, last: int, seconds_per_step: float) -> None:
+def _report_progress(
+    stepper: Stepper,
+    row: dict,
+    end: float,
+    last: int | None,
+    start: float,
+    t0: float,
+    taken: int,
+) -> None:
+    """Log the step just taken (the ``taken``-th of this run, which began at wall clock
+    ``start`` and time ``t0``) and the time left: by the steps left of ``last``, or with
+    adaptive steps (``last`` None) by the simulated time left to ``end``."""
+    elapsed = wallclock.perf_counter() - start
+    if last is None:
+        of, left = "", elapsed / max(row["t"] - t0, 1e-300) * (end - row["t"])
+    else:
+        of, left = f"/{last}", elapsed / taken * (last - row["step"])
     log.info(
-        "step %d/%d  t = %.5g s  dt = %.3g s  %s  %.2f s/step  ~%.0f s left",
+        "step %d%s  t = %.5g s  dt = %.3g s  %s  %.2f s/step  ~%.0f s left",
         row["step"],
-        last,
+        of,
         row["t"],
         row["dt"],
         stepper.describe(row),
         row["wall_time_s"],
-        seconds_per_step * (last - row["step"]),
+        left,
     )
 
 
@@ -235,6 +338,7 @@ class _Snapshot:
     t: float
     dt: float | None
     state: dict
+    next_dt: float | None = None  # adaptive steps: the size the next step will try
 
     def write(
         self, out: Path, comm: MPI.Comm, case: config.Case, layouts: dict[str, checkpoint.Layout]
@@ -248,7 +352,7 @@ class _Snapshot:
                 comm,
                 self.state,
                 layouts,
-                checkpoint.metadata(case, comm, self.step, self.t, self.dt),
+                checkpoint.metadata(case, comm, self.step, self.t, self.dt, self.next_dt),
             )
         except checkpoint.CheckpointError as e:  # raised on every rank: said once
             if comm.rank == 0:

@@ -31,6 +31,7 @@ from fsi.physics import fluid, mesh, solid
 from fsi.physics.mesh_motion import MeshQualityError
 from fsi.run import checkpoint
 from fsi.run.stops import StepFailed
+from fsi.run.time_control import TimeErrors
 from geometry import turek_hron
 from geometry.tags import Boundary, Region
 
@@ -453,8 +454,12 @@ class RigidStepper:
         self.turek_hron = isinstance(case.geometry, config.TurekHronGeometry)
         self.outputs = FluidOutputs(case, self.solver)
         self._layouts = fluid_layouts(self.solver)
+        self.time_errors = time_errors(case, comm, {"fluid": (self.solver.u, self._layouts)})
         self.columns = (
-            COLUMNS + self.outputs.columns + (["drag", "lift"] if self.turek_hron else [])
+            COLUMNS
+            + self.outputs.columns
+            + (["drag", "lift"] if self.turek_hron else [])
+            + self.time_errors.columns
         )
 
     def field_files(self) -> dict[str, tuple[object, list]]:
@@ -477,6 +482,7 @@ class RigidStepper:
             "newton_iterations": result.iterations,
             "newton_residual": result.residual,
             **self.outputs.update(),
+            **self.time_errors.after_step(step.t),
         }
         if self.turek_hron:
             row["drag"], row["lift"] = solver.boundary_force(self.obstacle)
@@ -495,15 +501,20 @@ class RigidStepper:
         }
 
     def state(self) -> dict[str, np.ndarray]:
-        return {**checkpoint.to_arrays("fluid.", self.solver.save_state()), **self.outputs.state()}
+        return {
+            **checkpoint.to_arrays("fluid.", self.solver.save_state()),
+            **self.outputs.state(),
+            **self.time_errors.state(),
+        }
 
     def layouts(self) -> dict[str, checkpoint.Layout]:
-        return {**self._layouts, **self.outputs.layouts()}
+        return {**self._layouts, **self.outputs.layouts(), **self.time_errors.layouts()}
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
         self.solver.restore_state(fluid_state(self.solver, state))
         self.outputs.load_state(state)
         self.outputs.update()
+        self.time_errors.load_state(state, self.solver.time)
 
 
 # --------------------------------------------------------------------------------------------
@@ -535,11 +546,17 @@ class CoupledStepper:
             "coupling.iqn.W": interface,
             "predictor.values": interface,
         }
+        self.time_errors = time_errors(
+            case,
+            comm,
+            {"fluid": (p.fluid.u, self._layouts), "structure": (p.solid.eta, self._layouts)},
+        )
         self.columns = (
             COUPLED_COLUMNS
             + stress_columns(p.solid)
             + self.outputs.columns
             + (["drag", "lift", "ux_A", "uy_A"] if self.point_a else [])
+            + self.time_errors.columns
         )
         self.iterations: list[int] = []
         self.solid_newton = 0
@@ -593,6 +610,7 @@ class CoupledStepper:
             "relaxation": "" if omega is None else omega,
             "solid_newton_iterations": p.solid_side.newton_iterations,
             "mesh_jacobian_ratio": p.fluid_side.mesh_quality,
+            **self.time_errors.after_step(step.t),
         }
 
     def benchmark_values(self) -> dict:
@@ -640,10 +658,11 @@ class CoupledStepper:
             **{f"predictor.{k}": v for k, v in p.predictor.state().items()},
             "counters.coupling_iterations": np.array(self.iterations, dtype=np.int64),
             "counters.solid_newton_iterations": np.array(self.solid_newton),
+            **self.time_errors.state(),
         }
 
     def layouts(self) -> dict[str, checkpoint.Layout]:
-        return {**self._layouts, **self.outputs.layouts()}
+        return {**self._layouts, **self.outputs.layouts(), **self.time_errors.layouts()}
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
         p = self.problem
@@ -655,6 +674,7 @@ class CoupledStepper:
         self.solid_newton = int(state["counters.solid_newton_iterations"])
         self.outputs.load_state(state)
         self.outputs.update()
+        self.time_errors.load_state(state, p.fluid.time)
 
 
 # --------------------------------------------------------------------------------------------
@@ -689,6 +709,8 @@ class StructureStepper:
             + (["ux_A", "uy_A"] if self.point_a else [])
         )
         self._layouts = structure_layouts(self.solver)
+        self.time_errors = time_errors(case, comm, {"structure": (self.solver.eta, self._layouts)})
+        self.columns += self.time_errors.columns
 
     def field_files(self) -> dict[str, tuple[object, list]]:
         s = self.solver
@@ -716,6 +738,7 @@ class StructureStepper:
             "coupling_iterations": 0,
             "newton_iterations": result.iterations,
             "newton_residual": result.residual,
+            **self.time_errors.after_step(step.t),
         }
         if self.point_a:
             row["ux_A"], row["uy_A"] = metrics.nodal_value(s.eta, self.point_a)
@@ -732,13 +755,41 @@ class StructureStepper:
         return {"mean_coupling_iterations": 0.0, "solid_dofs": global_dofs(V), "cells": self.cells}
 
     def state(self) -> dict[str, np.ndarray]:
-        return checkpoint.to_arrays("solid.", self.solver.save_state())
+        return {
+            **checkpoint.to_arrays("solid.", self.solver.save_state()),
+            **self.time_errors.state(),
+        }
 
     def layouts(self) -> dict[str, checkpoint.Layout]:
-        return self._layouts
+        return {**self._layouts, **self.time_errors.layouts()}
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
         _load_solid(self.solver, state)
+        self.time_errors.load_state(state, self.solver.t)
+
+
+# --------------------------------------------------------------------------------------------
+# Adaptive steps: the local time error of the controlled fields (fsi/run/time_control.py)
+
+FIELD_LAYOUTS = {"fluid": "fluid.u_n", "structure": "solid.eta"}
+"""The checkpoint layout of each controlled field's values (those of its history's)."""
+
+
+def time_errors(case: config.Case, comm: MPI.Comm, fields: dict) -> TimeErrors:
+    """The :class:`TimeErrors` of ``fields`` (name → (Function, the stepper's layouts)) with
+    ``time.step_control: adaptive`` (their values at t = 0 the first level), else of none."""
+    adaptive = case.time.step_control == "adaptive"
+    settings = case.time.adaptive
+    return TimeErrors(
+        comm,
+        {
+            name: (f, layouts[FIELD_LAYOUTS[name]])
+            for name, (f, layouts) in fields.items()
+            if adaptive
+        },
+        0.0,
+        {"fluid": settings.velocity_scale, "structure": settings.displacement_scale},
+    )
 
 
 # --------------------------------------------------------------------------------------------
