@@ -386,6 +386,8 @@ def test_an_adaptive_coupled_run_restarts_exactly(shared_tmp):
     dts = {float(r["dt"]) for r in taken}
     assert len(dts) > 2, dts  # the steps did change size
     assert "time_error.structure.values" in stored(split)
+    # The third step (the first with an estimate) was too long: measured rejected twice.
+    assert summary(straight)["rejected_steps"] == [3]
 
 
 # --------------------------------------------------------------------------------------------

@@ -288,31 +288,61 @@ class WallIndices:
         TAWSS = (1/T) ∫ |τ| dt,   OSI = ½ (1 − |∫ τ dt| / ∫ |τ| dt),   RRT = T / |∫ τ dt|
 
     (RRT = 1 / ((1 − 2 OSI) TAWSS); in 2D τ is a scalar with a sign, so |∫ τ dt| is the
-    magnitude of the time-averaged WSS vector). The integrals use each step's true length and
-    its end value (the rectangle rule over (t_{n−1}, t_n] with τ(t_n), the value the implicit
-    step computed for that interval): a constant τ gives TAWSS = |τ|, OSI = 0 and RRT = 1/|τ|
-    exactly, for any steps. Steps before ``start`` count for nothing, a step across it for its
-    part after it. The state (:meth:`state`) is the two integrals per sample, the time of the
-    last step and the window's length T so far."""
+    magnitude of the time-averaged WSS vector). With ``interpolate`` (a time-dependent run) the
+    integrals are exact for τ linear over each step between its values at the step's ends (the
+    trapezoidal rule for ∫ τ dt; for ∫ |τ| dt also where τ changes sign within the step:
+    (τ_a² + τ_b²) / (2 (|τ_a| + |τ_b|)) per unit time): second order in the step sizes,
+    whatever they are (adaptive steps). The value at the window's current end is set by
+    :meth:`set_value` (the run's initial state, or the state a run restarts from) or left by
+    the last :meth:`add`; a step without one counts with its end value throughout. Without
+    ``interpolate`` (a steady run, whose steps are independent solutions) every step counts
+    with its end value (the rectangle rule). A constant τ gives TAWSS = |τ|, OSI = 0 and
+    RRT = 1/|τ| exactly, for any steps. Steps before ``start`` count for nothing, a step across
+    it for its part after it (τ interpolated to ``start``). The state (:meth:`state`) is the
+    two integrals per sample, the time of the last step and the window's length T so far; the
+    value at its end is the solution's, recomputed on a restart."""
 
-    def __init__(self, size: int, start: float = 0.0, time: float = 0.0):
+    def __init__(self, size: int, start: float = 0.0, time: float = 0.0, interpolate: bool = True):
+        self.interpolate = interpolate
         self.start = float(start)
         self.time = float(time)  # the end of the last step added
         self.duration = 0.0  # T, the part of the window covered so far
         self.integrals = np.zeros((size, 2))  # per sample: ∫ τ dt, ∫ |τ| dt
+        self.value: np.ndarray | None = None  # τ at self.time, when known
 
-    def add(self, t: float, tau: np.ndarray) -> None:
-        """Add the step (time, t] with the end values ``tau`` (one per sample)."""
-        if not t > self.time:
-            raise ValueError(f"a step must end after the last one ({self.time!r}), got t = {t!r}")
+    def _checked(self, tau: np.ndarray) -> np.ndarray:
         tau = np.asarray(tau, dtype=float)
         if tau.shape != (len(self.integrals),):
             raise ValueError(f"expected {len(self.integrals)} wall shear stresses, got {tau.shape}")
-        weight = t - max(self.time, self.start) if t > self.start else 0.0
-        self.integrals[:, 0] += weight * tau
-        self.integrals[:, 1] += weight * np.abs(tau)
-        self.duration += weight
+        return tau
+
+    def set_value(self, tau: np.ndarray) -> None:
+        """τ at the window's current end ``time`` (one per sample): the start of the next
+        step's linear interpolant (ignored without ``interpolate``)."""
+        self.value = self._checked(tau).copy() if self.interpolate else None
+
+    def value_at(self, t: float, t_end: float, tau: np.ndarray) -> np.ndarray:
+        """τ at ``t`` within the step (time, t_end] that ends with ``tau``: linear in time
+        from the value at ``time`` where that is known, else ``tau``."""
+        tau = np.asarray(tau, dtype=float)
+        if self.value is None:
+            return tau
+        return self.value + (tau - self.value) * ((t - self.time) / (t_end - self.time))
+
+    def add(self, t: float, tau: np.ndarray) -> None:
+        """Add the step (time, t] ending with the values ``tau`` (one per sample)."""
+        if not t > self.time:
+            raise ValueError(f"a step must end after the last one ({self.time!r}), got t = {t!r}")
+        tau = self._checked(tau)
+        if t > self.start:
+            a = max(self.time, self.start)
+            begin = self.value_at(a, t, tau)
+            weight = t - a
+            self.integrals[:, 0] += weight * 0.5 * (begin + tau)
+            self.integrals[:, 1] += weight * mean_magnitude(begin, tau)
+            self.duration += weight
         self.time = float(t)
+        self.value = tau.copy() if self.interpolate else None
 
     @property
     def tawss(self) -> np.ndarray:
@@ -344,7 +374,7 @@ class WallIndices:
 
     def state(self) -> dict[str, np.ndarray]:
         """``integrals`` (size, 2): ∫ τ dt and ∫ |τ| dt per sample; ``window`` (2,): the time
-        of the last step and T."""
+        of the last step and T. (The value at ``time`` is not kept: :meth:`set_value` it.)"""
         return {"integrals": self.integrals.copy(), "window": np.array([self.time, self.duration])}
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
@@ -356,6 +386,16 @@ class WallIndices:
             )
         self.integrals = integrals.copy()
         self.time, self.duration = (float(v) for v in state["window"])
+
+
+def mean_magnitude(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The mean of |τ| over a step along which τ goes linearly from ``a`` to ``b``:
+    (|a| + |b|)/2 without a change of sign, (a² + b²) / (2 (|a| + |b|)) with one (0 for
+    a = b = 0)."""
+    same = a * b >= 0
+    total = np.abs(a) + np.abs(b)
+    crossing = np.divide(a * a + b * b, 2 * total, out=np.zeros_like(total), where=total > 0)
+    return np.where(same, 0.5 * total, crossing)
 
 
 # --------------------------------------------------------------------------------------------

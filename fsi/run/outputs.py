@@ -128,14 +128,19 @@ class RunOutputs:
             io.collectively(self.comm, lambda w=writer, f=fields: w.write(t, f), writer.path)
 
     def write_summary(
-        self, retried: list[Step], saved: tuple[Path, int, float] | None, start: float
+        self,
+        retried: list[Step],
+        saved: tuple[Path, int, float] | None,
+        start: float,
+        rejected: list[Step] | None = None,
     ) -> dict:
         """Write ``summary.json`` and return it: totals and means over every row of
         metrics.csv (:attr:`rows`), the wall time since ``start`` (``time.perf_counter``), the
         ranks and where the result came from (:func:`fsi.output.provenance.describe`), the
         steps that had to be split (``retried``), the stepper's summary, the latest checkpoint
-        of this run (``saved``: folder, step, t; or None), with a periodic inlet the
-        :func:`cycle_table` and after a restart where it restarted from."""
+        of this run (``saved``: folder, step, t; or None), with adaptive steps those that were
+        rejected for their time error and taken again shorter (``rejected``), with a periodic
+        inlet the :func:`cycle_table` and after a restart where it restarted from."""
         rows, comm = self.rows, self.comm
         newton_total = sum(r.get("newton_iterations", 0) for r in rows)
         steps_done = max(len(rows), 1)
@@ -153,6 +158,7 @@ class RunOutputs:
             "ranks": comm.size,
             **comm.bcast(provenance.describe() if comm.rank == 0 else None),
             "retried_steps": sorted({s.index for s in retried}),
+            **({} if rejected is None else {"rejected_steps": sorted({s.index for s in rejected})}),
             **self.stepper.summary(),
             "checkpoint": None if saved is None else str(saved[0]),
         }

@@ -127,13 +127,14 @@ def march(
         )
         saved = _Checkpoints(out, comm, case, layouts, before)
         retried: list[Step] = []  # the steps that had to be split
+        rejected: list[Step] | None = None if clock is None else []  # for their time error
         taken = 0
         try:
             outputs.write_fields(t0)
             if clock is None:
                 taken_steps = _scheduled_steps(stepper, schedule, t0, first, saved, retried)
             else:
-                taken_steps = _adaptive_steps(stepper, clock, saved, retried)
+                taken_steps = _adaptive_steps(stepper, clock, saved, retried, rejected)
             for step, row in taken_steps:
                 final = step.index == last if clock is None else clock.next_step() is None
                 outputs.write_step(row, final)
@@ -147,12 +148,12 @@ def march(
                     stepper.forget_jacobians()  # restarts from these checkpoints stay exact
                 taken += 1
                 _report_progress(
-                    stepper, row, schedule.end, last if clock is None else None, start, t0, taken
+                    stepper, row, schedule.end, last if clock is None else None, start, taken
                 )
                 _stop_if_requested(comm, stop_requested, final)
             if taken == 0:  # restarted at (or past) the end: the checkpoint goes to out as well
                 saved.write_good()
-            summary = outputs.write_summary(retried, saved.latest, start)
+            summary = outputs.write_summary(retried, saved.latest, start, rejected)
         except (RunStopped, io.OutputError) as e:
             stopped = saved.stopped(e)
             if stopped is e:
@@ -208,11 +209,16 @@ def _scheduled_steps(
 
 
 def _adaptive_steps(
-    stepper: Stepper, clock: AdaptiveSteps, saved: _Checkpoints, retried: list[Step]
+    stepper: Stepper,
+    clock: AdaptiveSteps,
+    saved: _Checkpoints,
+    retried: list[Step],
+    rejected: list[Step],
 ) -> Iterator[tuple[Step, dict]]:
     """The steps ``clock`` chooses, each taken and its row: a step whose local error
     (``time_error``) is above the tolerance is undone (the stepper goes back to ``saved``'s good
-    state) and taken again as short as the error asks for; one that is still above it at
+    state; the step is appended to ``rejected``) and taken again as short as the error asks
+    for; one that is still above it at
     ``time.adaptive.min_dt`` fails the run (:class:`StepFailed`). A generator, as
     :func:`_scheduled_steps`."""
     retries, control = saved.case.time.retries, clock.control
@@ -229,12 +235,12 @@ def _adaptive_steps(
                     f"at time.adaptive.min_dt = {control.min_dt:g} s"
                 )
             stepper.load_state(saved.good.state)
-            rejected = step
+            rejected.append(step)
             step = clock.retry(step, error)
             log.info(
                 "step %d to t = %.6g s rejected (time error %.3g > %.3g); taking dt = %.3g s",
-                rejected.index,
-                rejected.t,
+                rejected[-1].index,
+                rejected[-1].t,
                 error,
                 control.tolerance,
                 step.dt,
@@ -273,26 +279,22 @@ def _take_step(
 
 
 def _report_progress(
-    stepper: Stepper,
-    row: dict,
-    end: float,
-    last: int | None,
-    start: float,
-    t0: float,
-    taken: int,
+    stepper: Stepper, row: dict, end: float, last: int | None, start: float, taken: int
 ) -> None:
     """Log the step just taken (the ``taken``-th of this run, which began at wall clock
-    ``start`` and time ``t0``) and the time left: by the steps left of ``last``, or with
-    adaptive steps (``last`` None) by the simulated time left to ``end``."""
+    ``start``) and how far the run is: the steps left of ``last`` and their time at this run's
+    pace, or with adaptive steps (``last`` None, their number unknown) the share of the time
+    to ``end`` done and the wall time so far."""
     elapsed = wallclock.perf_counter() - start
     if last is None:
-        of, left = "", elapsed / max(row["t"] - t0, 1e-300) * (end - row["t"])
+        where = f"step {row['step']}"
+        left = f"{row['t'] / end:.0%} of {end:g} s in {elapsed:.0f} s"
     else:
-        of, left = f"/{last}", elapsed / taken * (last - row["step"])
+        where = f"step {row['step']}/{last}"
+        left = f"~{elapsed / taken * (last - row['step']):.0f} s left"
     log.info(
-        "step %d%s  t = %.5g s  dt = %.3g s  %s  %.2f s/step  ~%.0f s left",
-        row["step"],
-        of,
+        "%s  t = %.5g s  dt = %.3g s  %s  %.2f s/step  %s",
+        where,
         row["t"],
         row["dt"],
         stepper.describe(row),

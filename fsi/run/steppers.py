@@ -235,7 +235,11 @@ class FluidOutputs:
         flow = metrics.WallFlow(solver.u, solver.p, solver.law, solver.facet_tags, self.walls)
         self.derived = metrics.FluidFields(flow)
         self.sampler = metrics.WallSampler(flow)
-        self.indices = metrics.WallIndices(self.sampler.size, time=solver.time)
+        # Steady runs: each step an independent solution, counted with its end value.
+        self.interpolate = solver.scheme != "steady"
+        self.indices = metrics.WallIndices(
+            self.sampler.size, time=solver.time, interpolate=self.interpolate
+        )
         self.period = config.heartbeat_period(case)
         self.past: list[metrics.WallIndices] = []  # heartbeats 1, 2, ... before self.indices'
         self.sides = np.zeros(self.sampler.size, dtype=np.int64)
@@ -244,6 +248,7 @@ class FluidOutputs:
             self.sides[normal_y > 0] = self.SIDES.index("lower")
             self.sides[normal_y < 0] = self.SIDES.index("upper")
         self._layout = checkpoint.interface_layout("wall_samples", self.sampler.reference, 1)
+        self.update()  # the fields of the initial state, the indices' value at the start
 
     @property
     def fields(self) -> list:
@@ -252,13 +257,16 @@ class FluidOutputs:
     def update(self) -> dict:
         """Recompute the fields for the current solution; return the row's wall and flow
         columns. If the fluid's time has advanced since the last update (a step was taken), the
-        wall shear stress now is added to the indices over that step, (t_last, t]; a restored
-        state (same time) adds nothing."""
+        wall shear stress now is added to the indices over that step, (t_last, t]; at the
+        indices' own time (the start, a restored state) it is their value there, the start of
+        the next step's interpolant."""
         s = self.solver
         self.derived.update()
         samples = self.sampler.local()
         if s.time > self.indices.time:
             self._add_step(s.time, samples.tau)
+        elif s.time == self.indices.time:  # where the next step begins: the start, a restart
+            self.indices.set_value(samples.tau)
         row = {}
         if self.lumen:
             row.update(metrics.wall_shear_summary(self.sampler.gather(samples)))
@@ -270,21 +278,28 @@ class FluidOutputs:
         return row
 
     def _add_step(self, t: float, tau: np.ndarray) -> None:
-        """Add the step (last t, t] with the end values ``tau`` to the indices; with a period
-        T, a step that ends in a later heartbeat first closes the current one: its part up to
-        the boundary k T counts for heartbeat k (the step's end value, as WallIndices' window
-        start does for the part after it), and the accumulators start afresh at k T."""
+        """Add the step (last t, t] ending with the values ``tau`` to the indices; with a
+        period T, a step that ends in a later heartbeat first closes the current one: its part
+        up to the boundary k T counts for heartbeat k (τ interpolated linearly to k T, as
+        WallIndices does), and the accumulators start afresh at k T from that value."""
         T = self.period
         while T > 0 and heartbeat(t, T) > len(self.past) + 1:
             boundary = (len(self.past) + 1) * T
+            at_boundary = None
             if boundary > self.indices.time:
-                self.indices.add(boundary, tau)
+                at_boundary = self.indices.value_at(boundary, t, tau)
+                self.indices.add(boundary, at_boundary)
             self.past.append(self.indices)
             # From the boundary, or from where the accumulators stopped if that is later (a
             # checkpoint of an earlier version, whose indices ran over the whole run).
             self.indices = metrics.WallIndices(
-                self.sampler.size, start=boundary, time=max(boundary, self.past[-1].time)
+                self.sampler.size,
+                start=boundary,
+                time=max(boundary, self.past[-1].time),
+                interpolate=self.interpolate,
             )
+            if at_boundary is not None:
+                self.indices.set_value(at_boundary)
         self.indices.add(t, tau)
 
     def state(self) -> dict[str, np.ndarray]:
@@ -323,7 +338,10 @@ class FluidOutputs:
         restart's time, with a warning."""
         if "wall_indices.integrals" not in state:
             self.indices = metrics.WallIndices(
-                self.sampler.size, start=self.solver.time, time=self.solver.time
+                self.sampler.size,
+                start=self.solver.time,
+                time=self.solver.time,
+                interpolate=self.interpolate,
             )
             if self.solver.comm.rank == 0:
                 log.warning(
