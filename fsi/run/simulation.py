@@ -218,9 +218,8 @@ def _adaptive_steps(
     """The steps ``clock`` chooses, each taken and its row: a step whose local error
     (``time_error``) is above the tolerance is undone (the stepper goes back to ``saved``'s good
     state; the step is appended to ``rejected``) and taken again as short as the error asks
-    for; one that is still above it at
-    ``time.adaptive.min_dt`` fails the run (:class:`StepFailed`). A generator, as
-    :func:`_scheduled_steps`."""
+    for; one that is still above it at ``time.adaptive.min_dt`` fails the run
+    (:class:`StepFailed`). A generator, as :func:`_scheduled_steps`."""
     retries, control = saved.case.time.retries, clock.control
     while (step := clock.next_step()) is not None:
         while True:
