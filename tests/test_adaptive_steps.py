@@ -83,14 +83,14 @@ def test_adaptive_steps_follow_the_start_up_flow(runs):
     worst error over them relative to Q∞. Measured (`time_error` ≤ tolerance on every step):
 
         tolerance   steps   worst error   largest step
-        1e-2        21      3.1e-3        0.35 s
-        1e-3        30      9.4e-4        0.19 s
-        1e-4        53      2.1e-4        0.09 s
+        1e-2        22      2.8e-3        0.38 s
+        1e-3        35      5.8e-4        0.13 s
+        1e-4        65      1.4e-4        0.07 s
 
     (fixed steps for comparison: 100 of 0.02 s 3.0e-4, 30 of 0.067 s 5.5e-4 at 1 s and none
     ending on the report times before). The error follows the tolerance, falling about as a
     second-order scheme's global error does when its local error is held to the tolerance
-    (tol^(2/3): 4.6 × for 10 ×; measured 3.3 ×), while the steps grow from 1 ms by two orders
+    (tol^(2/3): 4.6 × for 10 ×; measured 4.9 ×), while the steps grow from 1 ms by two orders
     of magnitude."""
     errors = {}
     for tolerance, found in runs.items():
@@ -103,8 +103,8 @@ def test_adaptive_steps_follow_the_start_up_flow(runs):
         assert dts[0] == 1e-3 and max(dts) > 100 * dts[0], dts
         assert all(float(r["time_error"]) <= tolerance for r in found if r["time_error"])
     assert errors[1e-2] < 5e-3, errors
-    assert errors[1e-3] < 1.5e-3, errors
-    assert errors[1e-2] / errors[1e-3] > 2.5, errors
+    assert errors[1e-3] < 1e-3, errors
+    assert errors[1e-2] / errors[1e-3] > 3, errors
     steps = {tolerance: len(found) for tolerance, found in runs.items()}
     assert steps[1e-2] < steps[1e-3] < 40, steps
 

@@ -145,6 +145,10 @@ def test_step_size_control():
     assert control.next_dt(0.1, 1.0, 1.0) == pytest.approx(0.02)  # shrink capped at 0.2
     assert control.next_dt(0.1, None, 1.0) == 0.1  # no estimate: the same step
     assert control.next_dt(0.1, 1e-6, 0.15) == 0.15  # the segment's dt bounds it
+    # Growth below hold = 1.5 keeps the step (1.2 ×: e = tol (0.9/1.2)³); from 1.5 on it grows.
+    assert control.next_dt(0.1, 1e-3 * (0.9 / 1.2) ** 3, 1.0) == 0.1
+    assert control.next_dt(0.1, 1e-3 * (0.9 / 1.6) ** 3, 1.0) == pytest.approx(0.16)
+    assert control.next_dt(0.1, 1e-3 * (0.9 / 0.95) ** 3, 1.0) == pytest.approx(0.095)
     assert control.next_dt(1e-6, 1.0, 1.0) == 1e-6  # never below min_dt
 
 

@@ -216,8 +216,11 @@ class StepSizeControl:
 
         dt_next = dt · clip(safety · (tolerance / e)^(1/(order+1)), max_shrink, max_growth)
 
-    A step with ``e > tolerance`` is rejected (:meth:`accepts`) and taken again with that
-    smaller step; no step is made shorter than ``min_dt`` or longer than the ``max_dt`` given.
+    except that a step grows only by ``hold`` or more, else it stays as it was: over stretches
+    of equal steps the solvers' kept Jacobians (whose time-derivative term holds 1/dt) and the
+    coupling's secant columns of past steps stay valid. A step with ``e > tolerance`` is
+    rejected (:meth:`accepts`) and taken again with the smaller step; no step is made shorter
+    than ``min_dt`` or longer than the ``max_dt`` given.
     """
 
     tolerance: float
@@ -226,6 +229,7 @@ class StepSizeControl:
     safety: float = 0.9
     max_shrink: float = 0.2
     max_growth: float = 2.0
+    hold: float = 1.5
 
     def accepts(self, error: float | None) -> bool:
         """Whether a step with estimate ``error`` (None: none yet) stands."""
@@ -241,6 +245,8 @@ class StepSizeControl:
         else:
             factor = self.safety * (self.tolerance / error) ** (1.0 / (self.order + 1))
             factor = min(self.max_growth, max(self.max_shrink, factor))
+            if 1.0 < factor < self.hold:
+                factor = 1.0
         return min(max_dt, max(self.min_dt, dt * factor))
 
 
