@@ -11,6 +11,7 @@ not be written (disk full, folder read-only; the last checkpoint that could be w
 from __future__ import annotations
 
 import argparse
+import gc
 import logging
 import os
 import shlex
@@ -357,6 +358,7 @@ def run_case(request: RunRequest, case: config.Case) -> RunOutcome:
                 "re-extended at the first step, whose mesh velocity and forces jump",
                 ", ".join(f"mesh_motion.{k}" for k in changed),
             )
+    at_once = False  # a second interrupt: the ranks may be anywhere, no collective after it
     try:
         with _StopOnSignal() as stop:
             result = simulation.run(case, request.out, comm, restart, stop)
@@ -365,11 +367,20 @@ def run_case(request: RunRequest, case: config.Case) -> RunOutcome:
     except stops.RunStopped as e:
         return _stopped(request, e)
     except KeyboardInterrupt:  # a second interrupt: at once, without a checkpoint
+        at_once = True
         log.error(
             "fsi: stopped at once; the last periodic checkpoint is in %s",
             request.out / checkpoint.DIRECTORY,
         )
         return RunOutcome(128 + signal.SIGINT, "stopped at once (a second interrupt)")
+    finally:
+        # Free the run's dolfinx/PETSc objects here, on every rank at once: their destructors
+        # are collective (MUMPS), and a run that stopped leaves them in reference cycles
+        # (through its exception's traceback) that each rank's garbage collector would free at
+        # a different moment, hanging the ranks (seen in tests/test_faults.py on 2 ranks).
+        if not at_once:
+            gc.collect()
+            comm.barrier()
     done = f"done: {result.steps} steps in {result.wall_time_s:.1f} s; wrote {request.out}"
     log.info(done)
     if comm.rank == 0:

@@ -156,9 +156,12 @@ def march(
             summary = outputs.write_summary(retried, saved.latest, start, rejected)
         except (RunStopped, io.OutputError) as e:
             stopped = saved.stopped(e)
-            if stopped is e:
-                raise
-            raise stopped from e
+            try:
+                if stopped is e:
+                    raise
+                raise stopped from e
+            finally:
+                del stopped  # its traceback holds this frame: no cycle through this local
     return RunResult(taken, summary["wall_time_s"], summary)
 
 
