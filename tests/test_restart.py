@@ -70,8 +70,8 @@ def rows(run: Path) -> list[dict]:
         return [{k: v for k, v in r.items() if k != "wall_time_s"} for r in csv.DictReader(f)]
 
 
-def assert_same_rows(a: Path, b: Path, rel: float = 1e-9) -> None:
-    """Equal on 1 rank; on more, to ``rel`` relative (see the top)."""
+def assert_same_rows(a: Path, b: Path, rel: float = 1e-9, absolute: float = 1e-12) -> None:
+    """Equal on 1 rank; on more, to ``rel`` relative or ``absolute`` (see the top)."""
     ra, rb = rows(a), rows(b)
     assert [r["step"] for r in ra] == [r["step"] for r in rb]
     if SERIAL:
@@ -82,7 +82,7 @@ def assert_same_rows(a: Path, b: Path, rel: float = 1e-9) -> None:
             if key.endswith("iterations") or x[key] == "":
                 assert x[key] == y[key], key
             else:
-                assert float(x[key]) == pytest.approx(float(y[key]), rel=rel, abs=1e-12), key
+                assert float(x[key]) == pytest.approx(float(y[key]), rel=rel, abs=absolute), key
 
 
 def stored(run: Path) -> dict[str, tuple]:
@@ -378,8 +378,9 @@ def test_an_adaptive_coupled_run_restarts_exactly(shared_tmp):
     assert fsi_run(COUPLED, split, [*overrides, "time.end=0.003"], restart=split) == 0
     # On 2 ranks the estimate, a difference of fields ~1e3 times larger, carries their round-off
     # (~1e-12 relative) at ~1e-9 of itself (measured 2.5e-9), and so the steps' sizes at
-    # ~1e-9 and every value after them: bounded by 1e-6 there.
-    assert_same_rows(split, straight, rel=1e-6)
+    # ~1e-9 and every value after them: bounded by 1e-6 there; the residual norms of converged
+    # iterates (~1e-7 of their scale 1) to 1e-9 absolute (measured 1.5e-12 on dolfinx 0.9).
+    assert_same_rows(split, straight, rel=1e-6, absolute=1e-9)
     assert_same_state(split, straight, rel=1e-6)
     taken = rows(straight)
     assert any(r["t"] == "0.0015" for r in taken) and taken[-1]["t"] == "0.003"

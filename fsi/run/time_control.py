@@ -51,14 +51,14 @@ class TimeErrors:
     def after_step(self, t: float) -> dict:
         """The step to ``t`` just taken: its row's :data:`COLUMN` (the largest estimate, or ''
         while there is none); its values are recorded. Collective."""
+        if not self.fields:
+            return {}
         estimates = [
             self.errors[name].estimate(function.x.array, t)
             for name, (function, _) in self.fields.items()
         ]
         self._accept(t)
         known = [e for e in estimates if e is not None]
-        if not self.fields:
-            return {}
         return {COLUMN: max(known) if known else ""}
 
     def layouts(self) -> dict[str, checkpoint.Layout]:
