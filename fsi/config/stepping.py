@@ -25,7 +25,7 @@ class TimeSegment:
 class AdaptiveStepping:
     """``time.adaptive``: the step size control of ``time.step_control: adaptive``
     (fsi.numerics.timestepping: :class:`~fsi.numerics.timestepping.LocalError`,
-    :class:`~fsi.numerics.timestepping.StepSizeControl`; docs/time-stepping.md).
+    :class:`~fsi.numerics.timestepping.StepSizeControl`; docs/configuration.md).
 
     ``tolerance``: the largest local error a step may make in each controlled field (the
     fluid's velocity, the structure's displacement), relative to the largest entry the field
