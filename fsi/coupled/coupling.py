@@ -117,8 +117,8 @@ class Acceleration(Protocol):
     def next_input(self, x: np.ndarray, x_tilde: np.ndarray) -> np.ndarray:
         """The next input ``x_{k+1}`` from the input ``x_k`` and the output ``x̃_k = H(x_k)``."""
 
-    def end_step(self, x: np.ndarray, x_tilde: np.ndarray) -> None:
-        """The step converged at input ``x`` with output ``x̃``: keep what the next step reuses."""
+    def end_step(self) -> None:
+        """The step converged: keep what the next step reuses."""
 
     def state(self) -> dict[str, np.ndarray]:
         """What a later step reuses (between steps), as named local arrays for a checkpoint."""
@@ -145,7 +145,7 @@ class ConstantRelaxation:
     def next_input(self, x: np.ndarray, x_tilde: np.ndarray) -> np.ndarray:
         return x + self.omega * (x_tilde - x)
 
-    def end_step(self, x: np.ndarray, x_tilde: np.ndarray) -> None:
+    def end_step(self) -> None:
         pass
 
     def state(self) -> dict[str, np.ndarray]:
@@ -200,7 +200,7 @@ class Aitken:
         self._previous_residual = r
         return x + self.omega * r
 
-    def end_step(self, x: np.ndarray, x_tilde: np.ndarray) -> None:
+    def end_step(self) -> None:
         self._previous_residual = None
 
     def state(self) -> dict[str, np.ndarray]:
@@ -219,8 +219,7 @@ class IQNILS:
     Degroote, Bathe & Vierendeels 2009 (Comput. Struct. 87:793–801). With the residual
     ``r_k = x̃_k − x_k``, the columns ``V = [Δr]`` and ``W = [Δx̃]`` hold the differences of
     successive residuals and outputs, this step's newest first, then those of the last
-    ``reuse`` converged steps (newest step first; each with its difference to the converged
-    pair). The update
+    ``reuse`` converged steps (newest step first). The update
 
         x_{k+1} = x̃_k + W c,   c = argmin_c |V c + r_k|,
 
@@ -253,19 +252,13 @@ class IQNILS:
     def start_step(self) -> None:
         self._V, self._W, self._previous = [], [], None
 
-    def _add_columns(self, x: np.ndarray, x_tilde: np.ndarray) -> np.ndarray:
-        """Put the differences from the last pair to ``(x, x̃)`` first in this step's columns;
-        return the residual ``r = x̃ − x``."""
+    def next_input(self, x: np.ndarray, x_tilde: np.ndarray) -> np.ndarray:
         r = x_tilde - x
         if self._previous is not None:
             r_old, x_tilde_old = self._previous
             self._V.insert(0, r - r_old)
             self._W.insert(0, x_tilde - x_tilde_old)
         self._previous = (r.copy(), np.array(x_tilde, dtype=float))
-        return r
-
-    def next_input(self, x: np.ndarray, x_tilde: np.ndarray) -> np.ndarray:
-        r = self._add_columns(x, x_tilde)
         V, W = list(self._V), list(self._W)
         if self.reuse:
             for V_old, W_old in reversed(self._old_steps):
@@ -278,11 +271,7 @@ class IQNILS:
         c = np.linalg.solve(R, -self.comm.allreduce(Q.T @ r, op=MPI.SUM))
         return x_tilde + np.column_stack([W[i] for i in kept]) @ c
 
-    def end_step(self, x: np.ndarray, x_tilde: np.ndarray) -> None:
-        """Keep this step's columns for the next ``reuse`` steps, with the last difference: the
-        one to the converged pair, which no ``next_input`` turned into a column (without it a
-        step converged in two iterations would leave none)."""
-        self._add_columns(x, x_tilde)
+    def end_step(self) -> None:
         if self.reuse and self._V:
             self._old_steps.append((self._V, self._W))
         self._V, self._W, self._previous = [], [], None
@@ -478,7 +467,7 @@ def couple_step(
         if residuals[-1] <= tolerance:
             fluid.advance()
             solid.advance()
-            acceleration.end_step(x, x_tilde)
+            acceleration.end_step()
             predictor.record(x_tilde, t)
             return StepResult(x_tilde, residuals)
         x = acceleration.next_input(x, x_tilde)
