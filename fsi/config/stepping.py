@@ -121,7 +121,10 @@ class Coupling:
     ``initial_relaxation``: ω of constant relaxation, Aitken's first ω and IQN-ILS's relaxed
     first iteration; ``max_relaxation``: Aitken's cap |ω| <= ω_max; ``iqn_reuse``: time steps
     whose secant columns IQN-ILS reuses; ``iqn_filter``: its QR filter threshold (relative);
-    ``predictor``: extrapolation of the interface displacement from previous steps.
+    ``predictor``: extrapolation of the interface displacement from previous steps;
+    ``fluid_forcing``: from a step's second coupling iteration on, a fluid solve stops once it
+    has reduced its initial residual by this factor (never looser than where the step's first
+    solve stopped; fsi/coupled/partitioned.py); 0 solves each to the fluid's Newton tolerance.
     """
 
     acceleration: Literal["constant", "aitken", "iqn-ils"] = "aitken"
@@ -132,6 +135,7 @@ class Coupling:
     iqn_reuse: int = at_least(4, 0)
     iqn_filter: float = positive(1.0e-2)  # 1e-8 kept stale columns: IQN diverged on the stenosis
     predictor: Literal["constant", "linear", "quadratic"] = "linear"
+    fluid_forcing: float = checked(0.0, lambda v: 0 <= v < 1, "a number in [0, 1)")
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,12 @@ interface dofs, flat) to the force the blood exerts on the structure:
    conservation of the ALE form needs. At convergence ``d|Γ = η`` so ``u = ∂η/∂t`` holds to the
    order of the BDF formula; the solid's generalized-α velocity differs from it by O(Δt²)
    (it belongs to another time scheme and to the solid's output, not to the input x);
-4. the fluid step (Newton) on the moved mesh;
+4. the fluid step (Newton) on the moved mesh, from the last iterate (``warm_start``). The
+   step's first solve stops on the fluid's own Newton test; the later ones, which start near
+   their answer, stop once they have reduced their initial residual by ``forcing`` (the
+   coupling's ``fluid_forcing``), but never looser than where the step's first solve stopped
+   (:class:`fsi.numerics.newton.Forcing`): the dolfinx test, relative to a warm start's small
+   first increment, would solve each of them some 1e4 times tighter than the first;
 5. the output: the residual-based nodal forces ``f_i = −R_i = −∫_Γ σ n_f φ_i ds`` of the fluid
    (:meth:`fsi.physics.fluid.FluidSolver.interface_force`; n_f the fluid's outward normal, so this
    is ``∫ σ n_s φ_i ds`` with n_s = −n_f: the force of the fluid ON the structure, N per unit
@@ -44,7 +49,7 @@ import numpy as np
 from fsi import config
 from fsi.coupled import coupling
 from fsi.coupled.interface import InterfaceMap
-from fsi.numerics.newton import SolveResult
+from fsi.numerics.newton import Forcing, SolveResult
 from fsi.physics import fluid, mesh, solid
 from fsi.physics.mesh_motion import MeshMotion
 from geometry.tags import Boundary, Region
@@ -73,10 +78,13 @@ class FluidInterface:
         to_solid: InterfaceMap,
         interface: tuple[Boundary, ...] = (Boundary.INTERFACE,),
         warm_start: bool = True,
+        forcing: float = 0.0,
     ):
         self.fluid, self.motion = fluid_solver, motion
         self.to_fluid, self.to_solid = to_fluid, to_solid
         self.interface, self.warm_start = tuple(int(b) for b in interface), warm_start
+        self.forcing = forcing  # 0: every solve to the fluid's Newton tolerance
+        self.first_residual = math.nan  # |F| where the step's first solve stopped
         self.eta = dolfinx.fem.Function(fluid_solver.V, name="interface_displacement")
         self.t, self.dt = math.nan, math.nan
         self.last: SolveResult | None = None
@@ -115,7 +123,12 @@ class FluidInterface:
             raise RuntimeError("call begin_step(t, dt) before solve")
         self.solves += 1
         self.move_mesh(interface_input)
-        result = self.fluid.step(self.t, self.dt)
+        forcing = None
+        if self.forcing and self.solves > 1:
+            forcing = Forcing(self.forcing, ceiling=self.first_residual)
+        result = self.fluid.step(self.t, self.dt, forcing=forcing)
+        if self.solves == 1:
+            self.first_residual = result.residual
         self.last = result
         self.newton_iterations += result.iterations
         result.raise_if_failed()
@@ -226,7 +239,9 @@ def build_coupled(case: config.Case, comm: MPI.Comm = MPI.COMM_WORLD) -> Coupled
         and np.array_equal(to_solid.dst_dofs, solid_solver.interface_dofs)
     ):
         raise RuntimeError("the solid's interface vector and the interface maps disagree")
-    fluid_side = FluidInterface(fluid_solver, motion, to_fluid, to_solid)
+    fluid_side = FluidInterface(
+        fluid_solver, motion, to_fluid, to_solid, forcing=case.coupling.fluid_forcing
+    )
     solid_side = SolidInterface(solid_solver)
     predictor = coupling.predictor_from_config(case.coupling)
     predictor.record(solid_solver.interface_displacement().ravel(), 0.0)

@@ -26,6 +26,12 @@ the increment |δx_k|, below ``atol`` or below ``rtol`` times the first incremen
 convergence as with Newton's Jacobians. Should a solve with a reused Jacobian fail, it is
 repeated from the same initial guess with a fresh Jacobian at every iteration (plain Newton), so
 reuse never turns a solvable step into a failure.
+
+A solve may also be *forced* (:class:`Forcing`, inexact Newton's forcing term): it then stops as
+soon as |F(x_k)| <= max(atol, min(ceiling, eta |F(x_0)|)), its residual reduced by the factor eta
+from where it started but never stopped looser than ``ceiling``. The coupling uses it for the
+fluid solves after a step's first (fsi/coupled/partitioned.py): those start from the last
+iterate, so the usual test (relative to their own small first increment) over-solves them.
 """
 
 from __future__ import annotations
@@ -46,6 +52,23 @@ import numpy as np
 log = logging.getLogger(__name__)
 
 Reuse = Literal["none", "step", "run"]
+
+
+@dataclass(frozen=True)
+class Forcing:
+    """Stop a solve once |F(x_k)| <= max(atol, min(ceiling, eta · |F(x_0)|)), as well as on the
+    solver's own test: ``eta`` in (0, 1) is the factor by which the solve reduces the residual it
+    started from, ``ceiling`` (in F's units) the loosest residual accepted."""
+
+    eta: float
+    ceiling: float
+
+    def __post_init__(self):
+        if not 0 < self.eta < 1:
+            raise ValueError(f"forcing eta must be in (0, 1), got {self.eta}")
+
+    def atol(self, atol: float, initial_residual: float) -> float:
+        return max(atol, min(self.ceiling, self.eta * initial_residual))
 
 
 class NewtonCallbacks:
@@ -77,12 +100,16 @@ class NewtonCallbacks:
         self._fresh = reuse == "none"
         self._step: Hashable = None
         self._norms: list[float] = []
+        self.on_initial_residual: Callable[[float], None] | None = None
         newton.setF(self.F, newton.b)
         newton.setJ(self.J, newton.A)
 
     def F(self, x: PETSc.Vec, b: PETSc.Vec) -> None:
         self.problem.F(x, b)
         self.residual_evaluations += 1
+        if self.on_initial_residual is not None:  # the solve's first residual, |F(x_0)|
+            self.on_initial_residual(b.norm())
+            self.on_initial_residual = None
         if not self._fresh:
             self._norms.append(b.norm())  # a global norm: every rank decides alike
 
@@ -196,7 +223,7 @@ class Newton:
         self.comm, self.prefix = comm, prefix
         self.options = dict(settings.petsc_options)
         solver = dolfinx.nls.petsc.NewtonSolver(comm, problem)
-        solver.convergence_criterion = criterion
+        solver.convergence_criterion = self.criterion = criterion
         solver.rtol, solver.atol = settings.rtol, settings.atol
         solver.max_it = settings.max_iterations
         solver.error_on_nonconvergence = False
@@ -213,19 +240,36 @@ class Newton:
         )
 
     def solve(
-        self, u: dolfinx.fem.Function, residual: Callable[[], float], step: Hashable = None
+        self,
+        u: dolfinx.fem.Function,
+        residual: Callable[[], float],
+        step: Hashable = None,
+        forcing: Forcing | None = None,
     ) -> SolveResult:
         """Solve for ``u`` from its current value (collective). ``residual()`` gives the
-        residual norm after the solve; ``step`` identifies the time step for Jacobian reuse.
+        residual norm after the solve; ``step`` identifies the time step for Jacobian reuse;
+        ``forcing`` (residual criterion only) also stops the solve at its :class:`Forcing`.
         On failure (no convergence, a PETSc error, a non-finite residual or ``u``) ``u`` is
         reset to its value before the solve and the result says why."""
         guess = u.x.array.copy()
         reason = ""
+        atol = self.solver.atol
+        if forcing is not None:
+            if self.criterion != "residual":
+                raise ValueError("a forced solve needs the residual criterion")
+
+            def force(initial_residual: float) -> None:
+                self.solver.atol = forcing.atol(atol, initial_residual)  # read at every test
+
+            self.callbacks.on_initial_residual = force
         try:
             with petsc_options(self.prefix, self.options):
                 iterations, converged = self.callbacks.solve(self.solver, u, step=step)
         except RuntimeError as e:  # a PETSc error, raised on every rank
             iterations, converged, reason = self.solver.max_it, False, f"PETSc: {e}"
+        finally:
+            self.solver.atol = atol
+            self.callbacks.on_initial_residual = None
         norm = float(residual())
         finite = bool(
             self.comm.allreduce(

@@ -51,7 +51,7 @@ import ufl
 
 from fsi import compat, config
 from fsi.config import boundary_data
-from fsi.numerics.newton import Newton, SolveResult
+from fsi.numerics.newton import Forcing, Newton, SolveResult
 from fsi.numerics.timestepping import BdfHistory, bdf_weights
 from fsi.physics import outlets, rheology
 from fsi.physics.mesh_motion import AleMesh
@@ -879,10 +879,11 @@ class FluidSolver:
             return tuple(bdf_weights(2, dt, self.dt_previous))  # type: ignore[return-value]
         return (*bdf_weights(1, dt), 0.0)  # type: ignore[return-value]
 
-    def step(self, t: float, dt: float) -> SolveResult:
-        """Solve for (u, p) at time ``t`` = t_n + dt on the current mesh. On failure (Newton not
-        converged, PETSc error, non-finite values) the solution is reset to its value before the
-        step and the result says why; nothing non-finite is left behind."""
+    def step(self, t: float, dt: float, forcing: Forcing | None = None) -> SolveResult:
+        """Solve for (u, p) at time ``t`` = t_n + dt on the current mesh, Newton starting from
+        the current (u, p) and stopping on the solver's tolerance or at ``forcing``. On failure
+        (Newton not converged, PETSc error, non-finite values) the solution is reset to its
+        value before the step and the result says why; nothing non-finite is left behind."""
         weights = self.time_weights(dt)
         self._dt = dt
         for c, a in zip(self._a, weights):
@@ -895,7 +896,9 @@ class FluidSolver:
         if not self._mesh_velocity_given:
             self.ale.set_velocity(weights)
         self.ale.w.x.scatter_forward()
-        result = self.newton.solve(self.U, self.newton.solver.b.norm, step=self.accepted_steps)
+        result = self.newton.solve(
+            self.U, self.newton.solver.b.norm, step=self.accepted_steps, forcing=forcing
+        )
         if not result.converged:
             result = replace(
                 result, reason=f"fluid step to t = {t:g} s (dt = {dt:g} s): {result.reason}"
