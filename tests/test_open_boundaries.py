@@ -155,7 +155,8 @@ def steady_carreau_channel(gradient: float, jacobian_reuse: str):
 def test_steady_carreau_channel_converges_from_rest():
     """The steady Carreau channel at blood density under 300 Pa/m (Re ≈ 1,000 on the mean
     velocity and H), one Newton solve started from rest with the study's open boundaries and a
-    kept Jacobian (renewed when an iteration leaves more than 0.3 of the residual).
+    kept Jacobian (renewed when an iteration leaves more than 0.7 of the residual, the study's
+    ``jacobian_reuse_rate``).
 
     Without inflow stabilization this discrete steady problem has several roots near the 1D
     flow rate, and which one Newton reaches depends on its path (docs/performance.md). Measured
