@@ -232,16 +232,27 @@ def test_iqn_ils_filters_a_repeated_secant_pair():
 def test_predictor_extrapolates_polynomials_exactly():
     x0 = np.array([1.0, -2.0])
     for order, f in [(0, lambda t: x0), (1, lambda t: x0 * (1 + 3 * t)),
-                     (2, lambda t: x0 * (1 + 3 * t - 5 * t**2))]:  # fmt: skip
+                     (2, lambda t: x0 * (1 + 3 * t - 5 * t**2)),
+                     (3, lambda t: x0 * (1 + 3 * t - 5 * t**2 + 7 * t**3))]:  # fmt: skip
         p = cp.Predictor(order)
-        times = [0.0, 0.1, 0.25]  # unequal steps
+        times = [-0.05, 0.0, 0.1, 0.25]  # unequal steps; the oldest drops out below cubic
         for t in times:
             p.record(f(t), t)
         np.testing.assert_allclose(p.predict(0.3), f(0.3), rtol=1e-12)
+        if order < 3:  # one degree more is not extrapolated exactly
+            g = lambda t: f(t) + x0 * t ** (order + 1)  # noqa: E731
+            for t in times:
+                p.record(g(t), t)
+            assert not np.allclose(p.predict(0.3), g(0.3), rtol=1e-6)
     p = cp.Predictor("quadratic")  # without times: equal steps, 3 x_n − 3 x_{n−1} + x_{n−2}
     for k in range(3):
         p.record(np.array([k**2 + 1.0]))
     np.testing.assert_allclose(p.predict(), [3**2 + 1.0])
+    p = cp.Predictor("cubic")  # equal steps: 4 x_n − 6 x_{n−1} + 4 x_{n−2} − x_{n−3}
+    for k in range(5):
+        p.record(np.array([k**3 - 2.0 * k]))
+    np.testing.assert_allclose(p.predict(), [5**3 - 10.0])
+    np.testing.assert_allclose(p.predict(), [4 * 56 - 6 * 21 + 4 * 4 - 1 * -1.0])
     p = cp.Predictor("quadratic")  # with one value only: constant
     p.record(x0, 0.0)
     np.testing.assert_allclose(p.predict(1.0), x0)

@@ -1,7 +1,7 @@
 """The shipped solver settings of the study's cases leave the answer where the tolerances put it
 (docs/performance.md).
 
-The speed settings of the stenosis configs (the quadratic interface predictor, IQN-ILS keeping
+The speed settings of the stenosis configs (the cubic interface predictor, IQN-ILS keeping
 8 steps' columns, the fluid's and the structure's Jacobians kept across iterations and steps
 while they contract the residual (the fluid's while an iteration leaves at most 0.7 of it),
 dropped at every periodic checkpoint, and the forced fluid solves of the later coupling
@@ -13,14 +13,16 @@ the headline columns of metrics.csv over the pulse (the first 40 steps, where th
 hardest) must agree with it to 5e-4 of each column's peak.
 
 Measured on the coarse mesh (relative to the peak, the largest over the 40 steps; all in the
-mean outlet pressure): the shipped settings 1.0e-4; the same without forcing 2.5e-4; the
-settings before #11 (linear predictor, 4 steps' columns, Jacobians kept within a step only
-and renewed at 0.3) 2.1e-4. Over the whole heartbeat the largest differences are of the same
-size (3.4e-4, the recirculation length at 4 ms, which jumps by facets). The bound leaves room
-for the 2-rank partition and dolfinx 0.9; CONTROL below, a coupling loosened to 1e-4, is
-3.6e-3 off (peak pressure) and caught. Coupling iterations per step over these steps: shipped
-3.70, without forcing 3.68, before #11 3.93, the tight solve 7.3; fluid Newton iterations over
-the 40 steps: shipped 463, without forcing 674.
+mean outlet pressure): the shipped settings 5.8e-5 (1.0e-4 with the quadratic predictor shipped
+before); the same without forcing 1.7e-4; the settings before #11 (linear predictor, 4 steps'
+columns, Jacobians kept within a step only and renewed at 0.3) 2.1e-4. Over the whole heartbeat
+the largest differences are of the same size (shipped 8.6e-5, quadratic 1.5e-4, in the
+recirculation length at 4 ms, which jumps by facets). The bound leaves room for the 2-rank
+partition and dolfinx 0.9; CONTROL below, a coupling loosened to 3e-4, is 1.1e-3 off and caught
+(to 1e-4 it was 3.6e-3 off with the quadratic predictor, but only 3.8e-4 with the cubic one,
+which starts each step nearer the answer). Coupling iterations per step over these steps:
+shipped 3.55 (quadratic 3.70), without forcing 3.53, before #11 3.93, the tight solve 7.3; fluid
+Newton iterations over the 40 steps: shipped 451, without forcing 646.
 """
 
 import shutil
@@ -77,7 +79,7 @@ PREVIOUS = [  # the settings before #11
     "coupling.fluid_forcing=0",
 ]
 UNFORCED = ["coupling.fluid_forcing=0"]  # the shipped settings, each fluid solve to its tolerance
-CONTROL = ["coupling.tolerance=1e-4"]
+CONTROL = ["coupling.tolerance=3e-4"]
 
 
 @pytest.fixture(scope="module")

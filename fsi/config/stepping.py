@@ -134,7 +134,7 @@ class Coupling:
     max_relaxation: float = positive(1.0)
     iqn_reuse: int = at_least(4, 0)
     iqn_filter: float = positive(1.0e-2)  # 1e-8 kept stale columns: IQN diverged on the stenosis
-    predictor: Literal["constant", "linear", "quadratic"] = "linear"
+    predictor: Literal["constant", "linear", "quadratic", "cubic"] = "linear"
     fluid_forcing: float = checked(0.0, lambda v: 0 <= v < 1, "a number in [0, 1)")
 
 

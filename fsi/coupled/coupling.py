@@ -311,7 +311,7 @@ def from_config(coupling: Coupling, comm: MPI.Comm) -> Acceleration:
 # Predictor
 
 
-PREDICTOR_ORDERS = {"constant": 0, "linear": 1, "quadratic": 2}
+PREDICTOR_ORDERS = {"constant": 0, "linear": 1, "quadratic": 2, "cubic": 3}
 
 
 class Predictor:
@@ -324,6 +324,8 @@ class Predictor:
                   (= 2 x_n − x_{n−1} for equal steps)
         quadratic the Lagrange polynomial through (t_{n−2}, x_{n−2}), …, (t_n, x_n)
                   (= 3 x_n − 3 x_{n−1} + x_{n−2} for equal steps)
+        cubic     the Lagrange polynomial through the last four
+                  (= 4 x_n − 6 x_{n−1} + 4 x_{n−2} − x_{n−3} for equal steps)
 
     Record the initial value first (``record(x_0, t_0)``). Times are optional: if any is
     missing, the steps are taken as equal.
@@ -331,8 +333,8 @@ class Predictor:
 
     def __init__(self, order: int | str = 1):
         self.order = PREDICTOR_ORDERS[order] if isinstance(order, str) else int(order)
-        if self.order not in (0, 1, 2):
-            raise ValueError(f"predictor order must be 0, 1 or 2, got {order!r}")
+        if self.order not in PREDICTOR_ORDERS.values():
+            raise ValueError(f"predictor order must be 0, 1, 2 or 3, got {order!r}")
         self._values: deque[np.ndarray] = deque(maxlen=self.order + 1)
         self._times: deque[float] = deque(maxlen=self.order + 1)
 
@@ -370,7 +372,7 @@ class Predictor:
 
 
 def predictor_from_config(coupling: Coupling) -> Predictor:
-    """The predictor named by ``coupling.predictor`` (constant, linear or quadratic)."""
+    """The predictor named by ``coupling.predictor`` (constant, linear, quadratic or cubic)."""
     return Predictor(coupling.predictor)
 
 
