@@ -331,7 +331,7 @@ def _run(args: argparse.Namespace, case: config.Case) -> int:
 def run_case(request: RunRequest, case: config.Case) -> RunOutcome:
     """Run ``case`` as ``fsi run`` does (the same checks, messages, files and stops; SIGINT,
     SIGTERM and SIGUSR1 stop it after the current step). Collective."""
-    from fsi.output import io
+    from fsi.output import io, provenance
     from fsi.run import checkpoint, simulation, stops
 
     comm = MPI.COMM_WORLD
@@ -358,6 +358,11 @@ def run_case(request: RunRequest, case: config.Case) -> RunOutcome:
                 "re-extended at the first step, whose mesh velocity and forces jump",
                 ", ".join(f"mesh_motion.{k}" for k in changed),
             )
+    if comm.rank == 0 and provenance.blas_name(provenance.blas_library()) == "reference":
+        log.warning(
+            "fsi: warning: MUMPS runs on Debian's reference BLAS, its LU factorisations ~3.6x "
+            "slower than on OpenBLAS (fine mesh); `make setup` installs libopenblas0-serial"
+        )
     at_once = False  # a second interrupt: the ranks may be anywhere, no collective after it
     try:
         with _StopOnSignal() as stop:

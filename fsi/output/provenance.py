@@ -1,5 +1,5 @@
-"""Where a result came from: the code's version and git revision, the libraries, the command
-line (``fsi --version``, summary.json)."""
+"""Where a result came from: the code's version and git revision, the libraries (the BLAS under
+MUMPS included), the command line (``fsi --version``, summary.json)."""
 
 from __future__ import annotations
 
@@ -39,13 +39,39 @@ def git_revision() -> str | None:
     return head.stdout.strip() + ("+dirty" if dirty else "")
 
 
+def blas_library() -> str | None:
+    """The BLAS library loaded into this process (the file the dynamic linker found for
+    ``libblas.so.3``, read from /proc/self/maps): Debian's reference BLAS
+    (``.../blas/libblas.so.3.*``) or an optimised one chosen by update-alternatives
+    (``.../openblas-serial/libblas.so.3``). MUMPS's factorisations run on it, 3.6x faster on
+    OpenBLAS at the fine level (docs/performance.md). None where it cannot be told."""
+    try:
+        maps = Path("/proc/self/maps").read_text()
+    except OSError:
+        return None
+    for line in maps.splitlines():
+        fields = line.split(maxsplit=5)
+        if len(fields) == 6 and Path(fields[5]).name.startswith("libblas.so"):
+            return fields[5]
+    return None
+
+
+def blas_name(path: str | None) -> str:
+    """A short name of the BLAS at ``path``: ``reference`` for Debian's reference BLAS, else
+    the alternative's folder (``openblas-serial``, ``openblas-pthread``, ``blis-openmp``, ...)."""
+    if path is None:
+        return "unknown"
+    folder = Path(path).parent.name
+    return "reference" if folder == "blas" else folder
+
+
 def version_line() -> str:
-    """``fsi X (git R), dolfinx Y, Python Z``."""
+    """``fsi X (git R), dolfinx Y, Python Z, BLAS B``."""
     revision = git_revision()
     git = f" (git {revision})" if revision else ""
     return (
         f"fsi {fsi.__version__}{git}, dolfinx {dolfinx.__version__}, "
-        f"Python {platform.python_version()}"
+        f"Python {platform.python_version()}, BLAS {blas_name(blas_library())}"
     )
 
 
@@ -56,5 +82,6 @@ def describe() -> dict:
         "git": git_revision(),
         "dolfinx": dolfinx.__version__,
         "python": platform.python_version(),
+        "blas": blas_library(),
         "command": shlex.join(sys.argv),
     }
