@@ -23,11 +23,14 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import dolfinx.fem.petsc
+import dolfinx.mesh
 import numpy as np
 import pytest
+import ufl
 
 from fsi import compat, config
-from fsi.numerics.newton import Forcing
+from fsi.config.solver_settings import SolverSettings
+from fsi.numerics.newton import Forcing, Newton
 from fsi.numerics.timestepping import steps
 from fsi.physics import fluid, mesh, solid
 from fsi.run.steppers import CoupledStepper, fluid_boundaries
@@ -275,6 +278,27 @@ def test_a_failed_solve_with_a_reused_jacobian_is_repeated_with_fresh_ones(whole
     assert solvers["run"].newton.callbacks.retries == 1
     assert results["run"].iterations == 4 + results["none"].iterations
     assert_equal_arrays(solvers["run"].U.x.array, solvers["none"].U.x.array, whole.comm)
+
+
+@pytest.mark.parametrize("reuse", ["none", "run"])
+def test_a_solve_after_a_failed_factorisation_is_not_accepted_untried(reuse):
+    """F(u) = (u² − 4) v: at u = 0 the Jacobian is the zero matrix, MUMPS's factorisation fails
+    and PETSc's failed preconditioner returns an infinite increment. dolfinx's NewtonSolver kept
+    that |δx_1| as the reference of its relative test, so the next solve, from u = 1, passed the
+    test at iteration 0 and returned u = 1 as converged (residual 0.66). The failed solve now
+    replaces the solver: the next one iterates to u = 2."""
+    domain = dolfinx.mesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
+    V = compat.function_space(domain, "Lagrange", 1)
+    u, v = dolfinx.fem.Function(V), ufl.TestFunction(V)
+    problem = dolfinx.fem.petsc.NonlinearProblem((u * u - 4.0) * v * ufl.dx, u)
+    newton = Newton(domain.comm, problem, SolverSettings(jacobian_reuse=reuse), "failed_lu_")
+    first = newton.solve(u, lambda: newton.solver.b.norm())
+    assert not first.converged and "PETSc" in first.reason
+    assert np.all(u.x.array == 0.0)  # put back to the guess
+    u.x.array[:] = 1.0
+    second = newton.solve(u, lambda: newton.solver.b.norm())
+    assert second.converged and second.iterations >= 3, second
+    assert np.allclose(u.x.array, 2.0, rtol=1e-8)  # Newton's tolerance (chord iterations: run)
 
 
 def test_a_forced_solve_stops_at_its_forcing_with_newtons_solution(whole):

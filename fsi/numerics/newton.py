@@ -21,6 +21,13 @@ checkpoints after which every run drops its kept Jacobian (:meth:`NewtonCallback
 the restarted run starts with a fresh Jacobian where the uninterrupted one had an older one (the
 same answer to the solver's tolerance, not to the bit).
 
+A failed solve replaces dolfinx's NewtonSolver by a new one (:meth:`Newton.solve`, and before
+the retry of a failed reused-Jacobian solve): the solver keeps the reference of its relative test
+(|δx_1|, its ``residual0``) from one solve to the next, so a solve whose first increment was not
+finite (a failed factorisation: PETSc's failed preconditioner returns an infinite increment)
+left it infinite, and every later solve then passed the test at iteration 0 and returned its
+initial guess as converged.
+
 Only the path changes, not the answer: the solver's own stopping test (dolfinx's: |F(x_k)|, or
 the increment |δx_k|, below ``atol`` or below ``rtol`` times the first increment |δx_1|) decides
 convergence as with Newton's Jacobians. Should a solve with a reused Jacobian fail, it is
@@ -101,8 +108,14 @@ class NewtonCallbacks:
         self._step: Hashable = None
         self._norms: list[float] = []
         self.on_initial_residual: Callable[[float], None] | None = None
+        self.attach(newton)
+
+    def attach(self, newton) -> None:
+        """Be ``newton``'s residual and Jacobian callbacks (also a new solver's, replacing a
+        failed one: the kept Jacobian lived in the old solver's matrix and is dropped)."""
         newton.setF(self.F, newton.b)
         newton.setJ(self.J, newton.A)
+        self._have_jacobian = False
 
     def F(self, x: PETSc.Vec, b: PETSc.Vec) -> None:
         self.problem.F(x, b)
@@ -132,11 +145,18 @@ class NewtonCallbacks:
         previous, current = self._norms[-2], self._norms[-1]
         return current <= self.max_rate * previous
 
-    def solve(self, newton, u: dolfinx.fem.Function, step: Hashable = None) -> tuple[int, bool]:
+    def solve(
+        self,
+        newton,
+        u: dolfinx.fem.Function,
+        step: Hashable = None,
+        renew: Callable[[], object] | None = None,
+    ) -> tuple[int, bool]:
         """``newton.solve(u)``; with reuse, if that fails, again from the same initial guess with
-        a fresh Jacobian at every iteration. ``step`` identifies the time step (anything that
-        changes when the solver advances): with reuse ``step`` a new value means a fresh
-        Jacobian. Returns (iterations of both attempts, converged)."""
+        a fresh Jacobian at every iteration, on the solver ``renew()`` returns (a new one: see
+        the module docstring). ``step`` identifies the time step (anything that changes when
+        the solver advances): with reuse ``step`` a new value means a fresh Jacobian. Returns
+        (iterations of both attempts, converged)."""
         self._norms = []
         if self.reuse == "none":
             return newton.solve(u)
@@ -153,6 +173,8 @@ class NewtonCallbacks:
         self.retries += 1
         u.x.array[:] = start
         u.x.scatter_forward()
+        if renew is not None:
+            newton = renew()
         self._fresh = True
         try:
             more, converged = newton.solve(u)
@@ -220,24 +242,34 @@ class Newton:
         prefix: str,
         criterion: Literal["residual", "incremental"] = "residual",
     ):
-        self.comm, self.prefix = comm, prefix
+        self.comm, self.prefix, self.problem = comm, prefix, problem
+        self.settings, self.criterion = settings, criterion
         self.options = dict(settings.petsc_options)
-        solver = dolfinx.nls.petsc.NewtonSolver(comm, problem)
-        solver.convergence_criterion = self.criterion = criterion
-        solver.rtol, solver.atol = settings.rtol, settings.atol
-        solver.max_it = settings.max_iterations
+        self.solver = self._new_solver()
+        # Residual and Jacobian through one object: Jacobian (and LU) reuse, counters.
+        self.callbacks = NewtonCallbacks(
+            problem, self.solver, settings.jacobian_reuse, settings.jacobian_reuse_rate
+        )
+
+    def _new_solver(self) -> dolfinx.nls.petsc.NewtonSolver:
+        solver = dolfinx.nls.petsc.NewtonSolver(self.comm, self.problem)
+        solver.convergence_criterion = self.criterion
+        solver.rtol, solver.atol = self.settings.rtol, self.settings.atol
+        solver.max_it = self.settings.max_iterations
         solver.error_on_nonconvergence = False
         solver.report = False
         ksp = solver.krylov_solver
-        ksp.setOptionsPrefix(prefix)
-        solver.A.setOptionsPrefix(prefix)
-        with petsc_options(prefix, self.options):
+        ksp.setOptionsPrefix(self.prefix)
+        solver.A.setOptionsPrefix(self.prefix)
+        with petsc_options(self.prefix, self.options):
             ksp.setFromOptions()
-        self.solver = solver
-        # Residual and Jacobian through one object: Jacobian (and LU) reuse, counters.
-        self.callbacks = NewtonCallbacks(
-            problem, solver, settings.jacobian_reuse, settings.jacobian_reuse_rate
-        )
+        return solver
+
+    def _renew(self) -> dolfinx.nls.petsc.NewtonSolver:
+        """Replace the solver after a failed solve (the module docstring says why)."""
+        self.solver = self._new_solver()
+        self.callbacks.attach(self.solver)
+        return self.solver
 
     def solve(
         self,
@@ -264,7 +296,9 @@ class Newton:
             self.callbacks.on_initial_residual = force
         try:
             with petsc_options(self.prefix, self.options):
-                iterations, converged = self.callbacks.solve(self.solver, u, step=step)
+                iterations, converged = self.callbacks.solve(
+                    self.solver, u, step=step, renew=self._renew
+                )
         except RuntimeError as e:  # a PETSc error, raised on every rank
             iterations, converged, reason = self.solver.max_it, False, f"PETSc: {e}"
         finally:
@@ -286,4 +320,5 @@ class Newton:
         if not converged:
             u.x.array[:] = guess
             u.x.scatter_forward()
+            self._renew()
         return SolveResult(bool(converged), int(iterations), norm, reason)

@@ -897,7 +897,10 @@ class FluidSolver:
             self.ale.set_velocity(weights)
         self.ale.w.x.scatter_forward()
         result = self.newton.solve(
-            self.U, self.newton.solver.b.norm, step=self.accepted_steps, forcing=forcing
+            self.U,
+            lambda: self.newton.solver.b.norm(),  # the solver's b: a failed attempt renews it
+            step=self.accepted_steps,
+            forcing=forcing,
         )
         if not result.converged:
             result = replace(
