@@ -103,12 +103,11 @@ class NewtonCallbacks:
         self.jacobian_assemblies = 0
         self.residual_evaluations = 0
         self.retries = 0
-        self._have_jacobian = False
         self._fresh = reuse == "none"
         self._step: Hashable = None
         self._norms: list[float] = []
         self.on_initial_residual: Callable[[float], None] | None = None
-        self.attach(newton)
+        self.attach(newton)  # also: no Jacobian kept yet
 
     def attach(self, newton) -> None:
         """Be ``newton``'s residual and Jacobian callbacks (also a new solver's, replacing a
