@@ -1,0 +1,50 @@
+"""scripts/benchmark_linear.py (docs/performance.md): it measures the Jacobians the study's Newton
+iterations solve with, under the case's own solver and under another one asked for, and its
+figures are those of the solves it made. Coarse, after 2 steps; on 1 and 2 ranks alike."""
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+import benchmark_linear  # noqa: E402
+
+ITERATIVE = "ksp_type=cg pc_type=jacobi ksp_rtol=1e-10 ksp_max_it=20000"
+
+
+@pytest.fixture(scope="module")
+def rows():
+    return benchmark_linear.main(
+        ["--level", "coarse", "--steps", "2", "--repeats", "3", "--try", "structure", ITERATIVE]
+    )
+
+
+def test_every_system_under_every_solver(rows):
+    assert [(r["system"], r["solver"]) for r in rows] == [
+        ("fluid", "case"),
+        ("structure", "case"),
+        ("structure", ITERATIVE),
+    ]
+    fluid, structure, _ = rows
+    assert fluid["dofs"] == 8814 and structure["dofs"] == 5554  # docs/performance.md's coarse
+
+
+def test_the_case_solver_is_an_exact_lu(rows):
+    for r in rows[:2]:
+        assert r["iterations"] == 1 and r["converged"]
+        assert r["relative_residual"] < 1e-9, r
+        assert r["factor_entries"] > 0  # MUMPS reported its factor
+        assert 0 < r["solve_ms"] and 0 < r["refactor_ms"] and 0 < r["setup_s"]
+
+
+def test_the_tried_solver_is_the_one_measured(rows):
+    """Jacobi-preconditioned CG takes many iterations where the LU takes one, and has no factor."""
+    r = rows[2]
+    assert r["converged"] and r["iterations"] > 50, r
+    assert r["factor_entries"] != r["factor_entries"]  # nan: no factorisation
+
+
+def test_bad_options_are_refused():
+    with pytest.raises(SystemExit):
+        benchmark_linear.main(["--level", "coarse", "--try", "structure", "ksp_type"])
