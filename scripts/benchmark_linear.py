@@ -42,7 +42,7 @@ import numpy as np
 sys.path[:0] = [str(Path(__file__).resolve().parent), str(Path(__file__).resolve().parents[1])]
 from benchmarking import window  # noqa: E402
 
-from fsi import config  # noqa: E402
+from fsi import compat, config  # noqa: E402
 from fsi.coupled import partitioned  # noqa: E402
 from fsi.numerics.newton import petsc_options  # noqa: E402
 from fsi.numerics.timestepping import steps  # noqa: E402
@@ -118,9 +118,11 @@ def measure(
     return row
 
 
-def jacobians(case: config.Case, comm: MPI.Comm, n_steps: int) -> dict:
+def jacobians(case: config.Case, comm: MPI.Comm, n_steps: int) -> tuple[object, dict]:
     """The coupled problem after its first ``n_steps`` steps, and each system's Jacobian
-    assembled anew at that state: {system: (matrix, options prefix, the case's options, dofs)}."""
+    assembled anew at that state: {system: (matrix, options prefix, the case's options, dofs)}.
+    The matrices belong to the problem's Newton solvers: keep the problem while using them
+    (dolfinx 0.9's solver destroys its matrix with itself)."""
     problem = partitioned.build_coupled(case, comm)
     for step in steps(case.time):
         if step.index > n_steps:
@@ -132,14 +134,14 @@ def jacobians(case: config.Case, comm: MPI.Comm, n_steps: int) -> dict:
         ("structure", problem.solid, problem.solid.eta, case.structure.solver),
     ):
         newton = solver.newton
-        newton.problem.J(unknown.vector, newton.solver.A)
+        newton.problem.J(compat.petsc_vector(unknown), newton.solver.A)
         systems[name] = (
             newton.solver.A,
             newton.prefix,
             dict(settings.petsc_options),
             newton.solver.A.getSize()[0],
         )
-    return systems
+    return problem, systems
 
 
 def main(argv: list[str] | None = None) -> list[dict]:
@@ -179,7 +181,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
         f"{comm.size} rank(s), PETSc {'.'.join(map(str, PETSc.Sys.getVersion()))}, "
         f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}"
     )
-    systems = jacobians(case, comm, args.steps)
+    problem, systems = jacobians(case, comm, args.steps)
     rows = []
     for system in args.systems:
         A, prefix, own, dofs = systems[system]
@@ -187,6 +189,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
         for label, options in solvers:
             row = measure(comm, A, prefix, options, args.repeats)
             rows.append({"system": system, "dofs": dofs, "solver": label, **row})
+    del problem, systems  # the matrices, with their solvers
     say(
         f"{'system':10} {'dofs':>8} {'set-up s':>9} {'refactor ms':>12} {'solve ms':>9} "
         f"{'its':>5} {'|Ax-b|/|b|':>11} {'factor entries':>15}  solver"
