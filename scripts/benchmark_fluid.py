@@ -44,12 +44,13 @@ import dolfinx.fem.petsc
 import numpy as np
 import ufl
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path[:0] = [str(Path(__file__).resolve().parent), str(Path(__file__).resolve().parents[1])]
+from benchmarking import wall  # noqa: E402
 
-from fsi import compat, config
+from fsi import compat, config  # noqa: E402
 from fsi.numerics.timestepping import steps  # noqa: E402
-from fsi.physics import fluid, mesh
-from fsi.run import steppers
+from fsi.physics import fluid, mesh  # noqa: E402
+from fsi.run import steppers  # noqa: E402
 from geometry.tags import Region  # noqa: E402
 
 CASE = Path(__file__).resolve().parents[1] / "configs" / "stenosis_fixed_newtonian.yaml"
@@ -69,18 +70,6 @@ def load_case(level: str, model: str, n_steps: int, dt: float) -> config.Case:
             f"time.schedule=[{{until: {end!r}, dt: {dt!r}}}]",
         ],
     )
-
-
-def wall(comm: MPI.Comm, f, repeats: int) -> np.ndarray:
-    """Wall times (slowest rank) of ``repeats`` calls of ``f``."""
-    times = []
-    for _ in range(repeats):
-        comm.barrier()
-        tic = time.perf_counter()
-        f()
-        comm.barrier()
-        times.append(comm.allreduce(time.perf_counter() - tic, op=MPI.MAX))
-    return np.array(times)
 
 
 def event_totals(comm: MPI.Comm) -> dict[str, tuple[int, float]]:

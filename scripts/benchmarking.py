@@ -1,7 +1,7 @@
 """Pieces shared by the benchmark scripts: an exclusive-time profiler of solver methods (with
 PETSc's LU events), the hooks that attach it to a coupled or rigid-wall stepper, and small
-helpers. Imported by scripts/benchmark_coupling.py and scripts/benchmark_study.py (this folder
-is on the path of a script run from it)."""
+helpers. Imported by the benchmark scripts (this folder is on the path of a script run from
+it)."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import functools
 import time
 from collections import defaultdict
 
+from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
@@ -109,6 +110,18 @@ def newton_counters(solver) -> tuple[int, int]:
     """(Jacobian assemblies, residual evaluations) so far."""
     c = solver.newton.callbacks
     return c.jacobian_assemblies, c.residual_evaluations
+
+
+def wall(comm: MPI.Comm, f, repeats: int) -> np.ndarray:
+    """Wall times (slowest rank) of ``repeats`` calls of ``f``."""
+    times = []
+    for _ in range(repeats):
+        comm.barrier()
+        tic = time.perf_counter()
+        f()
+        comm.barrier()
+        times.append(comm.allreduce(time.perf_counter() - tic, op=MPI.MAX))
+    return np.array(times)
 
 
 def window(case: config.Case, n: int) -> float:
