@@ -154,7 +154,6 @@ def main(argv: list[str] | None = None) -> list[dict]:
             parser.error(f"--try: SYSTEM must be one of {', '.join(SYSTEMS)}, got {system!r}")
     tries = [(system, text, parse_options(text)) for system, text in args.tries]  # before work
     comm = MPI.COMM_WORLD
-    logging.disable(logging.WARNING)
 
     def say(text: str) -> None:
         if comm.rank == 0:
@@ -198,4 +197,5 @@ def main(argv: list[str] | None = None) -> list[dict]:
 
 
 if __name__ == "__main__":
+    logging.disable(logging.WARNING)  # the solvers' progress (not when imported: tests)
     main()
