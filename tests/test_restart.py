@@ -14,8 +14,11 @@ checkpoints' arrays must be *equal*: any difference means a piece of state was m
 the IQN history step 2 takes 6 coupling iterations instead of 7 and its values change in the 2nd
 digit). On 2 ranks SCOTCH partitions the mesh differently in every run (measured: 865/867 vs
 866/866 vertices per rank), so two runs differ in round-off even without a restart: arrays and
-metrics to 1e-9 relative (measured ≤ 4e-12; the residual norms, themselves ~1e-8 of their
-scale, to 1e-12 absolute), iteration counts equal.
+metrics to 1e-9 relative (measured ≤ 4e-12), iteration counts equal. The residual norms of
+converged iterates (``*_residual``) are the last Newton or coupling step's leftover of that
+round-off, not a value of the solution: to 1e-2 relative or 1e-12 absolute (measured up to
+1.9e-4 relative: the structure alone's 5.32e-9 N/m on dolfinx 0.9; a missed piece of state
+changes them in the first digit).
 """
 
 import csv
@@ -52,6 +55,7 @@ ACCELERATIONS = {
     "iqn-ils": ["coupling.acceleration=iqn-ils", "coupling.iqn_reuse=2"],
 }
 SERIAL = MPI.COMM_WORLD.size == 1
+RESIDUAL_REL = 1e-2  # residual norms of converged iterates on 2 ranks (see the top)
 
 
 def fsi_run(case: str, out: Path, overrides, restart: Path | None = None) -> int:
@@ -71,7 +75,8 @@ def rows(run: Path) -> list[dict]:
 
 
 def assert_same_rows(a: Path, b: Path, rel: float = 1e-9, absolute: float = 1e-12) -> None:
-    """Equal on 1 rank; on more, to ``rel`` relative or ``absolute`` (see the top)."""
+    """Equal on 1 rank; on more, to ``rel`` relative or ``absolute``, residual norms to
+    ``RESIDUAL_REL`` (see the top)."""
     ra, rb = rows(a), rows(b)
     assert [r["step"] for r in ra] == [r["step"] for r in rb]
     if SERIAL:
@@ -82,7 +87,8 @@ def assert_same_rows(a: Path, b: Path, rel: float = 1e-9, absolute: float = 1e-1
             if key.endswith("iterations") or x[key] == "":
                 assert x[key] == y[key], key
             else:
-                assert float(x[key]) == pytest.approx(float(y[key]), rel=rel, abs=absolute), key
+                loose = max(rel, RESIDUAL_REL) if key.endswith("_residual") else rel
+                assert float(x[key]) == pytest.approx(float(y[key]), rel=loose, abs=absolute), key
 
 
 def stored(run: Path) -> dict[str, tuple]:
