@@ -7,8 +7,7 @@ from __future__ import annotations
 
 from typing import Protocol
 
-from geometry.stenosis import add_physical_groups
-from geometry.tags import Boundary, Region
+from geometry.tags import Boundary, Region, add_physical_groups
 
 # The tags this builder writes (mesh.json reports these).
 REGIONS = (Region.FLUID,)
