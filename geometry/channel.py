@@ -15,11 +15,14 @@ BOUNDARIES = (Boundary.INLET, Boundary.OUTLET, Boundary.RIGID_WALL)
 
 
 class ChannelParameters(Protocol):
+    """The channel's dimensions (m; fsi.config.ChannelGeometry)."""
+
     length: float
     height: float
 
 
 def analytic_areas(p: ChannelParameters) -> dict[str, float]:
+    """Exact region areas (m²): the fluid's and the total, length × height."""
     return {Region.FLUID.label: p.length * p.height, "total": p.length * p.height}
 
 

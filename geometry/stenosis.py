@@ -41,6 +41,9 @@ SIDES = ("bottom", "top")
 
 
 class StenosisParameters(Protocol):
+    """The stenosis's dimensions (m; fsi.config.StenosisGeometry): ``stenosis_degree`` the
+    fraction of ``height`` the plaques close, ``plaque_sides`` of :data:`SIDES`."""
+
     length: float
     height: float
     wall_thickness: float

@@ -22,6 +22,7 @@ class Region(IntEnum):
 
     @property
     def label(self) -> str:
+        """The physical group's name: the tag's name in lower case."""
         return self.name.lower()
 
 
@@ -40,6 +41,7 @@ class Boundary(IntEnum):
 
     @property
     def label(self) -> str:
+        """The physical group's name: the tag's name in lower case."""
         return self.name.lower()
 
 

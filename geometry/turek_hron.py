@@ -35,6 +35,8 @@ BOUNDARIES = (
 
 
 class TurekHronParameters(Protocol):
+    """The benchmark's dimensions (m; fsi.config.TurekHronGeometry)."""
+
     length: float
     height: float
     cylinder_centre: Sequence[float]

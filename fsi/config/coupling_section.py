@@ -13,7 +13,7 @@ from fsi.config.solver_settings import direct_solver_options
 
 @dataclass(frozen=True)
 class Coupling:
-    """Dirichlet–Neumann iterations per step (MODEL.md §5; fsi/coupled/coupling.py).
+    """Dirichlet–Neumann iterations per step (docs/model.md §5; fsi/coupled/coupling.py).
 
     ``initial_relaxation``: ω of constant relaxation, Aitken's first ω and IQN-ILS's relaxed
     first iteration; ``max_relaxation``: Aitken's cap |ω| <= ω_max; ``iqn_reuse``: time steps
@@ -37,7 +37,7 @@ class Coupling:
 
 @dataclass(frozen=True)
 class MeshMotion:
-    """ALE extension of the interface displacement into the fluid (MODEL.md §5;
+    """ALE extension of the interface displacement into the fluid (docs/model.md §5;
     fsi/physics/mesh_motion.py): ``harmonic`` −∇·(k ∇d) = 0, ``elastic`` −∇·(k σ(d)) = 0 with
     σ = 2 ε + λ' tr(ε) I, λ' = 2ν/(1 − 2ν) from ``poisson_ratio``, or ``biharmonic`` Δ²d = 0
     (the minimiser of ∫ k |∇∇d|², mixed with the Hessian as auxiliary field; natural condition

@@ -12,7 +12,7 @@ from fsi.config.reader import at_least, checked
 class Output:
     """``fields``: the format of the field files; ``fields_every`` and ``checkpoint_every``:
     write the fields and a checkpoint every this many steps; ``report_times``: the times (s)
-    whose state the report shows."""
+    the report tabulates (an adaptive run steps onto each)."""
 
     # XDMF only: Debian 12's dolfinx has no ADIOS2 (no VTX), and 0.9's VTX writer takes one
     # element per file, where a run writes P1 and per-cell fields side by side.

@@ -77,6 +77,7 @@ class Carreau(PlateauLaw):
     power_index: float = positive(0.344)
 
     def mu(self, s):
+        """μ(s) (Pa s) at the shear rate ``s`` (1/s): a number, an array or a UFL expression."""
         n, lam = self.power_index, self.relaxation_time
         return self.mu_inf + (self.mu_0 - self.mu_inf) * (1 + (lam * s) ** 2) ** ((n - 1) / 2)
 
@@ -94,6 +95,7 @@ class CarreauYasuda(PlateauLaw):
     yasuda_exponent: float = positive(1.25)
 
     def mu(self, s):
+        """μ(s) (Pa s) at the shear rate ``s`` (1/s): a number, an array or a UFL expression."""
         n, lam, a = self.power_index, self.relaxation_time, self.yasuda_exponent
         return self.mu_inf + (self.mu_0 - self.mu_inf) * (1 + (lam * s) ** a) ** ((n - 1) / a)
 
@@ -110,6 +112,7 @@ class Cross(PlateauLaw):
     exponent: float = positive(1.45)
 
     def mu(self, s):
+        """μ(s) (Pa s) at the shear rate ``s`` (1/s): a number, an array or a UFL expression."""
         lam, m = self.relaxation_time, self.exponent
         return self.mu_inf + (self.mu_0 - self.mu_inf) / (1 + (lam * s) ** m)
 
@@ -128,6 +131,7 @@ class PowerLaw:
     shear_rate_floor: float = positive(0.0169, " (1/s)")
 
     def mu(self, s):
+        """μ(s) (Pa s) at the shear rate ``s`` (1/s): a number, an array or a UFL expression."""
         K, n, s0 = self.consistency, self.power_index, self.shear_rate_floor
         return K * (s**2 + s0**2) ** ((n - 1) / 2)
 
@@ -155,6 +159,7 @@ class Casson:
     regularization: float = positive(100.0, " (s)")
 
     def mu(self, s):
+        """μ(s) (Pa s) at the shear rate ``s`` (1/s): a number, an array or a UFL expression."""
         mu_c, tau_y, m = self.viscosity, self.yield_stress, self.regularization
         ufl = _ufl_of(s)
         if ufl is not None:

@@ -17,7 +17,9 @@ from fsi import config
 class OutletModel(Protocol):
     """P = P₀' + R' Q within a step (:meth:`pressure_law`); :meth:`advance` accepts the step."""
 
-    def initial_state(self) -> np.ndarray: ...
+    def initial_state(self) -> np.ndarray:
+        """The state before the first step."""
+        ...
 
     def pressure_law(self, state: np.ndarray, weights: Sequence[float]) -> tuple[float, float]:
         """(P₀', R'): the step's outlet pressure is P = P₀' + R' Q (Pa), Q the step's flow

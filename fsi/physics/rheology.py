@@ -32,7 +32,9 @@ def shear_rate(u, epsilon: float = SHEAR_RATE_EPSILON) -> ufl.core.expr.Expr:
 class ViscosityLaw(Protocol):
     """A generalized Newtonian law: ``mu(s)`` is the viscosity (Pa s) at shear rate ``s`` (1/s)."""
 
-    def mu(self, s): ...
+    def mu(self, s):
+        """μ(s) (Pa s) at the shear rate ``s`` (1/s): a number, an array or a UFL expression."""
+        ...
 
     @property
     def reference_viscosity(self) -> float:
