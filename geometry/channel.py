@@ -7,8 +7,7 @@ from __future__ import annotations
 
 from typing import Protocol
 
-from geometry.stenosis import add_physical_groups
-from geometry.tags import Boundary, Region
+from geometry.tags import Boundary, Region, add_physical_groups
 
 # The tags this builder writes (mesh.json reports these).
 REGIONS = (Region.FLUID,)
@@ -16,11 +15,14 @@ BOUNDARIES = (Boundary.INLET, Boundary.OUTLET, Boundary.RIGID_WALL)
 
 
 class ChannelParameters(Protocol):
+    """The channel's dimensions (m; fsi.config.ChannelGeometry)."""
+
     length: float
     height: float
 
 
 def analytic_areas(p: ChannelParameters) -> dict[str, float]:
+    """Exact region areas (m²): the fluid's and the total, length × height."""
     return {Region.FLUID.label: p.length * p.height, "total": p.length * p.height}
 
 

@@ -1,4 +1,4 @@
-"""The stenosed artery of ../shared/MODEL.md §1: lumen, vessel wall, lipid pool, fibrous cap.
+"""The stenosed artery of docs/model.md §1: lumen, vessel wall, lipid pool, fibrous cap.
 
 Coordinates: the lumen is ``0 <= x <= length``, ``0 <= y <= height``. A plaque side ("bottom" or
 "top") carries a vessel-wall layer of ``wall_thickness`` outside the lumen and a plaque centred at
@@ -17,11 +17,12 @@ carries no structure.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Protocol
+from dataclasses import dataclass, field
+from typing import Any, Protocol
 
 import numpy as np
 
-from geometry.tags import Boundary, Region
+from geometry.tags import Boundary, Region, add_physical_groups
 
 # The tags this builder writes (mesh.json reports these).
 REGIONS = (Region.FLUID, Region.WALL, Region.CAP, Region.LIPID)
@@ -40,6 +41,9 @@ SIDES = ("bottom", "top")
 
 
 class StenosisParameters(Protocol):
+    """The stenosis's dimensions (m; fsi.config.StenosisGeometry): ``stenosis_degree`` the
+    fraction of ``height`` the plaques close, ``plaque_sides`` of :data:`SIDES`."""
+
     length: float
     height: float
     wall_thickness: float
@@ -123,86 +127,130 @@ def min_cap_thickness(p: StenosisParameters, samples: int = 801) -> float:
 def build(p: StenosisParameters, size: float, local_size: float, spline_points: int = 101) -> None:
     """Add the stenosed artery to the current gmsh model (built-in kernel) with physical groups.
 
-    ``size`` is the element size away from the plaque, ``local_size`` the size at the plaque's
-    corner and apex points; gmsh interpolates in between. Meshing is left to the caller.
+    ``size`` is the element size (m) away from the plaque, ``local_size`` the size at the
+    plaque's corner and apex points; gmsh interpolates in between. A plaque's surfaces are
+    splines through ``spline_points`` points. Meshing is left to the caller.
     """
     import gmsh
 
-    geo = gmsh.model.geo
-    L, H, tw = p.length, p.height, p.wall_thickness
-    xc, l, l_lip = L / 2, p.stenosis_length, p.lipid_length
-    A = plaque_height(p)
-    a = A - p.cap_thickness
-
-    groups: dict[int, list[int]] = {int(t): [] for t in (*Region, *Boundary)}
-
-    def to_xy(side: str, x: float, s: float) -> tuple[float, float]:
-        return (x, s) if side == "bottom" else (x, H - s)
-
-    def point(side: str, x: float, s: float, lc: float) -> int:
-        return geo.addPoint(*to_xy(side, x, s), 0.0, lc)
-
-    def spline(side: str, start: int, end: int, x0: float, x1: float, profile) -> int:
-        xs = np.linspace(x0, x1, spline_points)[1:-1]
-        inner = [point(side, x, float(profile(np.array([x]))[0]), local_size) for x in xs]
-        return geo.addSpline([start, *inner, end])
-
+    b = _Builder(p, size, local_size, spline_points, gmsh.model.geo)
     lumen_chain: dict[str, list[int]] = {}  # left-to-right curves of each lumen side
     corners: dict[str, tuple[int, int]] = {}  # (x = 0, x = L) end points of each lumen side
     for side in SIDES:
-        left, right = point(side, 0.0, 0.0, size), point(side, L, 0.0, size)
+        left, right = b.point(side, 0.0, 0.0, size), b.point(side, p.length, 0.0, size)
         corners[side] = (left, right)
         if side not in p.plaque_sides:
-            lumen_chain[side] = [geo.addLine(left, right)]
-            groups[Boundary.RIGID_WALL].extend(lumen_chain[side])
-            continue
-        hs = local_size
-        p_x0, p_top, p_x3 = (
-            point(side, xc - l / 2, 0, hs),
-            point(side, xc, A, hs),
-            point(side, xc + l / 2, 0, hs),
-        )
-        p_x1, p_lip, p_x2 = (
-            point(side, xc - l_lip / 2, 0, hs),
-            point(side, xc, a, hs),
-            point(side, xc + l_lip / 2, 0, hs),
-        )
+            lumen_chain[side] = [b.geo.addLine(left, right)]
+            b.groups[Boundary.RIGID_WALL].extend(lumen_chain[side])
+        else:
+            lumen_chain[side] = _add_plaque_side(b, side, left, right)
+    _add_lumen(b, lumen_chain, corners)
+    b.geo.synchronize()
+    add_physical_groups(b.groups)
 
-        def cap_profile(x):
-            return plaque_profile(p, x)
 
-        def lipid_prof(x):
-            return lipid_profile(p, x)
+@dataclass
+class _Builder:
+    """The state of one :func:`build`: its arguments, gmsh's ``geo`` kernel and the entities of
+    each physical group added so far."""
 
-        healthy_left, healthy_right = geo.addLine(left, p_x0), geo.addLine(p_x3, right)
-        cap_left = spline(side, p_x0, p_top, xc - l / 2, xc, cap_profile)
-        cap_right = spline(side, p_top, p_x3, xc, xc + l / 2, cap_profile)
-        lip_left = spline(side, p_x1, p_lip, xc - l_lip / 2, xc, lipid_prof)
-        lip_right = spline(side, p_lip, p_x2, xc, xc + l_lip / 2, lipid_prof)
-        base_left, base_mid, base_right = (
-            geo.addLine(p_x0, p_x1),
-            geo.addLine(p_x1, p_x2),
-            geo.addLine(p_x2, p_x3),
-        )
-        lumen_chain[side] = [healthy_left, cap_left, cap_right, healthy_right]
+    p: StenosisParameters
+    size: float
+    local_size: float
+    spline_points: int
+    geo: Any
+    groups: dict[int, list[int]] = field(
+        default_factory=lambda: {int(t): [] for t in (*Region, *Boundary)}
+    )
 
-        cap_loop = [base_left, lip_left, lip_right, base_right, -cap_right, -cap_left]
-        lipid_loop = [base_mid, -lip_right, -lip_left]
-        q_left, q_right = point(side, 0.0, -tw, size), point(side, L, -tw, size)
-        clamp_left, clamp_right = geo.addLine(q_left, left), geo.addLine(right, q_right)
-        exterior = geo.addLine(q_right, q_left)
-        wall_loop = [healthy_left, base_left, base_mid, base_right, healthy_right,
-                     clamp_right, exterior, clamp_left]  # fmt: skip
+    def point(self, side: str, x: float, s: float, lc: float) -> int:
+        """A gmsh point at ``x``, ``s`` from the ``side`` wall into the lumen, of size ``lc``."""
+        xy = (x, s) if side == "bottom" else (x, self.p.height - s)
+        return self.geo.addPoint(*xy, 0.0, lc)
 
-        groups[Region.CAP].append(geo.addPlaneSurface([geo.addCurveLoop(cap_loop)]))
-        groups[Region.LIPID].append(geo.addPlaneSurface([geo.addCurveLoop(lipid_loop)]))
-        groups[Region.WALL].append(geo.addPlaneSurface([geo.addCurveLoop(wall_loop)]))
-        groups[Boundary.INTERFACE].extend(lumen_chain[side])
-        groups[Boundary.CLAMPED].extend([clamp_left, clamp_right])
-        groups[Boundary.EXTERIOR].append(exterior)
-        groups[Boundary.CAP_LIPID].extend([lip_left, lip_right])
-        groups[Boundary.PLAQUE_BASE].extend([base_left, base_mid, base_right])
+    def spline(self, side: str, start: int, end: int, x0: float, x1: float, profile) -> int:
+        """A spline from ``start`` to ``end`` through the ``profile`` heights between x0, x1."""
+        xs = np.linspace(x0, x1, self.spline_points)[1:-1]
+        inner = [self.point(side, x, float(profile(np.array([x]))[0]), self.local_size) for x in xs]
+        return self.geo.addSpline([start, *inner, end])
 
+
+def _add_plaque_side(b: _Builder, side: str, left: int, right: int) -> list[int]:
+    """The plaque, lipid pool and vessel wall of ``side``, whose lumen corners are ``left`` and
+    ``right``; returns the side's lumen curves from left to right."""
+    p, geo, hs = b.p, b.geo, b.local_size
+    xc, l, l_lip = p.length / 2, p.stenosis_length, p.lipid_length
+    A = plaque_height(p)
+    a = A - p.cap_thickness
+    p_x0, p_top, p_x3 = (
+        b.point(side, xc - l / 2, 0, hs),
+        b.point(side, xc, A, hs),
+        b.point(side, xc + l / 2, 0, hs),
+    )
+    p_x1, p_lip, p_x2 = (
+        b.point(side, xc - l_lip / 2, 0, hs),
+        b.point(side, xc, a, hs),
+        b.point(side, xc + l_lip / 2, 0, hs),
+    )
+
+    def cap_profile(x):
+        return plaque_profile(p, x)
+
+    def lipid_prof(x):
+        return lipid_profile(p, x)
+
+    healthy_left, healthy_right = geo.addLine(left, p_x0), geo.addLine(p_x3, right)
+    cap_left = b.spline(side, p_x0, p_top, xc - l / 2, xc, cap_profile)
+    cap_right = b.spline(side, p_top, p_x3, xc, xc + l / 2, cap_profile)
+    lip_left = b.spline(side, p_x1, p_lip, xc - l_lip / 2, xc, lipid_prof)
+    lip_right = b.spline(side, p_lip, p_x2, xc, xc + l_lip / 2, lipid_prof)
+    base = (geo.addLine(p_x0, p_x1), geo.addLine(p_x1, p_x2), geo.addLine(p_x2, p_x3))
+    chain = [healthy_left, cap_left, cap_right, healthy_right]
+    _add_plaque_regions(b, side, (left, right), chain, (lip_left, lip_right), base)
+    return chain
+
+
+def _add_plaque_regions(
+    b: _Builder,
+    side: str,
+    corners: tuple[int, int],
+    chain: list[int],
+    lipid: tuple[int, int],
+    base: tuple[int, int, int],
+) -> None:
+    """The cap, lipid-pool and wall surfaces of ``side`` from its lumen ``corners`` and curves
+    (``chain``), the lipid surface's two splines and the plaque base's three lines, with the
+    wall's clamped ends and exterior; each in its physical group."""
+    geo, groups, size = b.geo, b.groups, b.size
+    left, right = corners
+    healthy_left, cap_left, cap_right, healthy_right = chain
+    lip_left, lip_right = lipid
+    base_left, base_mid, base_right = base
+    cap_loop = [base_left, lip_left, lip_right, base_right, -cap_right, -cap_left]
+    lipid_loop = [base_mid, -lip_right, -lip_left]
+    tw = b.p.wall_thickness
+    q_left, q_right = b.point(side, 0.0, -tw, size), b.point(side, b.p.length, -tw, size)
+    clamp_left, clamp_right = geo.addLine(q_left, left), geo.addLine(right, q_right)
+    exterior = geo.addLine(q_right, q_left)
+    wall_loop = [healthy_left, base_left, base_mid, base_right, healthy_right,
+                 clamp_right, exterior, clamp_left]  # fmt: skip
+
+    groups[Region.CAP].append(geo.addPlaneSurface([geo.addCurveLoop(cap_loop)]))
+    groups[Region.LIPID].append(geo.addPlaneSurface([geo.addCurveLoop(lipid_loop)]))
+    groups[Region.WALL].append(geo.addPlaneSurface([geo.addCurveLoop(wall_loop)]))
+    groups[Boundary.INTERFACE].extend(chain)
+    groups[Boundary.CLAMPED].extend([clamp_left, clamp_right])
+    groups[Boundary.EXTERIOR].append(exterior)
+    groups[Boundary.CAP_LIPID].extend([lip_left, lip_right])
+    groups[Boundary.PLAQUE_BASE].extend([base_left, base_mid, base_right])
+
+
+def _add_lumen(
+    b: _Builder, lumen_chain: dict[str, list[int]], corners: dict[str, tuple[int, int]]
+) -> None:
+    """The inlet and outlet lines between the two sides' lumen ``corners`` and the fluid
+    surface bounded by them and each side's lumen curves (``lumen_chain``)."""
+    geo, groups = b.geo, b.groups
     inlet = geo.addLine(corners["bottom"][0], corners["top"][0])
     outlet = geo.addLine(corners["bottom"][1], corners["top"][1])
     bottom, top = lumen_chain["bottom"], lumen_chain["top"]
@@ -210,19 +258,3 @@ def build(p: StenosisParameters, size: float, local_size: float, spline_points: 
     groups[Region.FLUID].append(geo.addPlaneSurface([geo.addCurveLoop(fluid_loop)]))
     groups[Boundary.INLET].append(inlet)
     groups[Boundary.OUTLET].append(outlet)
-
-    geo.synchronize()
-    add_physical_groups(groups)
-
-
-def add_physical_groups(groups: dict[int, list[int]]) -> None:
-    """Create one named physical group per non-empty tag (surfaces for regions, else curves)."""
-    import gmsh
-
-    for tag, entities in groups.items():
-        if not entities:
-            continue
-        dim = 2 if tag in Region._value2member_map_ else 1
-        name = (Region(tag) if dim == 2 else Boundary(tag)).label
-        gmsh.model.addPhysicalGroup(dim, entities, tag)
-        gmsh.model.setPhysicalName(dim, tag, name)

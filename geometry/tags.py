@@ -1,10 +1,11 @@
 """The physical-group tags written by every geometry builder and read by every solver.
 
-Names follow ../shared/MODEL.md §1: ``interface`` is Γw1, ``rigid_wall`` Γw2, ``clamped`` ΓD and
+Names follow docs/model.md §1: ``interface`` is Γw1, ``rigid_wall`` Γw2, ``clamped`` ΓD and
 ``exterior`` ΓN. ``cap_lipid`` (fibrous cap | lipid pool) and ``plaque_base`` (plaque | vessel
 wall) are internal structure boundaries, tagged for measurements and the fixed-wall mode.
 In the Turek–Hron benchmark (geometry/turek_hron.py) ``interface`` is the flag's wetted surface,
 ``clamped`` the flag–cylinder joint and ``obstacle`` the cylinder's wetted arc.
+:func:`add_physical_groups` writes them into a gmsh model.
 """
 
 from enum import IntEnum
@@ -21,6 +22,7 @@ class Region(IntEnum):
 
     @property
     def label(self) -> str:
+        """The physical group's name: the tag's name in lower case."""
         return self.name.lower()
 
 
@@ -39,7 +41,22 @@ class Boundary(IntEnum):
 
     @property
     def label(self) -> str:
+        """The physical group's name: the tag's name in lower case."""
         return self.name.lower()
 
 
 STRUCTURE_REGIONS = (Region.WALL, Region.CAP, Region.LIPID)
+
+
+def add_physical_groups(groups: dict[int, list[int]]) -> None:
+    """Create one named physical group per non-empty tag of ``groups`` (tag → gmsh entities;
+    surfaces for a :class:`Region`, curves for a :class:`Boundary`) in the current gmsh model."""
+    import gmsh
+
+    for tag, entities in groups.items():
+        if not entities:
+            continue
+        dim = 2 if tag in Region._value2member_map_ else 1
+        name = (Region(tag) if dim == 2 else Boundary(tag)).label
+        gmsh.model.addPhysicalGroup(dim, entities, tag)
+        gmsh.model.setPhysicalName(dim, tag, name)

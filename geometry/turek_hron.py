@@ -1,4 +1,4 @@
-"""The Turek–Hron FSI benchmark geometry (../shared/reference/turek_hron.md).
+"""The Turek–Hron FSI benchmark geometry (Turek & Hron 2006).
 
 A channel ``[0, length] × [0, height]`` holds a rigid cylinder (centre ``(cx, cy)``, radius
 ``r``) with an elastic flag attached behind it: the flag is the part of the strip
@@ -20,8 +20,7 @@ import math
 from collections.abc import Sequence
 from typing import Protocol
 
-from geometry.stenosis import add_physical_groups
-from geometry.tags import Boundary, Region
+from geometry.tags import Boundary, Region, add_physical_groups
 
 # The tags this builder writes (mesh.json reports these).
 REGIONS = (Region.FLUID, Region.FLAG)
@@ -36,6 +35,8 @@ BOUNDARIES = (
 
 
 class TurekHronParameters(Protocol):
+    """The benchmark's dimensions (m; fsi.config.TurekHronGeometry)."""
+
     length: float
     height: float
     cylinder_centre: Sequence[float]
@@ -83,56 +84,24 @@ default of :func:`build` (fsi.config's cell-count estimate uses it too)."""
 def build(p: TurekHronParameters, size: float, local_size: float, grading: float = GRADING) -> None:
     """Add the benchmark to the current gmsh model (built-in kernel) with physical groups.
 
-    The element size is ``local_size`` on the cylinder and the flag and grows linearly with the
-    distance ``d`` from them, ``h(d) = min(size, local_size + grading·d)``, up to ``size`` (a
-    gmsh Distance + Threshold background field). Meshing is left to the caller.
+    The element size (m) is ``local_size`` on the cylinder and the flag and grows linearly with
+    the distance ``d`` from them, ``h(d) = min(size, local_size + grading·d)``, up to ``size``
+    (a gmsh Distance + Threshold background field). Meshing is left to the caller.
     """
     import gmsh
 
     geo = gmsh.model.geo
-    L, H = p.length, p.height
-    cx, cy = p.cylinder_centre
-    r, half = p.cylinder_radius, p.flag_thickness / 2
-    x_j = cx + math.sqrt(r**2 - half**2)
-    x_tip = tip_x(p)
-    fine = local_size
-
-    corners = [geo.addPoint(x, y, 0.0, size) for x, y in [(0, 0), (L, 0), (L, H), (0, H)]]
-    bottom, outlet, top, inlet = (geo.addLine(corners[i], corners[(i + 1) % 4]) for i in range(4))
-
-    centre = geo.addPoint(cx, cy, 0.0, fine)
-    joint_bottom, joint_top = (geo.addPoint(x_j, y, 0.0, fine) for y in (cy - half, cy + half))
-    # Built-in circle arcs must be shorter than π: split the wetted arc at the top, left and bottom.
-    north, west, south = (geo.addPoint(x, y, 0.0, fine) for x, y in
-                          [(cx, cy + r), (cx - r, cy), (cx, cy - r)])  # fmt: skip
-    arcs = [(joint_top, north), (north, west), (west, south), (south, joint_bottom)]
-    obstacle = [geo.addCircleArc(start, centre, end) for start, end in arcs]
-    clamped = geo.addCircleArc(joint_bottom, centre, joint_top)
-
-    tip_bottom, a, tip_top = (geo.addPoint(x_tip, y, 0.0, fine) for y in (cy - half, cy, cy + half))
-    flag_bottom, tip_lower, tip_upper, flag_top = (
-        geo.addLine(joint_bottom, tip_bottom), geo.addLine(tip_bottom, a),
-        geo.addLine(a, tip_top), geo.addLine(tip_top, joint_top),
-    )  # fmt: skip
-    interface = [flag_bottom, tip_lower, tip_upper, flag_top]
+    bottom, outlet, top, inlet = _add_channel(geo, p, size)
+    joints, obstacle, clamped = _add_cylinder(geo, p, local_size)
+    interface = _add_flag_outline(geo, p, local_size, joints)
 
     flag = geo.addPlaneSurface([geo.addCurveLoop([*interface, -clamped])])
     outer = geo.addCurveLoop([bottom, outlet, top, inlet])
     hole = geo.addCurveLoop([*interface, *obstacle])  # joint_bottom -> tip -> joint_top -> around
     fluid = geo.addPlaneSurface([outer, hole])
     geo.synchronize()
-
-    field = gmsh.model.mesh.field
-    distance = field.add("Distance")
-    field.setNumbers(distance, "CurvesList", [*obstacle, clamped, *interface])
-    field.setNumber(distance, "NumPointsPerCurve", 200)
-    threshold = field.add("Threshold")
-    field.setNumber(threshold, "InField", distance)
-    field.setNumber(threshold, "SizeMin", fine)
-    field.setNumber(threshold, "SizeMax", size)
-    field.setNumber(threshold, "DistMin", 0.0)
-    field.setNumber(threshold, "DistMax", (size - fine) / grading)
-    field.setAsBackgroundMesh(threshold)
+    _add_size_field(gmsh.model.mesh.field, [*obstacle, clamped, *interface], size, local_size,
+                    grading)  # fmt: skip
 
     add_physical_groups(
         {
@@ -146,3 +115,58 @@ def build(p: TurekHronParameters, size: float, local_size: float, grading: float
             Boundary.CLAMPED: [clamped],
         }
     )
+
+
+def _add_channel(geo, p: TurekHronParameters, size: float) -> tuple[int, ...]:
+    """The channel's corner points and its bottom, outlet, top and inlet lines."""
+    L, H = p.length, p.height
+    corners = [geo.addPoint(x, y, 0.0, size) for x, y in [(0, 0), (L, 0), (L, H), (0, H)]]
+    return tuple(geo.addLine(corners[i], corners[(i + 1) % 4]) for i in range(4))
+
+
+def _add_cylinder(
+    geo, p: TurekHronParameters, fine: float
+) -> tuple[tuple[int, int], list[int], int]:
+    """The cylinder: its (bottom, top) joint points with the flag, its wetted arcs and the
+    clamped arc between the joints."""
+    cx, cy = p.cylinder_centre
+    r, half = p.cylinder_radius, p.flag_thickness / 2
+    x_j = cx + math.sqrt(r**2 - half**2)
+    centre = geo.addPoint(cx, cy, 0.0, fine)
+    joint_bottom, joint_top = (geo.addPoint(x_j, y, 0.0, fine) for y in (cy - half, cy + half))
+    # Built-in circle arcs must be shorter than π: split the wetted arc at the top, left and bottom.
+    north, west, south = (geo.addPoint(x, y, 0.0, fine) for x, y in
+                          [(cx, cy + r), (cx - r, cy), (cx, cy - r)])  # fmt: skip
+    arcs = [(joint_top, north), (north, west), (west, south), (south, joint_bottom)]
+    obstacle = [geo.addCircleArc(start, centre, end) for start, end in arcs]
+    clamped = geo.addCircleArc(joint_bottom, centre, joint_top)
+    return (joint_bottom, joint_top), obstacle, clamped
+
+
+def _add_flag_outline(
+    geo, p: TurekHronParameters, fine: float, joints: tuple[int, int]
+) -> list[int]:
+    """The flag's wetted outline from the bottom joint round the tip (through point A) to the
+    top joint: bottom, lower tip, upper tip and top lines."""
+    joint_bottom, joint_top = joints
+    cy, half, x_tip = p.cylinder_centre[1], p.flag_thickness / 2, tip_x(p)
+    tip_bottom, a, tip_top = (geo.addPoint(x_tip, y, 0.0, fine) for y in (cy - half, cy, cy + half))
+    return [
+        geo.addLine(joint_bottom, tip_bottom), geo.addLine(tip_bottom, a),
+        geo.addLine(a, tip_top), geo.addLine(tip_top, joint_top),
+    ]  # fmt: skip
+
+
+def _add_size_field(field, curves: list[int], size: float, fine: float, grading: float) -> None:
+    """The background size field h(d) = min(size, fine + grading·d), d the distance to
+    ``curves``."""
+    distance = field.add("Distance")
+    field.setNumbers(distance, "CurvesList", curves)
+    field.setNumber(distance, "NumPointsPerCurve", 200)
+    threshold = field.add("Threshold")
+    field.setNumber(threshold, "InField", distance)
+    field.setNumber(threshold, "SizeMin", fine)
+    field.setNumber(threshold, "SizeMax", size)
+    field.setNumber(threshold, "DistMin", 0.0)
+    field.setNumber(threshold, "DistMax", (size - fine) / grading)
+    field.setAsBackgroundMesh(threshold)

@@ -42,7 +42,7 @@ def study_fluid(rheology: str, **changes) -> dict:
 def exact_flow_rate(law: rheology.ViscosityLaw, gradient: float) -> float:
     """Fully developed flow rate per unit depth (m²/s) under the pressure gradient G: Poiseuille's
     G H³ / (12 μ), or the 1D quadrature of the Carreau law."""
-    if isinstance(law, rheology.Newtonian):
+    if isinstance(law, config.Newtonian):
         return gradient * H**3 / (12 * law.viscosity)
     return carreau_flow_rate_1d(law, gradient, H)
 

@@ -6,10 +6,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from fsi.config.coupling_section import Coupling, MeshMotion
 from fsi.config.domain import Geometry, MeshSettings, StenosisGeometry
 from fsi.config.fluid_section import Fluid
-from fsi.config.stepping import Coupling, MeshMotion, Output, Time
+from fsi.config.output_section import Output
 from fsi.config.structure_section import Structure
+from fsi.config.time_section import Time
 
 
 @dataclass(frozen=True)

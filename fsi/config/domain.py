@@ -17,7 +17,7 @@ from fsi.config.reader import at_least, open_interval, positive
 
 @dataclass(frozen=True)
 class StenosisGeometry:
-    """The stenosed carotid of MODEL.md §1 (geometry/stenosis.py has the profiles)."""
+    """The stenosed carotid of docs/model.md §1 (geometry/stenosis.py has the profiles)."""
 
     kind: Literal["stenosis"] = "stenosis"
     length: float = positive(0.02, " (m)")
@@ -41,7 +41,7 @@ class ChannelGeometry:
 
 @dataclass(frozen=True)
 class TurekHronGeometry:
-    """The Turek–Hron benchmark (../shared/reference/turek_hron.md, geometry/turek_hron.py): a
+    """The Turek–Hron benchmark (Turek & Hron 2006, geometry/turek_hron.py): a
     channel ``[0, length] × [0, height]``, a rigid cylinder and an elastic flag of
     ``flag_length`` (from the cylinder's rightmost point to the tip) × ``flag_thickness`` centred
     on the cylinder's axis. Defaults are the benchmark's (tip and point A at x = 0.6)."""
@@ -68,9 +68,8 @@ class MeshSettings:
     finest = coarse × 64: the third level of the performance study, docs/performance.md).
 
     ``max_cells``: validation refuses a mesh whose :func:`fsi.config.run_size.estimated_cells`
-    exceeds it, before gmsh starts (memory grows with the cells: the fine stenosis, 51k
-    triangles, took ~0.9 GB in a serial coupled run, ~18 kB per triangle, so the default 10⁶ is
-    ~18 GB)."""
+    exceeds it, before gmsh starts (memory grows with the cells,
+    :data:`fsi.config.run_size.BYTES_PER_CELL` each: the default 10⁶ is ~18 GB)."""
 
     level: Literal["coarse", "medium", "fine", "finest"] = "coarse"
     size: float = positive(6.0e-4, " (m)")
@@ -79,4 +78,5 @@ class MeshSettings:
 
     @property
     def refinements(self) -> int:
+        """The number of uniform refinements of the coarse mesh that ``level`` asks for."""
         return MESH_LEVELS[self.level]

@@ -183,18 +183,22 @@ def checked(default: Any, check: typing.Callable[[Any], bool], expected: str) ->
 
 
 def positive(default: float, unit: str = "") -> Any:
+    """A :func:`checked` field whose value must be > 0 (``unit`` shown in the message)."""
     return checked(default, lambda v: v > 0, f"a positive number{unit}")
 
 
 def non_negative(default: float, unit: str = "") -> Any:
+    """A :func:`checked` field whose value must be >= 0."""
     return checked(default, lambda v: v >= 0, f"a number >= 0{unit}")
 
 
 def at_least(default: int, low: int) -> Any:
+    """A :func:`checked` integer field whose value must be >= ``low``."""
     return checked(default, lambda v: v >= low, f"an integer >= {low}")
 
 
 def open_interval(default: float, low: float, high: float, unit: str = "") -> Any:
+    """A :func:`checked` field whose value must lie in (``low``, ``high``)."""
     return checked(default, lambda v: low < v < high, f"a number in ({low}, {high}){unit}")
 
 

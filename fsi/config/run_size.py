@@ -86,4 +86,5 @@ def _turek_hron_cells_area(g, size: float, local: float) -> float:
 
 
 BYTES_PER_CELL = 18e3
-"""Memory per triangle of a coupled run, measured: the fine stenosis (51k triangles) ~0.9 GB."""
+"""Memory (bytes) per triangle of a serial coupled run (the fine stenosis, 51k triangles:
+~0.9 GB)."""

@@ -15,8 +15,9 @@ from fsi.config.solver_settings import SolverSettings, quadrature
 
 @dataclass(frozen=True)
 class Material:
-    """Hyperelastic material of one structure region (MODEL.md §3; fsi/physics/materials.py): the
-    study's St. Venant–Kirchhoff ``svk`` or a compressible ``neo_hookean``, plane strain.
+    """Hyperelastic material of one structure region (docs/model.md §3;
+    fsi/physics/materials.py): the study's St. Venant–Kirchhoff ``svk`` or a compressible
+    ``neo_hookean``, plane strain.
     ``viscous_relaxation_time`` τ (s) adds the Kelvin–Voigt viscous stress
     ``S_v = τ (λ tr Ė I + 2μ Ė)`` (docs/wall-damping.md): every small-amplitude mode of
     angular frequency ω gets the damping ratio ζ = ωτ/2; 0 (the default) is purely elastic."""

@@ -1,0 +1,122 @@
+"""The ``fluid.outlet`` section: the outlet's condition (``kind`` picks one of :data:`Outlet`),
+one frozen dataclass per condition with its parameters and their checks; the lumped (0D) ones
+also compute the pressure P they impose from the outlet's flow rate Q (fsi.physics.outlets
+hands them to the fluid, which applies σ n = −P n in the ``open_boundary`` form).
+
+In 2D every quantity is per unit depth: Q = ∫_outlet u·n ds (m²/s, positive out of the
+domain), resistances R in Pa s/m², a compliance C in m²/Pa (docs/boundary-conditions.md):
+
+- resistance: P = P_ref + R Q;
+- three-element Windkessel (RCR; Westerhof et al. 2009):
+
+      C dP_c/dt = Q − (P_c − P_ref)/R_d,    P = P_c + R_p Q,    P_c(0) = P_0.
+
+The ODE is discretised with the fluid's own time weights
+(:func:`fsi.numerics.timestepping.bdf_weights`: backward Euler, variable-step BDF2; all zero when
+steady), dP_c/dt ≈ a₀ P_c^{n+1} + a₁ P_c^n + a₂ P_c^{n−1}, and solved with the step's own
+(implicit) Q:
+
+    P_c^{n+1} = (Q + P_ref/R_d − C (a₁ P_c^n + a₂ P_c^{n−1})) / (C a₀ + 1/R_d),
+
+so each step's outlet pressure is affine in the step's flow rate, P = P₀' + R' Q with
+R' = R_p + R_d/(1 + R_d C a₀) > 0 (:meth:`WindkesselOutlet.pressure_law`); steady (a = 0), P_c
+is at its steady value P_ref + R_d Q. A model's state (the Windkessel's P_c^n, P_c^{n−1}) is a
+plain array the fluid solver keeps, saves and checkpoints.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from fsi.config.reader import non_negative, positive
+
+
+@dataclass(frozen=True)
+class TractionFreeOutlet:
+    """σ n = 0 (in the ``open_boundary`` form; the study's outlet, the default). Every outlet's
+    ``backflow_stabilization`` β ≥ 0 scales the term that removes the kinetic energy of blood
+    re-entering through it (Bazilevs et al. 2009; docs/boundary-conditions.md)."""
+
+    kind: Literal["traction_free"] = field(default="traction_free", kw_only=True)
+    backflow_stabilization: float = non_negative(1.0)
+
+
+@dataclass(frozen=True)
+class ResistanceOutlet:
+    """σ n = −P n with P = P_ref + R Q: ``resistance`` R (Pa s/m², per unit depth),
+    ``reference_pressure`` P_ref (Pa). Q is the step's own (implicit:
+    fsi.physics.fluid.LumpedOutlet). No state."""
+
+    kind: Literal["resistance"] = field(default="resistance", kw_only=True)
+    resistance: float = non_negative(0.0, " (Pa s/m^2)")
+    reference_pressure: float = 0.0
+    backflow_stabilization: float = non_negative(1.0)
+
+    def initial_state(self) -> np.ndarray:
+        """The state before the first step: empty."""
+        return np.zeros(0)
+
+    def pressure_law(self, state: np.ndarray, weights: Sequence[float]) -> tuple[float, float]:
+        """(P₀', R') = (P_ref, R): the step's outlet pressure is P = P₀' + R' Q (Pa)."""
+        return self.reference_pressure, self.resistance
+
+    def advance(self, state: np.ndarray, flow_rate: float, weights: Sequence[float]) -> np.ndarray:
+        """The state after a step: unchanged (empty)."""
+        return state
+
+    def state_values(self, state: np.ndarray) -> dict[str, float]:
+        """The state as named values for the metrics: none."""
+        return {}
+
+
+@dataclass(frozen=True)
+class WindkesselOutlet:
+    """The three-element Windkessel (RCR) of the module docstring: ``proximal_resistance`` R_p
+    and ``distal_resistance`` R_d (Pa s/m²), ``compliance`` C (m²/Pa), ``initial_pressure`` P_0
+    and ``reference_pressure`` P_ref (Pa). State: [P_c^n, P_c^{n−1}] (Pa)."""
+
+    kind: Literal["windkessel"] = field(default="windkessel", kw_only=True)
+    proximal_resistance: float = non_negative(0.0, " (Pa s/m^2)")
+    distal_resistance: float = positive(1.0e6, " (Pa s/m^2)")
+    compliance: float = positive(1.0e-7, " (m^2/Pa)")
+    initial_pressure: float = 0.0
+    reference_pressure: float = 0.0
+    backflow_stabilization: float = non_negative(1.0)
+
+    def initial_state(self) -> np.ndarray:
+        """The state before the first step: [P_0, P_0] (Pa)."""
+        return np.array([self.initial_pressure, self.initial_pressure])
+
+    def capacitor_pressure(
+        self, state: np.ndarray, flow_rate: float, weights: Sequence[float]
+    ) -> float:
+        """P_c^{n+1} = (Q + P_ref/R_d − C (a₁ P_c^n + a₂ P_c^{n−1})) / (C a₀ + 1/R_d) (Pa), for
+        the flow rate Q (m²/s) and the time weights (a₀, a₁, a₂) (1/s) of the step."""
+        a0, a1, a2 = weights
+        C, Rd = self.compliance, self.distal_resistance
+        history = a1 * state[0] + a2 * state[1]
+        return float((flow_rate + self.reference_pressure / Rd - C * history) / (C * a0 + 1 / Rd))
+
+    def pressure_law(self, state: np.ndarray, weights: Sequence[float]) -> tuple[float, float]:
+        """(P₀', R'): P = P_c^{n+1}(Q) + R_p Q = P₀' + R' Q with P₀' = P_c^{n+1}(0) (Pa) and
+        R' = R_p + 1/(C a₀ + 1/R_d) (Pa s/m²), for the time weights (a₀, a₁, a₂) of the step."""
+        a0 = weights[0]
+        at_zero_flow = self.capacitor_pressure(state, 0.0, weights)
+        return at_zero_flow, self.proximal_resistance + 1 / (
+            self.compliance * a0 + 1 / self.distal_resistance
+        )
+
+    def advance(self, state: np.ndarray, flow_rate: float, weights: Sequence[float]) -> np.ndarray:
+        """The state after the step whose flow rate was ``flow_rate`` (m²/s)."""
+        return np.array([self.capacitor_pressure(state, flow_rate, weights), state[0]])
+
+    def state_values(self, state: np.ndarray) -> dict[str, float]:
+        """``windkessel_pressure``: P_c^n (Pa)."""
+        return {"windkessel_pressure": float(state[0])}
+
+
+Outlet = TractionFreeOutlet | ResistanceOutlet | WindkesselOutlet
