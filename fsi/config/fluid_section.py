@@ -192,7 +192,7 @@ class ResistanceOutlet:
     """σ n = −P n with P = P_ref + R Q (in the ``open_boundary`` form): Q (m²/s) the flow rate
     per unit depth out through the outlet, ``resistance`` R (Pa s/m², per unit depth),
     ``reference_pressure`` P_ref (Pa). Q is the step's own (implicit:
-    fsi.physics.fluid.LumpedOutlet)."""
+    fsi.physics.fluid_residual.LumpedOutlet)."""
 
     kind: Literal["resistance"] = "resistance"
     resistance: float = non_negative(0.0, " (Pa s/m^2)")
