@@ -37,6 +37,7 @@ class CoupledProblem:
     settings: config.Coupling
 
     def begin_step(self, t: float, dt: float) -> None:
+        """Both sides' next step: to time ``t`` (s) with step ``dt`` (s)."""
         self.fluid_side.begin_step(t, dt)
         self.solid_side.begin_step(t, dt)
 

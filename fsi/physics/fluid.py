@@ -144,8 +144,9 @@ class FluidSolver:
         mesh: the fluid mesh (e.g. ``fsi.physics.mesh.restrict(tagged, Region.FLUID).mesh``).
         facet_tags: its boundary tags (``.facet_tags`` of the same).
         fluid: the ``fluid`` section (density, rheology, quadrature, Newton and PETSc options).
-        boundaries: which tags get which condition (e.g. :func:`boundary_conditions`); tags without
-            a condition are traction-free (σ n = 0).
+        boundaries: which tags get which condition (e.g.
+            :func:`fsi.physics.fluid_boundaries.boundary_conditions`); tags without a condition
+            are traction-free (σ n = 0).
         scheme: ``backward_euler``, ``bdf2`` (backward Euler on the first step) or ``steady``.
         body_force: optional f(x, t).
     """

@@ -141,7 +141,7 @@ def walls(boundaries: Sequence[Boundary], moving_interface: bool = False) -> tup
 def boundary_conditions(
     fluid: config.Fluid, boundaries: Sequence[Boundary], moving_interface: bool
 ) -> tuple[BoundaryCondition, ...]:
-    """The fluid's boundary conditions in every mode (MODEL.md §2), for a geometry with
+    """The fluid's boundary conditions in every mode (docs/model.md, Fluid), for a geometry with
     ``boundaries``: the configured inlet, the configured outlet, u = ∂η/∂t on the interface if
     it moves (a coupled run), no-slip on the :func:`walls`."""
     inlet = Inflow(Boundary.INLET, fluid.inlet, fluid.inflow_stabilization)

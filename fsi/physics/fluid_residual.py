@@ -61,11 +61,12 @@ class LumpedOutlet:
     rate.
 
     Q is linear in the unknowns, Q = b · U with b_i = ∫_Γ φ_i·n ds, so the residual's term
-    ∫_Γ P n·v ds has the Jacobian R' b bᵀ: :class:`_FluidProblem` sets P from each Newton
-    iterate (:meth:`update`) and adds that rank-one block, dense among the outlet's dofs, to
-    each Jacobian (:meth:`add_to_jacobian`). Newton stays Newton, and P = P₀' + R' Q holds at
-    the converged solution to the solver's tolerance, however large R' is. The model's state
-    (the Windkessel's P_c^n, P_c^{n−1}) advances with the accepted step's Q (:meth:`advance`).
+    ∫_Γ P n·v ds has the Jacobian R' b bᵀ: the solver's nonlinear problem (fsi/physics/fluid.py)
+    sets P from each Newton iterate (:meth:`update`) and adds that rank-one block, dense among
+    the outlet's dofs, to each Jacobian (:meth:`add_to_jacobian`). Newton stays Newton, and
+    P = P₀' + R' Q holds at the converged solution to the solver's tolerance, however large R'
+    is. The model's state (the Windkessel's P_c^n, P_c^{n−1}) advances with the accepted step's
+    Q (:meth:`advance`).
     """
 
     def __init__(self, model: outlets.OutletModel, tags: Sequence[int], W, ds_outlet, normal):

@@ -162,6 +162,7 @@ def boundary_conditions(
 
 
 def region_materials(case: Case) -> dict[Region, Material]:
+    """The ``structure`` section's material of each region (wall, cap, lipid, flag)."""
     s = case.structure
     return {Region.WALL: s.wall, Region.CAP: s.cap, Region.LIPID: s.lipid, Region.FLAG: s.flag}
 
@@ -415,6 +416,7 @@ class SolidSolver:
         self.t = self._t_new
 
     def save_state(self) -> SolidState:
+        """Snapshot of the committed state, the unknown η and the interface loads."""
         return SolidState(
             self.t,
             *(
