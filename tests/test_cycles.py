@@ -25,7 +25,7 @@ from fsi import cli, compat, config
 from fsi.config.run_size import count_steps
 from fsi.numerics.timestepping import steps
 from fsi.output import report
-from fsi.physics import fluid, mesh
+from fsi.physics import fluid_boundaries, mesh
 from fsi.run import simulation, steppers, stops
 from geometry.tags import Region
 
@@ -173,7 +173,7 @@ def test_a_steady_periodic_flow_has_equal_indices_in_every_heartbeat(runs):
     header, rows = read_csv(runs["steady"] / "wall_indices.csv")
     assert header == ["cycle", "wall", "side", "x", "y", "TAWSS", "OSI", "RRT"]
     case = config.load(CHANNEL, cycles_set(runs["path"]))
-    pressure = fluid.inlet_pressure(case.fluid.inlet)
+    pressure = fluid_boundaries.inlet_pressure(case.fluid.inlet)
     tau = np.array([pressure(0.001 * n) for n in range(1, 5)]) * H / (2 * L)
     exact = np.abs(tau).mean()
     first = [r for r in rows if r["cycle"] == 1]
@@ -213,7 +213,7 @@ def test_mean_inlet_pressure_is_the_prescribed_pressure_and_the_outlet_mean_is_z
     and p = 0 on the traction-free outlet: the boundary means, to the solver's tolerance."""
     _, rows = read_csv(runs["steady"] / "metrics.csv")
     case = config.load(CHANNEL, cycles_set(runs["path"]))
-    pressure = fluid.inlet_pressure(case.fluid.inlet)
+    pressure = fluid_boundaries.inlet_pressure(case.fluid.inlet)
     prescribed = np.array([pressure(t) for t in column(rows, "t")])
     assert column(rows, "mean_inlet_pressure") == pytest.approx(prescribed, rel=1e-9)
     assert np.abs(column(rows, "mean_outlet_pressure")).max() < 1e-9 * prescribed.max()
@@ -279,7 +279,7 @@ def test_a_step_across_a_heartbeat_counts_its_parts_for_each(shared_tmp):
     assert fsi_run(shared_tmp / "run", overrides) == 0
     _, rows = read_csv(shared_tmp / "run" / "metrics.csv")
     assert column(rows, "cycle").tolist() == [1, 1, 2, 2]
-    pressure = fluid.inlet_pressure(config.load(CHANNEL, overrides).fluid.inlet)
+    pressure = fluid_boundaries.inlet_pressure(config.load(CHANNEL, overrides).fluid.inlet)
     tau = [pressure(0.0015 * n) * H / (2 * L) for n in range(1, 5)]
     _, indices = read_csv(shared_tmp / "run" / "wall_indices.csv")
     for k, exact in (

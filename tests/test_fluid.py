@@ -10,13 +10,14 @@ import dolfinx.fem
 import dolfinx.mesh
 import numpy as np
 import pytest
+import support_physics
 import ufl
 
 from fsi import compat, config
 from fsi.config import reader
 from fsi.numerics import newton
 from fsi.output import metrics
-from fsi.physics import fluid, mesh, rheology
+from fsi.physics import fluid, fluid_boundaries, fluid_residual, mesh, rheology
 from geometry.tags import Boundary, Region
 
 WALL, INLET, OUTLET = Boundary.RIGID_WALL, Boundary.INLET, Boundary.OUTLET
@@ -88,9 +89,9 @@ def pressure_driven(size: float, rheology_section: dict, gradient: float):
         },
     )
     boundaries = (
-        fluid.Inflow(INLET, case.fluid.inlet),
-        fluid.Outflow(OUTLET, 0.0),
-        fluid.NoSlip(WALL),
+        fluid_boundaries.Inflow(INLET, case.fluid.inlet),
+        fluid_boundaries.Outflow(OUTLET, 0.0),
+        fluid_boundaries.NoSlip(WALL),
     )
     solver = fluid.FluidSolver(submesh, tags, case.fluid, boundaries, scheme="steady")
     result = solver.step(0.0, 1.0)
@@ -118,38 +119,42 @@ def test_restricted_fluid_mesh_keeps_every_fluid_boundary():
 
 
 def test_one_function_builds_every_modes_boundary_conditions():
-    """fluid.boundary_conditions: the inlet, the outlet, u = ∂η/∂t on a moving interface, and
-    no-slip on fluid.walls (the interface too when it does not move); the order is the one the
-    Dirichlet conditions are built in."""
+    """fluid_boundaries.boundary_conditions: the inlet, the outlet, u = ∂η/∂t on a moving
+    interface, and no-slip on fluid_boundaries.walls (the interface too when it does not move);
+    the order is the one the Dirichlet conditions are built in."""
     turek_hron = (INLET, OUTLET, WALL, Boundary.OBSTACLE, Boundary.INTERFACE, Boundary.CLAMPED)
-    assert fluid.walls(turek_hron) == (WALL, Boundary.OBSTACLE, Boundary.INTERFACE)
-    assert fluid.walls(turek_hron, moving_interface=True) == (WALL, Boundary.OBSTACLE)
+    assert fluid_boundaries.walls(turek_hron) == (WALL, Boundary.OBSTACLE, Boundary.INTERFACE)
+    assert fluid_boundaries.walls(turek_hron, moving_interface=True) == (WALL, Boundary.OBSTACLE)
     settings = config.from_dict({}).fluid
-    rigid = fluid.boundary_conditions(settings, turek_hron, moving_interface=False)
-    assert [type(bc) for bc in rigid] == [fluid.Inflow, fluid.Outflow, fluid.NoSlip]
+    rigid = fluid_boundaries.boundary_conditions(settings, turek_hron, moving_interface=False)
+    assert [type(bc) for bc in rigid] == [
+        fluid_boundaries.Inflow,
+        fluid_boundaries.Outflow,
+        fluid_boundaries.NoSlip,
+    ]
     assert rigid[2].tags == (WALL, Boundary.OBSTACLE, Boundary.INTERFACE)
-    coupled = fluid.boundary_conditions(settings, turek_hron, moving_interface=True)
+    coupled = fluid_boundaries.boundary_conditions(settings, turek_hron, moving_interface=True)
     assert [type(bc) for bc in coupled] == [
-        fluid.Inflow,
-        fluid.Outflow,
-        fluid.Velocity,
-        fluid.NoSlip,
+        fluid_boundaries.Inflow,
+        fluid_boundaries.Outflow,
+        fluid_boundaries.Velocity,
+        fluid_boundaries.NoSlip,
     ]
     assert coupled[2].tags == (Boundary.INTERFACE,) and coupled[3].tags == (WALL, Boundary.OBSTACLE)
     assert rigid[0].spec == settings.inlet and rigid[1].model is None  # traction-free outlet
 
 
 def test_every_boundary_kind_has_its_function_and_others_are_refused():
-    assert set(fluid.FluidResidual.BOUNDARY_KINDS) == {
-        fluid.NoSlip,
-        fluid.Velocity,
-        fluid.Inflow,
-        fluid.Outflow,
-        fluid.Slip,
-        fluid.Traction,
+    assert set(fluid_residual.FluidResidual.BOUNDARY_KINDS) == {
+        fluid_boundaries.NoSlip,
+        fluid_boundaries.Velocity,
+        fluid_boundaries.Inflow,
+        fluid_boundaries.Outflow,
+        fluid_boundaries.Slip,
+        fluid_boundaries.Traction,
     }
 
-    class Porous(fluid.NoSlip):  # a kind without a function of its own
+    class Porous(fluid_boundaries.NoSlip):  # a kind without a function of its own
         pass
 
     domain, tags = unit_square(2)
@@ -159,17 +164,24 @@ def test_every_boundary_kind_has_its_function_and_others_are_refused():
 
 
 def test_inlet_pressure_laws():
-    pulse = fluid.inlet_pressure(config.InletPulse())
+    pulse = fluid_boundaries.inlet_pressure(config.InletPulse())
     assert pulse(0.0025) == pytest.approx(1200.0)  # the peak, at T/2
     assert pulse(0.0) == 0.0 and pulse(0.006) == 0.0
     # the study's printed formula 93(1 − cos(2πt/0.005)) is amplitude 186
-    printed = fluid.inlet_pressure(config.InletPulse(amplitude=186.0))
+    printed = fluid_boundaries.inlet_pressure(config.InletPulse(amplitude=186.0))
     assert printed(0.001) == pytest.approx(93 * (1 - math.cos(2 * math.pi * 0.001 / 0.005)))
-    formula = fluid.inlet_pressure(config.InletPressure(formula="100*sin(pi*t)**2 + (t > 1)"))
+    formula = fluid_boundaries.inlet_pressure(
+        config.InletPressure(formula="100*sin(pi*t)**2 + (t > 1)")
+    )
     assert formula(0.5) == pytest.approx(100.0) and formula(1.5) == pytest.approx(101.0)
-    table = fluid.inlet_pressure(config.InletPressureTable(table=((0.0, 0.0), (1.0, 10.0))))
+    table = fluid_boundaries.inlet_pressure(
+        config.InletPressureTable(table=((0.0, 0.0), (1.0, 10.0)))
+    )
     assert (table(-1.0), table(0.25), table(2.0)) == (0.0, 2.5, 10.0)
-    assert fluid.inflow_ramp(1.0, 2.0) == pytest.approx(0.5) and fluid.inflow_ramp(3.0, 2.0) == 1
+    assert (
+        fluid_boundaries.inflow_ramp(1.0, 2.0) == pytest.approx(0.5)
+        and fluid_boundaries.inflow_ramp(3.0, 2.0) == 1
+    )
 
 
 @pytest.mark.parametrize(
@@ -206,9 +218,11 @@ def test_bad_open_boundary_form_is_refused():
 def test_boundary_conditions_are_checked_before_any_solve():
     case, submesh, tags = channel(2e-3, {})
     with pytest.raises(ValueError, match="two conditions"):
-        fluid.FluidSolver(submesh, tags, case.fluid, (fluid.NoSlip(WALL), fluid.Slip(WALL)))
+        fluid.FluidSolver(
+            submesh, tags, case.fluid, (fluid_boundaries.NoSlip(WALL), fluid_boundaries.Slip(WALL))
+        )
     with pytest.raises(ValueError, match="not on the fluid mesh"):
-        fluid.FluidSolver(submesh, tags, case.fluid, (fluid.NoSlip(Boundary.INTERFACE),))
+        fluid.FluidSolver(submesh, tags, case.fluid, (fluid_boundaries.NoSlip(Boundary.INTERFACE),))
 
 
 # --------------------------------------------------------------------------------------------
@@ -228,9 +242,9 @@ def test_newtonian_poiseuille_is_exact(drive):
     )
     case, submesh, tags = channel(1e-3, {"inlet": inlet, "open_boundary": "do_nothing"})
     boundaries = (
-        fluid.Inflow(INLET, case.fluid.inlet),
-        fluid.Outflow(OUTLET, 0.0),
-        fluid.NoSlip(WALL),
+        fluid_boundaries.Inflow(INLET, case.fluid.inlet),
+        fluid_boundaries.Outflow(OUTLET, 0.0),
+        fluid_boundaries.NoSlip(WALL),
     )
     solver = fluid.FluidSolver(submesh, tags, case.fluid, boundaries, scheme="steady")
     result = solver.step(1.0, 1.0)
@@ -247,7 +261,7 @@ def test_newtonian_poiseuille_is_exact(drive):
     # Wall traction from the residual (nodal forces / lumped boundary mass) at the nodes that
     # are not shared with the inlet or outlet: the blood drags the wall along with τ = G H/2
     # and pushes it outward with p(x).
-    traction = solver.traction([WALL])
+    traction = support_physics.traction(solver, [WALL])
     forces = solver.interface_force([WALL])
     inner = (forces.x[:, 0] > 1e-9) & (forces.x[:, 0] < L - 1e-9)
     t = traction.x.array.reshape(-1, 2)[forces.dofs[inner]]
@@ -430,7 +444,7 @@ def carreau_mms(n: int, comm: MPI.Comm = MPI.COMM_WORLD) -> np.ndarray:
         domain,
         tags,
         cfg,
-        (fluid.Velocity((1, 3, 4)), fluid.Traction(2, traction)),
+        (fluid_boundaries.Velocity((1, 3, 4)), fluid_boundaries.Traction(2, traction)),
         scheme="steady",
         body_force=body_force,
     )
@@ -501,14 +515,14 @@ def time_mms(scheme: str, steps: int, moving: bool, variable: bool = False) -> f
         domain,
         tags,
         cfg,
-        (fluid.Velocity((1, 3, 4)), fluid.Traction(2, traction)),
+        (fluid_boundaries.Velocity((1, 3, 4)), fluid_boundaries.Traction(2, traction)),
         scheme=scheme,
         body_force=body_force,
     )
     time = dolfinx.fem.Constant(domain, 0.0)
     x = ufl.SpatialCoordinate(domain)
     u_expression = dolfinx.fem.Expression(exact(x, time)[0], compat.interpolation_points(solver.V))
-    solver.initialize(lambda X: np.vstack([X[1] ** 2, X[0] ** 2]))  # g(0) = 1
+    support_physics.initialize(solver, lambda X: np.vstack([X[1] ** 2, X[0] ** 2]))  # g(0) = 1
     X = solver.ale.space.tabulate_dof_coordinates()
     d = dolfinx.fem.Function(solver.ale.space)
     sizes = np.full(steps, 1.0 / steps)
@@ -558,10 +572,14 @@ def test_uniform_flow_stays_uniform_on_a_moving_mesh():
     cfg = config.from_dict({"fluid": {"density": 1000.0, "rheology": {"model": "carreau"}}}).fluid
     domain, tags = unit_square(6)
     solver = fluid.FluidSolver(
-        domain, tags, cfg, (fluid.Velocity((1, 3, 4)), fluid.Outflow(2, 1.0)), scheme="bdf2"
+        domain,
+        tags,
+        cfg,
+        (fluid_boundaries.Velocity((1, 3, 4)), fluid_boundaries.Outflow(2, 1.0)),
+        scheme="bdf2",
     )
     U = np.array([1.0, 0.5])
-    solver.initialize(lambda x: np.outer(U, np.ones(x.shape[1])))
+    support_physics.initialize(solver, lambda x: np.outer(U, np.ones(x.shape[1])))
     solver.boundary_velocity.interpolate(lambda x: np.outer(U, np.ones(x.shape[1])))
     X = solver.ale.space.tabulate_dof_coordinates()
     d = dolfinx.fem.Function(solver.ale.space)
@@ -593,9 +611,9 @@ def test_slip_wall_with_traction_on_a_tilted_channel():
     e_x = ufl.as_vector(R[:, 0].tolist())
     sigma = tau * (ufl.outer(R_ufl[:, 0], R_ufl[:, 1]) + ufl.outer(R_ufl[:, 1], R_ufl[:, 0]))
     boundaries = (
-        fluid.NoSlip(3),
-        fluid.Slip(4, lambda x, n, t: tau * e_x),
-        fluid.Traction((1, 2), lambda x, n, t: sigma * n),
+        fluid_boundaries.NoSlip(3),
+        fluid_boundaries.Slip(4, lambda x, n, t: tau * e_x),
+        fluid_boundaries.Traction((1, 2), lambda x, n, t: sigma * n),
     )
     solver = fluid.FluidSolver(domain, tags, cfg, boundaries, scheme="steady")
     result = solver.step(0.0, 1.0)
@@ -616,7 +634,11 @@ def test_backflow_stabilization_sets_the_outlet_pressure_of_an_inflow(beta):
     cfg = config.from_dict({"fluid": {"density": rho}}).fluid
     domain, tags = unit_square(3)
     solver = fluid.FluidSolver(
-        domain, tags, cfg, (fluid.Velocity((1, 3, 4)), fluid.Outflow(2, beta)), scheme="steady"
+        domain,
+        tags,
+        cfg,
+        (fluid_boundaries.Velocity((1, 3, 4)), fluid_boundaries.Outflow(2, beta)),
+        scheme="steady",
     )
     solver.boundary_velocity.interpolate(lambda x: np.vstack([-U + 0 * x[0], 0 * x[0]]))
     result = solver.step(0.0, 1.0)
@@ -640,7 +662,11 @@ def test_study_pulse_matches_stokes_layer_theory():
         submesh,
         tags,
         case.fluid,
-        (fluid.Inflow(INLET, case.fluid.inlet), fluid.Outflow(OUTLET, 1.0), fluid.NoSlip(WALL)),
+        (
+            fluid_boundaries.Inflow(INLET, case.fluid.inlet),
+            fluid_boundaries.Outflow(OUTLET, 1.0),
+            fluid_boundaries.NoSlip(WALL),
+        ),
     )
     T, L, H = case.fluid.inlet.duration, case.geometry.length, case.geometry.height
     rho, nu = case.fluid.density, case.fluid.rheology.viscosity / case.fluid.density
@@ -649,7 +675,7 @@ def test_study_pulse_matches_stokes_layer_theory():
         result = solver.step(k * T / steps, T / steps)
         assert result.converged and result.iterations <= 3, result
         solver.advance()
-    P = fluid.inlet_pressure(case.fluid.inlet)
+    P = fluid_boundaries.inlet_pressure(case.fluid.inlet)
     q, w = np.polynomial.legendre.leggauss(100)
     q, w = (q + 1) / 2 * math.sqrt(T), w / 2 * math.sqrt(T)  # r = T − q² removes the sqrt
     P_r = np.array([P(T - s**2) for s in q])
@@ -669,7 +695,7 @@ def test_restore_state_resolves_the_same_step():
     cfg = config.from_dict({"fluid": {"density": 1.0, "rheology": {"model": "carreau"}}}).fluid
     domain, tags = unit_square(4)
     solver = fluid.FluidSolver(
-        domain, tags, cfg, (fluid.Velocity((1, 3, 4)), fluid.Outflow(2, 1.0))
+        domain, tags, cfg, (fluid_boundaries.Velocity((1, 3, 4)), fluid_boundaries.Outflow(2, 1.0))
     )
     solver.boundary_velocity.interpolate(lambda x: np.vstack([x[1] * (1 - x[1]), 0 * x[0]]))
     assert solver.step(0.1, 0.1).converged
@@ -713,7 +739,11 @@ def test_failed_newton_is_reported_and_leaves_the_previous_solution():
         submesh,
         tags,
         case.fluid,
-        (fluid.Inflow(INLET, case.fluid.inlet), fluid.Outflow(OUTLET, 0.0), fluid.NoSlip(WALL)),
+        (
+            fluid_boundaries.Inflow(INLET, case.fluid.inlet),
+            fluid_boundaries.Outflow(OUTLET, 0.0),
+            fluid_boundaries.NoSlip(WALL),
+        ),
         scheme="steady",
     )
     result = solver.step(0.0, 1.0)
@@ -728,7 +758,7 @@ def test_non_finite_data_is_reported_and_leaves_no_nan():
     cfg = config.from_dict({}).fluid
     domain, tags = unit_square(3)
     solver = fluid.FluidSolver(
-        domain, tags, cfg, (fluid.Velocity((1, 3, 4)), fluid.Outflow(2, 1.0))
+        domain, tags, cfg, (fluid_boundaries.Velocity((1, 3, 4)), fluid_boundaries.Outflow(2, 1.0))
     )
     solver.boundary_velocity.x.array[:] = np.nan  # e.g. a diverged coupling iterate
     result = solver.step(0.01, 0.01)
@@ -754,7 +784,7 @@ def test_study_conditions_on_the_stenosis_give_the_rigid_column_velocity():
     part = mesh.restrict(tagged, Region.FLUID)
     submesh = part.mesh
     tags = part.facet_tags
-    boundaries = fluid.boundary_conditions(
+    boundaries = fluid_boundaries.boundary_conditions(
         case.fluid, mesh.geometry_module(case).BOUNDARIES, moving_interface=True
     )
     solver = fluid.FluidSolver(submesh, tags, case.fluid, boundaries)
@@ -807,9 +837,9 @@ def turek_hron_forces(name: str, mean_velocity: float, level: str = "coarse"):
         tags,
         case.fluid,
         (
-            fluid.Inflow(INLET, case.fluid.inlet),
-            fluid.Outflow(OUTLET, 0.0),
-            fluid.NoSlip((WALL, *wetted)),
+            fluid_boundaries.Inflow(INLET, case.fluid.inlet),
+            fluid_boundaries.Outflow(OUTLET, 0.0),
+            fluid_boundaries.NoSlip((WALL, *wetted)),
         ),
         scheme="steady",
     )

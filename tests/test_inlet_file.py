@@ -11,7 +11,7 @@ import pytest
 from fsi import cli, config
 from fsi.config import reader
 from fsi.output import io
-from fsi.physics import fluid
+from fsi.physics import fluid_boundaries
 
 CHANNEL = "configs/channel_poiseuille.yaml"
 THREE_STEPS = ["time.end=0.003", "time.schedule=[{until: 0.003, dt: 0.001}]"]
@@ -49,8 +49,8 @@ def test_csv_inlet_equals_the_table_inlet_with_the_same_rows(shared_tmp):
     )
     assert from_file.fluid.inlet.table == ROWS
     assert from_file.fluid.inlet.file == str(shared_tmp / "waves" / "w.csv")
-    p_file = fluid.inlet_pressure(from_file.fluid.inlet)
-    p_table = fluid.inlet_pressure(inline.fluid.inlet)
+    p_file = fluid_boundaries.inlet_pressure(from_file.fluid.inlet)
+    p_table = fluid_boundaries.inlet_pressure(inline.fluid.inlet)
     times = np.linspace(-0.001, 0.005, 601)
     assert [p_file(t) for t in times] == [p_table(t) for t in times]
     assert p_file(-1.0) == 0.0 and p_file(1.0) == 150.0  # held beyond the ends
@@ -61,7 +61,7 @@ def test_the_period_repeats_the_waveform(shared_tmp):
     rows = ((-0.1, 7.0), (0.0, 10.0), (0.3, 90.0), (0.5, 40.0), (0.8, 10.0), (0.9, 99.0))
     write(shared_tmp / "beat.csv", csv(rows, header=""))
     case = config.load(case_file(shared_tmp, "{kind: pressure_file, file: beat.csv, period: 0.8}"))
-    pressure = fluid.inlet_pressure(case.fluid.inlet)
+    pressure = fluid_boundaries.inlet_pressure(case.fluid.inlet)
     for t in np.linspace(0.0, 0.8, 81):
         for k in range(1, 6):
             assert pressure(t + k * 0.8) == pytest.approx(pressure(t), rel=1e-9, abs=1e-9)
@@ -73,8 +73,8 @@ def test_the_shipped_pulse_waveform_is_the_study_pulse():
     case = config.load(
         CHANNEL, ["fluid.inlet={kind: pressure_file, file: configs/waveforms/pulse.csv}"]
     )
-    sampled = fluid.inlet_pressure(case.fluid.inlet)
-    pulse = fluid.inlet_pressure(config.InletPulse())
+    sampled = fluid_boundaries.inlet_pressure(case.fluid.inlet)
+    pulse = fluid_boundaries.inlet_pressure(config.InletPulse())
     # linear interpolation of (A/2)(1 − cos 2πt/T) every h: error <= (A/2)(2π/T)² h²/8 = 0.3 Pa
     times = np.linspace(0, 0.01, 1001)
     assert max(abs(sampled(t) - pulse(t)) for t in times) < 0.3
@@ -113,7 +113,10 @@ def test_the_dumped_configuration_is_a_table_that_loads_again(shared_tmp):
     assert again.fluid.inlet == config.InletPressureTable(table=ROWS, period=0.003)
     as_file = dataclasses.replace(again.fluid, inlet=case.fluid.inlet)
     assert dataclasses.replace(again, fluid=as_file) == case  # everything else unchanged
-    p, q = fluid.inlet_pressure(case.fluid.inlet), fluid.inlet_pressure(again.fluid.inlet)
+    p, q = (
+        fluid_boundaries.inlet_pressure(case.fluid.inlet),
+        fluid_boundaries.inlet_pressure(again.fluid.inlet),
+    )
     assert all(p(t) == q(t) for t in np.linspace(-0.01, 0.01, 401))
     assert config.to_dict(again) == config.to_dict(case)  # and dumping again changes nothing
 
@@ -192,7 +195,7 @@ def test_a_missing_file_key_and_an_unloaded_inlet_are_refused():
     with pytest.raises(config.ConfigError, match="fluid.inlet.file: expected the name of a CSV"):
         config.from_dict({"fluid": {"inlet": {"kind": "pressure_file"}}}, "case.yaml")
     with pytest.raises(ValueError, match="has no rows"):
-        fluid.inlet_pressure(config.InletPressureFile(file="w.csv"))
+        fluid_boundaries.inlet_pressure(config.InletPressureFile(file="w.csv"))
 
 
 def test_a_periodic_inline_table_must_cover_its_period():
@@ -208,6 +211,6 @@ def test_a_periodic_inline_table_must_cover_its_period():
             "fluid: {inlet: {kind: pressure_table, table: [[0, 1], [0.5, 2]], period: 0.5}}"
         )
     )
-    pressure = fluid.inlet_pressure(periodic.fluid.inlet)
+    pressure = fluid_boundaries.inlet_pressure(periodic.fluid.inlet)
     assert pressure(0.25) == pytest.approx(1.5) and pressure(0.75) == pytest.approx(1.5)
     assert math.isclose(pressure(1.0 + 0.1), pressure(0.1))

@@ -33,6 +33,7 @@ from fsi.config.solver_settings import SolverSettings
 from fsi.numerics.newton import Forcing, Newton
 from fsi.numerics.timestepping import steps
 from fsi.physics import fluid, mesh, solid
+from fsi.physics.fluid_boundaries import inlet_pressure
 from fsi.run.steppers import CoupledStepper, fluid_boundaries
 from geometry.tags import Region
 
@@ -166,7 +167,7 @@ def test_fluid_with_reused_jacobians_finds_newtons_solution(whole):
 def test_structure_with_reused_jacobians_finds_newtons_solution(whole):
     """The moving wall and plaque alone under the inlet pulse as a follower pressure."""
     comm = whole.comm
-    pressure = fluid.inlet_pressure(case_with().fluid.inlet)
+    pressure = inlet_pressure(case_with().fluid.inlet)
     solvers = {
         reuse: solid.build(
             case_with(

@@ -21,7 +21,7 @@ from fsi import config
 from fsi.config import reader
 from fsi.numerics.timestepping import steps
 from fsi.output import metrics
-from fsi.physics import fluid, rheology
+from fsi.physics import fluid, fluid_boundaries, rheology
 from fsi.run import steppers
 from geometry.tags import Boundary
 
@@ -196,7 +196,7 @@ def test_normal_flow_needs_an_axis_parallel_boundary():
     )
     settings = config.from_dict({"fluid": {"inlet": {"kind": "pressure", "formula": "1"}}}).fluid
     with pytest.raises(ValueError, match="normal_flow needs straight open boundaries"):
-        fluid.FluidSolver(domain, tags, settings, (fluid.Inflow(1, settings.inlet),))
+        fluid.FluidSolver(domain, tags, settings, (fluid_boundaries.Inflow(1, settings.inlet),))
 
 
 # --------------------------------------------------------------------------------------------

@@ -1,5 +1,5 @@
 """Resistance and three-element Windkessel (RCR) outlets (fsi/physics/outlets.py,
-fluid.LumpedOutlet).
+fsi/physics/fluid_residual.py, LumpedOutlet).
 
 The models alone against their ODE (exact solution, order of the time scheme); the fluid with a
 resistance outlet in a steady rigid channel (P = P_ref + R Q at the solution, for R up to 10⁹
@@ -24,7 +24,7 @@ import ufl
 from fsi import cli, config
 from fsi.numerics.timestepping import bdf_weights
 from fsi.output import metrics
-from fsi.physics import fluid, mesh, outlets
+from fsi.physics import fluid, fluid_boundaries, mesh, outlets
 from geometry.tags import Boundary, Region
 
 INLET, OUTLET, WALL = Boundary.INLET, Boundary.OUTLET, Boundary.RIGID_WALL
@@ -114,7 +114,7 @@ def channel_solver(inlet: dict, outlet: dict, scheme: str = "steady", density: f
         }
     )
     part = mesh.restrict(mesh.build(case, MPI.COMM_WORLD), Region.FLUID)
-    boundaries = fluid.boundary_conditions(
+    boundaries = fluid_boundaries.boundary_conditions(
         case.fluid, (INLET, OUTLET, WALL), moving_interface=False
     )
     return fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid, boundaries, scheme=scheme)

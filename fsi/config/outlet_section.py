@@ -49,7 +49,7 @@ class TractionFreeOutlet:
 class ResistanceOutlet:
     """σ n = −P n with P = P_ref + R Q: ``resistance`` R (Pa s/m², per unit depth),
     ``reference_pressure`` P_ref (Pa). Q is the step's own (implicit:
-    fsi.physics.fluid.LumpedOutlet). No state."""
+    fsi.physics.fluid_residual.LumpedOutlet). No state."""
 
     kind: Literal["resistance"] = field(default="resistance", kw_only=True)
     resistance: float = non_negative(0.0, " (Pa s/m^2)")

@@ -374,7 +374,7 @@ def inlet_pressure_groups(runs: Sequence[Run]) -> list[Group]:
     inlets are left out), one group per distinct inlet, over [0, the last step of the runs that
     share it] (for runs without steps their end: ``time.end``, or ``time.cycles`` heartbeats).
     Points where a formula cannot be evaluated are left out."""
-    from fsi.physics.fluid import inlet_pressure
+    from fsi.physics.fluid_boundaries import inlet_pressure
 
     shared: dict[object, list[Run]] = {}
     for run in runs:

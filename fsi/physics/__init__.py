@@ -1,4 +1,6 @@
-"""The physics on one mesh: the tagged gmsh mesh (:mod:`.mesh`), the fluid (:mod:`.fluid`,
-its viscosity laws :mod:`.rheology` and outlet models :mod:`.outlets`), the structure
-(:mod:`.solid` and its laws :mod:`.materials`) and the ALE mesh motion (:mod:`.mesh_motion`).
+"""The physics on one mesh: the tagged gmsh mesh (:mod:`.mesh`); the fluid (:mod:`.fluid`, the
+solver; :mod:`.fluid_residual`, its weak form; :mod:`.fluid_boundaries`, its boundary conditions;
+its viscosity laws :mod:`.rheology` and outlet models :mod:`.outlets`); the structure
+(:mod:`.solid`, the solver; :mod:`.solid_residual`, its weak form; :mod:`.solid_stress`, its
+stresses; its laws :mod:`.materials`) and the ALE mesh motion (:mod:`.mesh_motion`).
 """

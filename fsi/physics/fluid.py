@@ -1,40 +1,24 @@
-"""Incompressible generalized Navier–Stokes in ALE form (MODEL.md §2), Taylor–Hood P2/P1, Newton.
+"""The fluid solver: generalized Navier–Stokes in ALE form, Taylor–Hood P2/P1, Newton.
 
-    ρ (∂u/∂t|_X + ((u − w)·∇)u) − ∇·(2 μ(s(u)) D(u)) + ∇p = f,   ∇·u = 0   in Ωf(t),
+    ρ (∂u/∂t|_X + ((u − w)·∇)u) − ∇·(2 μ(s(u)) D(u)) + ∇p = f,   ∇·u = 0   in Ωf(t)
 
-with ``D(u) = sym ∇u``, ``s(u) = sqrt(2 D:D)`` (fsi/physics/rheology.py), ``w`` the mesh velocity
-and ``f`` an optional body force (manufactured solutions). Weak form on the current configuration
-(residual ``F((u, p); (v, q))``):
+(docs/model.md, Fluid), with ``D(u) = sym ∇u``, ``s(u) = sqrt(2 D:D)`` (fsi/physics/rheology.py),
+``w`` the mesh velocity and ``f`` an optional body force. ``∂u/∂t|_X ≈ Σ_k a_k u^{n+1−k}`` acts on
+the nodal values, which move with the mesh; the weights ``a_k`` are
+:func:`fsi.numerics.timestepping.bdf_weights` (backward Euler, variable-step BDF2; all zero when
+steady). Everything is evaluated on Ωf(t_{n+1}) (non-conservative ALE form, which keeps a uniform
+flow uniform on any mesh motion), and the mesh velocity is the same BDF derivative of the mesh
+displacement, ``w = Σ_k a_k d^{n+1−k}``.
 
-    ρ (Σ_k a_k u^{n+1−k}, v) + ρ (((u − w)·∇)u, v) + (2 μ D(u), D(v)) − (p, ∇·v) − (q, ∇·u)
-        − (f, v) − ⟨σ n, v⟩_natural = 0.
-
-The time derivative ``∂u/∂t|_X ≈ Σ_k a_k u^{n+1−k}`` acts on the nodal values (which move with
-the mesh, i.e. at fixed X); the weights ``a_k`` come from
-:func:`fsi.numerics.timestepping.bdf_weights` (backward Euler, variable-step BDF2; all zero in
-steady mode), so the physics never names a scheme. Everything is evaluated on Ωf(t_{n+1})
-(non-conservative ALE form): a uniform flow stays uniform on any mesh motion (the discrete geometric
-conservation law of this form), and the mesh velocity is by default the same BDF derivative of the
-mesh displacement, ``w = Σ_k a_k d^{n+1−k}``. The accepted levels u^n, u^{n−1} are a
-:class:`fsi.numerics.timestepping.BdfHistory`; the mesh, its displacement history and w are the
-solver's :class:`fsi.physics.mesh_motion.AleMesh` (``ale``).
-
-:class:`FluidResidual` builds F as this sum, one method per term (inertia, convection,
-viscous stress, pressure, continuity, body force, SUPG). Boundary conditions are data
-(:class:`NoSlip`, :class:`Velocity`, :class:`Inflow`, :class:`Outflow`, :class:`Slip`,
-:class:`Traction`; :func:`boundary_conditions` builds a case's), each turned into its Dirichlet
-conditions and boundary terms by one function found in :attr:`FluidResidual.BOUNDARY_KINDS`. An
-outlet with a lumped model (resistance, RCR Windkessel; fsi/physics/outlets.py) takes its pressure
-from its flow rate, implicitly (:class:`LumpedOutlet`). The coupler drives the solver through
-``set_mesh_displacement``, ``boundary_velocity``, ``step``, ``advance``,
-``save_state``/``restore_state`` and ``interface_force``.
+:class:`FluidSolver` owns the unknowns, the time history, the moving mesh
+(:class:`fsi.physics.mesh_motion.AleMesh`) and Newton; the residual is
+fsi/physics/fluid_residual.py, the boundary conditions fsi/physics/fluid_boundaries.py.
 """
 
 from __future__ import annotations
 
 import logging
-import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
@@ -50,172 +34,16 @@ import numpy as np
 import ufl
 
 from fsi import compat, config
-from fsi.config import boundary_data
 from fsi.numerics.newton import Forcing, Newton, SolveResult
 from fsi.numerics.timestepping import BdfHistory, bdf_weights
-from fsi.physics import outlets, rheology
+from fsi.physics import rheology
+from fsi.physics.fluid_boundaries import BoundaryCondition, Velocity, as_tags, facets_of
+from fsi.physics.fluid_residual import BodyForce, FluidResidual, LumpedOutlet
 from fsi.physics.mesh_motion import AleMesh
-from geometry.tags import Boundary
 
 log = logging.getLogger(__name__)
 
 Scheme = Literal["backward_euler", "bdf2", "steady"]
-TractionFunction = Callable[
-    [ufl.core.expr.Expr, ufl.core.expr.Expr, dolfinx.fem.Constant], ufl.core.expr.Expr
-]
-"""``g(x, n, t)``: a UFL vector of the spatial coordinate, the outward normal and the time."""
-BodyForce = Callable[[ufl.core.expr.Expr, dolfinx.fem.Constant], ufl.core.expr.Expr]
-"""``f(x, t)``: a UFL vector (N/m³) of the spatial coordinate and the time."""
-
-NITSCHE_PENALTY = 100.0
-"""γ of the Nitsche term γ μ/h (u·n)(v·n) on slip walls; ≳ 10 (k + 1)² for P2 keeps it coercive."""
-
-
-def _tags(tags) -> tuple[int, ...]:
-    return (int(tags),) if isinstance(tags, (int, np.integer)) else tuple(int(t) for t in tags)
-
-
-def facets_of(facet_tags: dolfinx.mesh.MeshTags, tags: Sequence[int]) -> np.ndarray:
-    """The local facets tagged with any of ``tags``."""
-    return facet_tags.indices[np.isin(facet_tags.values, list(tags))].astype(np.int32)
-
-
-# --------------------------------------------------------------------------------------------
-# Boundary conditions (data)
-
-
-@dataclass(frozen=True)
-class NoSlip:
-    """u = 0 on ``tags``."""
-
-    tags: tuple[int, ...]
-
-    def __post_init__(self):
-        object.__setattr__(self, "tags", _tags(self.tags))
-
-
-@dataclass(frozen=True)
-class Velocity:
-    """u = the solver's :attr:`FluidSolver.boundary_velocity` on ``tags`` (the FSI interface:
-    the coupler writes ∂η/∂t there)."""
-
-    tags: tuple[int, ...]
-
-    def __post_init__(self):
-        object.__setattr__(self, "tags", _tags(self.tags))
-
-
-@dataclass(frozen=True)
-class Inflow:
-    """The configured inlet on ``tags``: a normal traction σ n = −P(t) n (``traction_pulse``,
-    ``pressure``, ``pressure_table``, ``pressure_file``; in the ``do_nothing`` form
-    μ∇u n − p n = −P n) or a parabolic velocity (``parabolic_velocity``). A traction inlet with
-    ``inflow_stabilization`` β > 0 adds −β/2 ρ min(u·n, 0) u to σ n (as :class:`Outflow`)."""
-
-    tags: tuple[int, ...]
-    spec: config.Inlet
-    inflow_stabilization: float = 0.0
-
-    def __post_init__(self):
-        object.__setattr__(self, "tags", _tags(self.tags))
-
-
-@dataclass(frozen=True)
-class Outflow:
-    """An open outlet on ``tags``: σ n = −P n + β/2 ρ min(u·n, 0) u (in the ``open_boundary``
-    form), P = 0 (traction-free, the study's) or, with a lumped ``model`` (fsi/physics/outlets.py:
-    resistance, RCR Windkessel), the model's pressure at the outlet's flow rate
-    (:class:`LumpedOutlet`); the β term removes the energy that backflow would carry in
-    (Bazilevs et al. 2009)."""
-
-    tags: tuple[int, ...]
-    backflow_stabilization: float = 1.0
-    model: outlets.OutletModel | None = None
-
-    def __post_init__(self):
-        object.__setattr__(self, "tags", _tags(self.tags))
-
-
-@dataclass(frozen=True)
-class Slip:
-    """The study's alternative wall condition: u·n = 0 (Nitsche) with a prescribed tangential
-    traction (σ n)_t = g_t, ``g`` a :data:`TractionFunction` (None: g = 0, perfect slip). The
-    normal part of g is ignored: the normal traction is the reaction to u·n = 0."""
-
-    tags: tuple[int, ...]
-    traction: TractionFunction | None = None
-
-    def __post_init__(self):
-        object.__setattr__(self, "tags", _tags(self.tags))
-
-
-@dataclass(frozen=True)
-class Traction:
-    """σ n = g(x, n, t) on ``tags``."""
-
-    tags: tuple[int, ...]
-    traction: TractionFunction
-
-    def __post_init__(self):
-        object.__setattr__(self, "tags", _tags(self.tags))
-
-
-BoundaryCondition = NoSlip | Velocity | Inflow | Outflow | Slip | Traction
-
-
-def walls(boundaries: Sequence[Boundary], moving_interface: bool = False) -> tuple[Boundary, ...]:
-    """The fluid's walls among a geometry's ``boundaries``, in their order: the rigid wall
-    (Γw2), the Turek–Hron obstacle and the interface Γw1, unless it moves (a coupled run gives
-    it :class:`Velocity`). The one list of walls: no-slip conditions and wall shear stress."""
-    kinds = (
-        Boundary.RIGID_WALL,
-        Boundary.OBSTACLE,
-        *(() if moving_interface else (Boundary.INTERFACE,)),
-    )
-    return tuple(b for b in boundaries if b in kinds)
-
-
-def boundary_conditions(
-    fluid: config.Fluid, boundaries: Sequence[Boundary], moving_interface: bool
-) -> tuple[BoundaryCondition, ...]:
-    """The fluid's boundary conditions in every mode (MODEL.md §2), for a geometry with
-    ``boundaries``: the configured inlet, the configured outlet, u = ∂η/∂t on the interface if
-    it moves (a coupled run), no-slip on the :func:`walls`."""
-    inlet = Inflow(Boundary.INLET, fluid.inlet, fluid.inflow_stabilization)
-    outlet = Outflow(
-        Boundary.OUTLET, fluid.outlet.backflow_stabilization, outlets.from_config(fluid.outlet)
-    )
-    moving = (Velocity(Boundary.INTERFACE),) if moving_interface else ()
-    return (inlet, outlet, *moving, NoSlip(walls(boundaries, moving_interface)))
-
-
-def inlet_pressure(spec: config.Inlet) -> Callable[[float], float]:
-    """P(t) (Pa) of a traction inlet, σ n = −P n: the study's pulse (A/2)(1 − cos(2πt/T)) on
-    [0, T] and 0 after, a formula in t, or a table, inline or read from a CSV file (linear
-    between rows; with a period T > 0, P(t) = P_table(t mod T), else constant beyond its ends).
-    A ``pressure_file`` inlet must come from :func:`config.load` (which reads its rows)."""
-    if isinstance(spec, config.InletPulse):
-        A, T = spec.amplitude, spec.duration
-        return lambda t: A / 2 * (1 - math.cos(2 * math.pi * t / T)) if 0 <= t <= T else 0.0
-    if isinstance(spec, config.InletPressure):
-        return boundary_data.time_function(spec.formula)
-    if isinstance(spec, (config.InletPressureTable, config.InletPressureFile)):
-        if not spec.table:
-            raise ValueError(
-                f"fluid.inlet ({spec.kind}) has no rows (a pressure_file inlet "
-                "is read by config.load or config.from_dict)"
-            )
-        times, values = np.array(spec.table, dtype=float).T
-        period = spec.period
-        if period > 0:
-            return lambda t: float(np.interp(t % period, times, values))
-        return lambda t: float(np.interp(t, times, values))
-    raise TypeError(f"{type(spec).__name__} is not a traction inlet")
-
-
-def inflow_ramp(t: float, ramp_time: float) -> float:
-    """(1 − cos(π t / T_r)) / 2 for t < T_r, 1 after (Turek–Hron: T_r = 2 s)."""
-    return 1.0 if t >= ramp_time else 0.5 * (1 - math.cos(math.pi * t / ramp_time))
 
 
 # --------------------------------------------------------------------------------------------
@@ -253,81 +81,6 @@ class NodalForces:
     dofs: np.ndarray = field(repr=False)
 
 
-# --------------------------------------------------------------------------------------------
-# Lumped outlets: a pressure from the outlet's flow rate (fsi/physics/outlets.py)
-
-
-class LumpedOutlet:
-    """An :class:`Outflow` whose pressure P comes from a lumped model (resistance, RCR
-    Windkessel): σ n = −P n with, within a step, P = P₀' + R' Q (the model's
-    :meth:`~fsi.physics.outlets.OutletModel.pressure_law`) and Q = ∫_Γ u·n ds the step's own flow
-    rate.
-
-    Q is linear in the unknowns, Q = b · U with b_i = ∫_Γ φ_i·n ds, so the residual's term
-    ∫_Γ P n·v ds has the Jacobian R' b bᵀ: :class:`_FluidProblem` sets P from each Newton
-    iterate (:meth:`update`) and adds that rank-one block, dense among the outlet's dofs, to
-    each Jacobian (:meth:`add_to_jacobian`). Newton stays Newton, and P = P₀' + R' Q holds at
-    the converged solution to the solver's tolerance, however large R' is. The model's state
-    (the Windkessel's P_c^n, P_c^{n−1}) advances with the accepted step's Q (:meth:`advance`).
-    """
-
-    def __init__(self, model: outlets.OutletModel, tags: Sequence[int], W, ds_outlet, normal):
-        self.model, self.tags = model, tuple(tags)
-        self.state = model.initial_state()
-        self.pressure = dolfinx.fem.Constant(W.mesh, PETSc.ScalarType(0.0))
-        self.flow_rate = 0.0
-        self._law = (0.0, 0.0)  # (P₀', R') of the step being solved
-        v, _ = ufl.TestFunctions(W)
-        self._flux = dolfinx.fem.form(ufl.dot(v, normal) * ds_outlet)
-        self._b = dolfinx.fem.petsc.create_vector(self._flux)
-
-    def begin_step(self, weights: Sequence[float]) -> None:
-        """The step's law P = P₀' + R' Q, for the time weights (a₀, a₁, a₂) of the step."""
-        self._law = self.model.pressure_law(self.state, weights)
-
-    def update(self, x: PETSc.Vec) -> None:
-        """P = P₀' + R' Q at the iterate ``x`` (Q = b · x, b on the current mesh). Collective."""
-        with self._b.localForm() as local:
-            local.set(0.0)
-        dolfinx.fem.petsc.assemble_vector(self._b, self._flux)
-        self._b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        self.flow_rate = self._b.dot(x)
-        base, slope = self._law
-        self.pressure.value = base + slope * self.flow_rate
-
-    def add_to_jacobian(self, A: PETSc.Mat, bcs) -> None:
-        """A += R' b bᵀ, without the Dirichlet rows and columns. Collective."""
-        b = self._b.copy()
-        dolfinx.fem.petsc.set_bc(b, bcs, None, 0.0)  # b = 0 at Dirichlet dofs
-        owned = b.array
-        local = np.flatnonzero(owned)
-        rows = (local + b.getOwnershipRange()[0]).astype(PETSc.IntType)
-        values = owned[local]
-        comm = A.getComm().tompi4py()
-        columns = np.concatenate(comm.allgather(rows)).astype(PETSc.IntType)
-        column_values = np.concatenate(comm.allgather(values))
-        b.destroy()
-        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-        A.setValues(
-            rows,
-            columns,
-            self._law[1] * np.outer(values, column_values),
-            addv=PETSc.InsertMode.ADD_VALUES,
-        )
-        A.assemble()
-
-    def advance(self, weights: Sequence[float]) -> None:
-        """Accept the step: the model's state after a step with flow rate Q."""
-        self.state = self.model.advance(self.state, self.flow_rate, weights)
-
-    def values(self) -> dict[str, float]:
-        """``outlet_pressure`` P (Pa) at the last flow rate, and the model's state values."""
-        return {
-            "outlet_pressure": float(self.pressure.value),
-            **self.model.state_values(self.state),
-        }
-
-
 class _FluidProblem(dolfinx.fem.petsc.NonlinearProblem):
     """The fluid's nonlinear problem; with lumped outlets, each residual evaluation first sets
     their pressures from the iterate, and each Jacobian gets their rank-one blocks
@@ -349,373 +102,6 @@ class _FluidProblem(dolfinx.fem.petsc.NonlinearProblem):
         super().J(x, A)
         for outlet in self.lumped:
             outlet.add_to_jacobian(A, self.bcs)
-
-
-# --------------------------------------------------------------------------------------------
-# The pieces of the residual
-
-
-@dataclass(frozen=True)
-class _WeakForm:
-    """The symbols the residual's terms share: the unknowns (u, p) = split(U), the test
-    functions (v, q), the viscosity μ(s(u)), the BDF derivative ∂u/∂t, the measures (with the
-    configured quadrature degree), the coordinate x, the outward normal n, the cell diameter h."""
-
-    u: ufl.core.expr.Expr
-    p: ufl.core.expr.Expr
-    v: ufl.core.expr.Expr
-    q: ufl.core.expr.Expr
-    mu: ufl.core.expr.Expr
-    dudt: ufl.core.expr.Expr
-    dx: ufl.Measure
-    ds: ufl.Measure
-    x: ufl.core.expr.Expr
-    n: ufl.core.expr.Expr
-    h: ufl.core.expr.Expr
-
-    def ds_of(self, tags: Sequence[int]) -> ufl.Measure:
-        """The boundary measure over the facets of ``tags``."""
-        return sum((self.ds(t) for t in tags[1:]), self.ds(tags[0]))
-
-
-_NORMAL_FLOW, _PRESCRIBED, _WALL = 0, 1, 2
-"""The precedence of Dirichlet conditions: they are applied in this order, so at a dof two of
-them share (a corner) the later one wins: walls over inlets and the interface, both over the
-normal-flow condition u·t = 0."""
-
-
-@dataclass
-class _Contribution:
-    """What one boundary condition adds to the problem: residual terms (forms added to F) and
-    Dirichlet conditions, each with its precedence."""
-
-    terms: list = field(default_factory=list)
-    dirichlet: list = field(default_factory=list)
-
-
-# --------------------------------------------------------------------------------------------
-# The geometry of straight open boundaries (normal flow, the parabolic inflow profile)
-
-
-def boundary_points(mesh, facet_tags, tags: Sequence[int], comm: MPI.Comm) -> np.ndarray:
-    """The (x, y) of the vertices of the facets ``tags``, gathered from every rank (the same
-    array on each; vertices shared by facets repeat). Collective."""
-    nodes = compat.entities_to_geometry(
-        mesh, mesh.topology.dim - 1, facets_of(facet_tags, tags)
-    ).ravel()
-    return np.concatenate(comm.allgather(mesh.geometry.x[nodes, :2]))
-
-
-def parabolic_profile(points: np.ndarray, mesh, comm: MPI.Comm, mean_velocity: float):
-    """The interpolation function of 1.5 Ū 4 s (H − s)/H² (−n) on the straight inlet whose
-    vertices are ``points`` (:func:`boundary_points`): H its width, s the distance along it,
-    n its outward normal (towards the inside of ``mesh``: the side of its centroid).
-    Collective (the centroid)."""
-    # The inlet's end points: the pair of its vertices farthest apart.
-    ends = points[
-        [np.argmin(points @ d) for d in ((1, 0), (0, 1))]
-        + [np.argmax(points @ d) for d in ((1, 0), (0, 1))]
-    ]
-    i, j = np.unravel_index(np.argmax(np.linalg.norm(ends[:, None] - ends[None], axis=2)), (4, 4))
-    start, tangent = ends[i], ends[j] - ends[i]
-    width = np.linalg.norm(tangent)
-    tangent = tangent / width
-    normal = np.array([tangent[1], -tangent[0]])
-    centre = comm.allreduce(mesh.geometry.x[:, :2].sum(axis=0))
-    centre /= comm.allreduce(len(mesh.geometry.x))
-    if normal @ (centre - start) < 0:
-        normal = -normal  # inward
-    peak = 1.5 * mean_velocity
-
-    def profile(xx):
-        s = np.clip((xx[:2].T - start) @ tangent, 0, width)
-        values = peak * 4 * s * (width - s) / width**2
-        return np.outer(normal, values)
-
-    return profile
-
-
-# --------------------------------------------------------------------------------------------
-# The residual
-
-
-class FluidResidual:
-    """The residual F((u, p); (v, q)) of a :class:`FluidSolver`, the module docstring's weak
-    form as a sum of named terms (:meth:`_residual`), and what the boundary conditions add:
-    Dirichlet conditions (:attr:`bcs`), time-dependent boundary data (:attr:`updates`, each
-    called with the time of a step before it is solved) and lumped outlets (:attr:`lumped`).
-
-    It uses the solver's spaces, functions and constants (the unknown U, u^n, u^{n−1}, the
-    boundary and mesh velocities, the BDF weights a_k, ρ and t), and is not kept after the
-    solver has taken :attr:`form` and the three lists."""
-
-    def __init__(self, solver: FluidSolver, body_force: BodyForce | None):
-        s = solver
-        self.mesh, self.facet_tags, self.comm = s.mesh, s.facet_tags, s.comm
-        self.config, self.scheme, self.law = s.config, s.scheme, s.law
-        self.boundaries = s.boundaries
-        self.W, self.V, self.U, self.u_n, self.u_nm1 = s.W, s.V, s.U, s.u_n, s.u_nm1
-        self.boundary_velocity, self.ale = s.boundary_velocity, s.ale
-        self.t, self._a, self._rho = s.t, s._a, s._rho  # the solver's constants
-        self.bcs: list = []
-        self.updates: list[Callable[[float], None]] = []
-        self.lumped: list[LumpedOutlet] = []
-        self.form = self._residual(body_force)
-
-    def _dirichlet(self, value: dolfinx.fem.Function, tags: Sequence[int]):
-        fdim = self.mesh.topology.dim - 1
-        dofs = dolfinx.fem.locate_dofs_topological(
-            (self.W.sub(0), self.V), fdim, facets_of(self.facet_tags, tags)
-        )
-        return dolfinx.fem.dirichletbc(value, dofs, self.W.sub(0))
-
-    # ---- the residual, term by term (the module docstring's weak form)
-
-    def _residual(self, body_force: BodyForce | None) -> ufl.Form:
-        """F((u, p); (v, q)) of the module docstring, one named term per line of it:
-
-            inertia + convection (ALE) + viscous stress − pressure − continuity − body force
-            + SUPG + the boundary terms of each condition (:attr:`BOUNDARY_KINDS`),
-
-        and the Dirichlet conditions of the boundaries (in ``self.bcs``, ordered by
-        :data:`_Contribution` precedence: later ones win at shared corner dofs)."""
-        s = self._weak_form()
-        F = (
-            self._inertia(s)
-            + self._convection(s)
-            + self._viscous_stress(s)
-            - self._pressure(s)
-            - self._continuity(s)
-        ) * s.dx
-        if body_force is not None:
-            F -= self._body_force(s, body_force) * s.dx
-        if self.config.supg:
-            F += self._supg(s, body_force) * s.dx
-        dirichlet = []
-        for bc in self.boundaries:
-            kind = self.BOUNDARY_KINDS.get(type(bc))
-            if kind is None:
-                raise TypeError(f"unknown boundary condition {bc!r}")
-            contribution = kind(self, bc, s)
-            for term in contribution.terms:
-                F += term
-            dirichlet += contribution.dirichlet
-        # A stable sort: normal flow first, then prescribed velocities, walls last.
-        self.bcs.extend(bc for _, bc in sorted(dirichlet, key=lambda pair: pair[0]))
-        return F
-
-    def _weak_form(self) -> _WeakForm:
-        mesh, cfg = self.mesh, self.config
-        metadata = {"quadrature_degree": cfg.quadrature_degree}
-        u, p = ufl.split(self.U)
-        v, q = ufl.TestFunctions(self.W)
-        a0, a1, a2 = self._a
-        return _WeakForm(
-            u=u,
-            p=p,
-            v=v,
-            q=q,
-            mu=self.law.mu(rheology.shear_rate(u)),
-            dudt=a0 * u + a1 * self.u_n + a2 * self.u_nm1,
-            dx=ufl.Measure("dx", domain=mesh, metadata=metadata),
-            ds=ufl.Measure("ds", domain=mesh, subdomain_data=self.facet_tags, metadata=metadata),
-            x=ufl.SpatialCoordinate(mesh),
-            n=ufl.FacetNormal(mesh),
-            h=ufl.CellDiameter(mesh),
-        )
-
-    def _inertia(self, s: _WeakForm):
-        """ρ (Σ_k a_k u^{n+1−k}) · v: the BDF derivative at fixed reference position X."""
-        return self._rho * ufl.dot(s.dudt, s.v)
-
-    def _convection(self, s: _WeakForm):
-        """ρ ((u − w)·∇)u · v: convection relative to the mesh velocity w (ALE)."""
-        return self._rho * ufl.dot(ufl.grad(s.u) * (s.u - self.ale.w), s.v)
-
-    def _viscous_stress(self, s: _WeakForm):
-        """2 μ(s(u)) D(u) : D(v), the viscous part of σ(u, p) : ∇v (rheology.cauchy_stress)."""
-        D = rheology.strain_rate
-        return 2 * s.mu * ufl.inner(D(s.u), D(s.v))
-
-    def _pressure(self, s: _WeakForm):
-        """p ∇·v, the pressure part of σ(u, p) : ∇v (subtracted)."""
-        return s.p * ufl.div(s.v)
-
-    def _continuity(self, s: _WeakForm):
-        """q ∇·u (subtracted: the symmetric saddle-point form)."""
-        return s.q * ufl.div(s.u)
-
-    def _body_force(self, s: _WeakForm, body_force: BodyForce):
-        """f(x, t) · v (subtracted)."""
-        return ufl.dot(body_force(s.x, self.t), s.v)
-
-    # ---- boundary terms: one function per kind of condition (BOUNDARY_KINDS)
-
-    def _no_slip(self, bc: NoSlip, s: _WeakForm) -> _Contribution:
-        """u = 0, applied last so that walls win at the corners they share."""
-        zero = dolfinx.fem.Function(self.V)
-        return _Contribution(dirichlet=[(_WALL, self._dirichlet(zero, bc.tags))])
-
-    def _velocity(self, bc: Velocity, s: _WeakForm) -> _Contribution:
-        """u = :attr:`boundary_velocity` (the coupler's ∂η/∂t on the interface)."""
-        return _Contribution(
-            dirichlet=[(_PRESCRIBED, self._dirichlet(self.boundary_velocity, bc.tags))]
-        )
-
-    def _inflow(self, bc: Inflow, s: _WeakForm) -> _Contribution:
-        """A parabolic velocity inlet (Dirichlet), or a traction inlet: σ n = −P(t) n as an
-        open boundary (:meth:`_open_boundary`), its inflow energy term, and u·t = 0 with
-        ``normal_flow`` (first, so that walls and the interface win at the corners)."""
-        if isinstance(bc.spec, config.ParabolicInflow):
-            return _Contribution(dirichlet=[(_PRESCRIBED, self._parabolic_inflow(bc))])
-        pressure = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(0.0))
-        law = inlet_pressure(bc.spec)
-        self.updates.append(lambda t, c=pressure, law=law: c.value.fill(law(t)))
-        terms = [
-            *self._open_boundary(s, pressure, bc.tags),
-            self._inflow_energy_balance(s, bc.inflow_stabilization, bc.tags),
-        ]
-        dirichlet = [(_NORMAL_FLOW, self._normal_flow(bc.tags))] if self.config.normal_flow else []
-        return _Contribution(terms, dirichlet)
-
-    def _outflow(self, bc: Outflow, s: _WeakForm) -> _Contribution:
-        """An outlet σ n = −P n (in the configured open-boundary form; P = 0 traction-free, or
-        a lumped model's pressure, :class:`LumpedOutlet`) with the backflow energy term."""
-        pressure = None
-        if bc.model is not None:
-            outlet = LumpedOutlet(bc.model, bc.tags, self.W, s.ds_of(bc.tags), s.n)
-            self.lumped.append(outlet)
-            pressure = outlet.pressure
-        return _Contribution(
-            [
-                *self._open_boundary(s, pressure, bc.tags),
-                self._inflow_energy_balance(s, bc.backflow_stabilization, bc.tags),
-            ]
-        )
-
-    def _slip(self, bc: Slip, s: _WeakForm) -> _Contribution:
-        """u·n = 0 by Nitsche's method (consistency, symmetry and penalty γ μ/h terms) and the
-        tangential part of the prescribed traction g."""
-        u, v, n = s.u, s.v, s.n
-        sigma = rheology.cauchy_stress(u, s.p, self.law)
-        sigma_v = -s.q * ufl.Identity(len(u)) + 2 * s.mu * rheology.strain_rate(v)
-        un, vn = ufl.dot(u, n), ufl.dot(v, n)
-        terms = [
-            (
-                -ufl.dot(n, sigma * n) * vn
-                - ufl.dot(n, sigma_v * n) * un
-                + NITSCHE_PENALTY * s.mu / s.h * un * vn
-            )
-            * s.ds_of(bc.tags)
-        ]
-        if bc.traction is not None:
-            g = bc.traction(s.x, n, self.t)
-            terms.append(-(ufl.dot(g - ufl.dot(g, n) * n, v) * s.ds_of(bc.tags)))
-        return _Contribution(terms)
-
-    def _traction(self, bc: Traction, s: _WeakForm) -> _Contribution:
-        """σ n = g(x, n, t): −∫ g · v."""
-        return _Contribution([-(ufl.dot(bc.traction(s.x, s.n, self.t), s.v) * s.ds_of(bc.tags))])
-
-    BOUNDARY_KINDS: dict[type, Callable] = {
-        NoSlip: _no_slip,
-        Velocity: _velocity,
-        Inflow: _inflow,
-        Outflow: _outflow,
-        Slip: _slip,
-        Traction: _traction,
-    }
-    """The function that turns each kind of boundary condition into its residual terms and
-    Dirichlet conditions."""
-
-    def _open_boundary(self, s: _WeakForm, pressure, tags: Sequence[int]) -> list:
-        """−∫ σn·v with σn = −P n (P = 0 if ``pressure`` is None), plus −∫ μ (∇u)ᵀn·v in the
-        do-nothing form μ∇u n − p n = −P n."""
-        terms = [] if pressure is None else [pressure * ufl.dot(s.n, s.v) * s.ds_of(tags)]
-        if self.config.open_boundary == "do_nothing":
-            terms.append(-s.mu * ufl.dot(ufl.grad(s.u).T * s.n, s.v) * s.ds_of(tags))
-        return terms
-
-    def _inflow_energy_balance(self, s: _WeakForm, beta: float, tags: Sequence[int]):
-        """−β/2 ρ min(u·n, 0) u·v on an open boundary: balances the kinetic energy that inflow
-        (u·n < 0) carries into the domain (Bazilevs et al. 2009); 0 for β = 0."""
-        return -(
-            beta
-            / 2
-            * self._rho
-            * ufl.min_value(ufl.dot(s.u, s.n), 0.0)
-            * ufl.dot(s.u, s.v)
-            * s.ds_of(tags)
-        )
-
-    def _supg(self, s: _WeakForm, body_force: BodyForce | None):
-        """SUPG: τ ((u − w)·∇)v · R with the strong momentum residual
-
-            R = ρ (∂u/∂t + ((u − w)·∇)u) + ∇p − ∇·(2 μ(s) D(u)) − f
-
-        (zero for the exact solution: the method is consistent; P2 velocities make the viscous
-        term exact for Poiseuille flow, which stays a discrete solution) and
-        τ = ((2 a₀)² + (2|u − w|/h)² + (4 μ/(ρ h²))²)^(−1/2) (Tezduyar & Osawa 2000; a₀ the
-        BDF weight of u^{n+1}, 1/Δt for backward Euler, 0 when steady; u and μ of the last
-        accepted step, so that τ is a coefficient of the step, not a function of its unknown;
-        the residual R is the step's own). It adds the streamline
-        diffusion ≈ ρ|u − w|h/2 that the Galerkin form lacks where the cell Reynolds number is
-        large, in particular in the cells of an open inlet (docs/boundary-conditions.md)."""
-        rho, w, u, h = self._rho, self.ale.w, s.u, s.h
-        a = u - w
-        residual = (
-            rho * s.dudt
-            + rho * ufl.grad(u) * a
-            + ufl.grad(s.p)
-            - ufl.div(2 * s.mu * rheology.strain_rate(u))
-        )
-        if body_force is not None:
-            residual -= body_force(s.x, self.t)
-        a_n = self.u_n - w
-        mu_n = self.law.mu(rheology.shear_rate(self.u_n))
-        speed = ufl.sqrt(ufl.dot(a_n, a_n))
-        tau = (
-            (2 * self._a[0]) ** 2 + (2 * speed / h) ** 2 + (4 * mu_n / (rho * h**2)) ** 2
-        ) ** -0.5
-        return tau * ufl.dot(ufl.grad(s.v) * a, residual)
-
-    # ---- Dirichlet conditions
-
-    def _normal_flow(self, tags: Sequence[int]):
-        """u·t = 0 on the open boundary ``tags``, which must be a straight segment parallel to a
-        coordinate axis (every inlet and outlet of the shipped geometries): the velocity
-        component along it is 0, the normal one stays free."""
-        points = boundary_points(self.mesh, self.facet_tags, tags, self.comm)
-        extent = points.max(axis=0) - points.min(axis=0)
-        normal_axis = int(np.argmin(extent))
-        if extent[normal_axis] > 1e-9 * extent.max():
-            raise ValueError(
-                f"fluid.normal_flow needs straight open boundaries parallel to an "
-                f"axis; boundary {list(tags)} spans {extent[0]:g} x {extent[1]:g} m"
-            )
-        component = self.W.sub(0).sub(1 - normal_axis)
-        dofs = dolfinx.fem.locate_dofs_topological(
-            component, self.mesh.topology.dim - 1, facets_of(self.facet_tags, tags)
-        )
-        zero = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(0.0))
-        return dolfinx.fem.dirichletbc(zero, dofs, component)
-
-    def _parabolic_inflow(self, bc: Inflow):
-        """u = ramp(t) 1.5 Ū 4 s (H − s)/H² (−n) on a straight inlet of width H."""
-        spec: config.ParabolicInflow = bc.spec
-        points = boundary_points(self.mesh, self.facet_tags, bc.tags, self.comm)
-        shape = dolfinx.fem.Function(self.V)
-        shape.interpolate(parabolic_profile(points, self.mesh, self.comm, spec.mean_velocity))
-        inflow = dolfinx.fem.Function(self.V, name="inflow")
-
-        ramped = self.scheme != "steady" and spec.ramp_time > 0
-
-        def update(t: float) -> None:  # no reference to self: no cycle for the GC to break
-            factor = inflow_ramp(t, spec.ramp_time) if ramped else 1.0
-            inflow.x.array[:] = factor * shape.x.array
-
-        self.updates.append(update)
-        return self._dirichlet(inflow, bc.tags)
 
 
 # --------------------------------------------------------------------------------------------
@@ -751,14 +137,6 @@ def _copy_from_mixed(
     target.x.scatter_forward()
 
 
-def _copy_to_mixed(
-    U: dolfinx.fem.Function, source: dolfinx.fem.Function, source_to_U: np.ndarray
-) -> None:
-    owned = source_to_U >= 0
-    U.x.array[source_to_U[owned]] = source.x.array[owned]
-    U.x.scatter_forward()
-
-
 class FluidSolver:
     """Generalized Navier–Stokes on a (moving) fluid mesh; see the module docstring.
 
@@ -766,8 +144,9 @@ class FluidSolver:
         mesh: the fluid mesh (e.g. ``fsi.physics.mesh.restrict(tagged, Region.FLUID).mesh``).
         facet_tags: its boundary tags (``.facet_tags`` of the same).
         fluid: the ``fluid`` section (density, rheology, quadrature, Newton and PETSc options).
-        boundaries: which tags get which condition (e.g. :func:`boundary_conditions`); tags without
-            a condition are traction-free (σ n = 0).
+        boundaries: which tags get which condition (e.g.
+            :func:`fsi.physics.fluid_boundaries.boundary_conditions`); tags without a condition
+            are traction-free (σ n = 0).
         scheme: ``backward_euler``, ``bdf2`` (backward Euler on the first step) or ``steady``.
         body_force: optional f(x, t).
     """
@@ -811,7 +190,6 @@ class FluidSolver:
         self._dt: float | None = None
         self.accepted_steps = 0
         self._mesh_velocity_given = False
-        self._saved: FluidState | None = None
 
         def constant(value: float) -> dolfinx.fem.Constant:
             return dolfinx.fem.Constant(mesh, PETSc.ScalarType(value))
@@ -849,27 +227,25 @@ class FluidSolver:
 
     # ---- the coupler's interface
 
-    def set_mesh_displacement(
-        self, d: dolfinx.fem.Function, w: dolfinx.fem.Function | None = None
-    ) -> None:
-        """Move the mesh to x = X + d. The mesh velocity is ``w`` if given, else (at :meth:`step`)
-        the scheme's derivative of the displacement history."""
+    def set_mesh_displacement(self, d: dolfinx.fem.Function) -> None:
+        """Move the mesh to x = X + d (``d`` in m, interpolated into P1 if it lives elsewhere).
+        The mesh velocity of the step follows from :meth:`mesh_velocity` or, if that is not
+        called, at :meth:`step`."""
         self.ale.move(d)
-        self._mesh_velocity_given = w is not None
-        if w is not None:
-            self.ale.w.interpolate(w)
-            self.ale.w.x.scatter_forward()
+        self._mesh_velocity_given = False
 
-    def initialize(self, u=None, p=None) -> None:
-        """Initial velocity (and pressure, a Newton initial guess): Functions or callables x ↦
-        values as for ``Function.interpolate``; u^n = u^{n−1} = u. Default: rest."""
-        if u is not None:
-            self.u.interpolate(u)
-            self.velocity_history.start()
-            _copy_to_mixed(self.U, self.u, self._V_to_W)
-        if p is not None:
-            self.p.interpolate(p)
-            _copy_to_mixed(self.U, self.p, self._Q_to_W)
+    def mesh_velocity(self, dt: float) -> dolfinx.fem.Function:
+        """The mesh velocity w = Σ_k a_k d^{n+1−k} (m/s, P1) of the step of ``dt`` (s) to the
+        current mesh, computed now; :meth:`step` with the same ``dt`` uses it as it is."""
+        self.ale.set_velocity(self.time_weights(dt))
+        self._mesh_velocity_given = True
+        return self.ale.w
+
+    def set_boundary_velocity(self, value: dolfinx.fem.Function) -> None:
+        """u on the :class:`Velocity` boundaries (m/s): ``value`` (a Function, e.g. the
+        :meth:`mesh_velocity`, or x ↦ values) interpolated into the velocity space."""
+        self.boundary_velocity.interpolate(value)
+        self.boundary_velocity.x.scatter_forward()
 
     def time_weights(self, dt: float) -> tuple[float, float, float]:
         """(a0, a1, a2) of ∂u/∂t ≈ a0 u^{n+1} + a1 u^n + a2 u^{n−1} for the next step."""
@@ -893,7 +269,7 @@ class FluidSolver:
             update(t)
         for outlet in self.lumped:
             outlet.begin_step(weights)
-        if not self._mesh_velocity_given:
+        if not self._mesh_velocity_given:  # else mesh_velocity(dt) computed it
             self.ale.set_velocity(weights)
         self.ale.w.x.scatter_forward()
         result = self.newton.solve(
@@ -923,9 +299,8 @@ class FluidSolver:
         self._mesh_velocity_given = False
 
     def save_state(self) -> FluidState:
-        """Snapshot of the solution, the time history and the mesh (also kept for
-        :meth:`restore_state`)."""
-        self._saved = FluidState(
+        """Snapshot of the solution, the time history and the mesh (local arrays)."""
+        return FluidState(
             self.time,
             self.dt_previous,
             self.accepted_steps,
@@ -935,13 +310,13 @@ class FluidSolver:
             self._mesh_velocity_given,
             np.concatenate([np.zeros(0), *(outlet.state for outlet in self.lumped)]),
         )
-        return self._saved
 
-    def restore_state(self, state: FluidState | None = None) -> None:
-        """Return to ``state`` (default: the last :meth:`save_state`), mesh position included."""
-        s = state or self._saved
-        if s is None:
-            raise RuntimeError("restore_state before any save_state")
+    def restore_state(self, state: FluidState, warm_start: bool = False) -> None:
+        """Return to ``state``, mesh position included. With ``warm_start`` the current
+        solution (u, p) stays as Newton's initial guess of the next :meth:`step` (the outputs
+        ``u``, ``p`` and the time history are the state's)."""
+        guess = self.U.x.array.copy() if warm_start else None
+        s = state
         self._restore_outlets(s.outlet_state)  # first: it checks the state's size
         self.time, self.dt_previous, self.accepted_steps = s.time, s.dt_previous, s.accepted_steps
         self.U.x.array[:] = s.U
@@ -949,6 +324,8 @@ class FluidSolver:
         self.ale.restore(s.d, s.d_n, s.d_nm1, s.w)  # and moves the mesh to X + d
         self._mesh_velocity_given = s.mesh_velocity_given
         self._sync_outputs()
+        if guess is not None:  # U is only Newton's initial guess: u^n, u^{n−1} are separate
+            self.U.x.array[:] = guess
 
     def _restore_outlets(self, state: np.ndarray) -> None:
         sizes = [len(outlet.state) for outlet in self.lumped]
@@ -1018,37 +395,14 @@ class FluidSolver:
     def boundary_force(self, tags: Sequence[int]) -> np.ndarray:
         """Total force (N/m) of the fluid on ``tags``, Σ_i f_i over :meth:`interface_force`'s
         nodes (the residual form of ∫ σ n_obstacle ds: drag and lift)."""
-        local = self.interface_force(_tags(tags)).force.sum(axis=0)
+        local = self.interface_force(as_tags(tags)).force.sum(axis=0)
         return self.comm.allreduce(local, op=MPI.SUM)
 
-    def traction(self, tags: Sequence[int] | None = None) -> dolfinx.fem.Function:
-        """For post-processing: the traction the fluid exerts on ``tags`` as a P2 field, nodal
-        force / lumped boundary mass (f_i / ∫_Γ φ_i ds; exact for a constant traction), 0 off
-        the boundary."""
-        if tags is None:
-            tags = [t for bc in self.boundaries if isinstance(bc, Velocity) for t in bc.tags]
-        tags = list(_tags(tags))
-        ds = ufl.Measure(
-            "ds",
-            domain=self.mesh,
-            subdomain_data=self.facet_tags,
-            metadata={"quadrature_degree": 2},
-        )
-        v = ufl.TestFunction(self.V)
-        one = ufl.as_vector([1.0] * self.mesh.geometry.dim)
-        mass = dolfinx.fem.petsc.assemble_vector(
-            dolfinx.fem.form(
-                sum((ufl.dot(one, v) * ds(t) for t in tags[1:]), ufl.dot(one, v) * ds(tags[0]))
-            )
-        )
-        mass.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        traction = dolfinx.fem.Function(self.V, name="traction")
-        gdim = self.mesh.geometry.dim
-        nodes = self._owned_nodes(tags)
-        minus_R = self._reaction()
-        values = traction.x.array.reshape(-1, gdim)
-        lumped = mass.array.reshape(-1, gdim)[nodes]
-        values[nodes] = minus_R[self._V_to_W.reshape(-1, gdim)[nodes]] / lumped
-        traction.x.scatter_forward()
-        mass.destroy()
-        return traction
+    def nodal_forces(self, tags: Sequence[int]) -> np.ndarray:
+        """:meth:`interface_force` on ``tags`` (N/m) as an array over every owned velocity node,
+        shape (n_owned, gdim) in the order of the owned (block) dofs of :attr:`V`, zero off the
+        boundary."""
+        nodal = self.interface_force(tags)
+        values = np.zeros((self.V.dofmap.index_map.size_local, self.mesh.geometry.dim))
+        values[nodal.dofs] = nodal.force
+        return values

@@ -1,7 +1,7 @@
 """Hyperelastic material laws of the structure, as small frozen objects behind a Protocol.
 
-Every law is written for the 2D plane-strain setting of ../shared/MODEL.md §3 in terms of the
-deformation gradient ``F = I + ∇η`` (2×2; the out-of-plane stretch is 1). The parameters may be
+Every law is written for the 2D plane-strain setting of docs/model.md (Structure) in terms of
+the deformation gradient ``F = I + ∇η`` (2×2; the out-of-plane stretch is 1). The parameters may be
 numbers, :class:`dolfinx.fem.Constant` or DG0 fields (per-region values): the laws only build UFL.
 
 * :class:`StVenantKirchhoff` — ``W = λ/2 (tr E)² + μ E:E``, ``E = (FᵀF − I)/2``,

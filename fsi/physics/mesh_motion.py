@@ -1,10 +1,11 @@
-"""ALE mesh motion of the fluid domain (MODEL.md §5): extend the interface displacement inward,
-and move the mesh.
+"""ALE mesh motion of the fluid domain (docs/model.md, Mesh motion): extend the interface
+displacement inward, and move the mesh.
 
-Two objects, one job each: :class:`MeshMotion` is the extension operator (boundary data → the
-mesh displacement ``d``, with the quality guard; it never moves the mesh), and :class:`AleMesh`
-owns the moving mesh (the one object that writes its coordinates, x = X + d(X)), the accepted
-displacements d^n, d^{n−1} and the mesh velocity w.
+:class:`MeshMotion` is the extension operator (boundary data → the mesh displacement ``d``, with
+the quality guard; it never moves the mesh); :class:`AleMesh` owns the moving mesh (the one
+object that writes its coordinates, x = X + d(X)), the accepted displacements d^n, d^{n−1} and
+the mesh velocity ``w = Σ_k a_k d^{n+1−k}`` (the fluid's weights,
+:func:`fsi.numerics.timestepping.bdf_weights`).
 
 The mesh displacement ``d`` (vector P1, the geometry's degree) solves, on the reference fluid
 domain Ω̂f, one of
@@ -14,26 +15,15 @@ domain Ω̂f, one of
     biharmonic:  Δ²d = 0, as the minimiser of ∫ k |∇∇d|² dx,
 
 with ``d = g`` on the moving boundaries (the interface Γw1: the structure's displacement),
-``d = 0`` on the fixed ones (inlet, outlet, rigid wall, obstacle) and zero flux elsewhere (the
-biharmonic: its natural conditions, ∂²d/∂n² = 0 also where d is given). The
-stiffening ``k`` is constant per cell: 1, ``(J_max/J)^e`` with ``J`` the reference cell area
-(small cells move almost rigidly), or ``(δ_max/δ)^e`` with ``δ`` the distance of the cell's
-centroid to the moving boundary. The fluid mesh follows as ``x = X + d(X)`` and the mesh velocity
-is the backward difference ``w = Σ_k a_k d^{n+1−k}`` (:class:`AleMesh`, with the fluid's weights
-:func:`fsi.numerics.timestepping.bdf_weights`).
-
-The biharmonic is mixed, with the Hessian H = ∇∇d as auxiliary P1 field. (The Ciarlet–Raviart
-form w = −Δd, −Δw = 0 of turtleFSI, with w left free on the boundary, has ∂d/∂n = 0 as natural
-condition where d is given, so it cannot extend an affine motion; this one does, for any k.)
-H is eliminated with the lumped mass matrix (:func:`biharmonic_operator`), so it too is one
-sparse symmetric matrix, with the two-cell stencil of Δ² (2.7× the harmonic's nonzeros). Cost
-on the coarse Turek–Hron fluid mesh (5,234 dofs, serial, MUMPS): harmonic 30 ms to assemble and
-factorise, 0.61 ms per solve; biharmonic 106 ms and 0.74 ms. Which extension survives which
-motion is measured in tests/test_large_deformation.py (the Turek–Hron FSI2 flag bent by ±8 cm).
+``d = 0`` on the fixed ones and zero flux elsewhere (the biharmonic: its natural conditions,
+∂²d/∂n² = 0 also where d is given). The stiffening ``k`` is constant per cell: 1,
+``(J_max/J)^e`` with ``J`` the reference cell area, or ``(δ_max/δ)^e`` with ``δ`` the distance of
+the cell's centroid to the moving boundary. The biharmonic is mixed, with the Hessian H = ∇∇d as
+auxiliary P1 field eliminated with the lumped mass matrix (:func:`biharmonic_operator`), which
+extends an affine motion exactly for any k.
 
 The operator lives on the reference configuration, so it is assembled (and factorised) once; a
-solve is one right-hand side ``b = −A₀ g`` (lifting done algebraically with the unconstrained
-matrix ``A₀``, so it never depends on where the mesh currently is) and one back-substitution.
+solve is one right-hand side ``b = −A₀ g`` and one back-substitution.
 """
 
 from __future__ import annotations

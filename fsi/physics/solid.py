@@ -1,51 +1,20 @@
-"""Total-Lagrangian hyperelastodynamics of the structure (../shared/MODEL.md §3).
+"""The structure solver: total-Lagrangian hyperelastodynamics, its state and its boundary
+conditions (docs/model.md, Structure).
 
-On the structure's reference configuration Ω₀ (wall + cap + lipid of the stenosis, or the
-Turek–Hron flag) find the displacement η with::
+On the reference configuration Ω₀ (wall + cap + lipid of the stenosis, or the Turek–Hron flag)
+find the displacement η with::
 
     ρ η̈ − ∇·P = ρ b               in Ω₀,     F = I + ∇η,  P = F (Σ(F) + S_v)
     η = 0 (or a given η)           on ΓD       (clamped; every wall dof in the fixed-wall mode)
     P N = t₀ + nodal forces − p J F⁻ᵀ N  on the interface Γw1
     P N = −(k_s η·N + c_s η̇·N) N   on ΓN       (tissue support; 0 and 0: traction-free)
 
-with per-region hyperelastic laws (fsi/physics/materials.py), the per-region Kelvin–Voigt viscous
-stress ``S_v = τ (λ tr Ė I + 2μ Ė)``, ``Ė = sym(Fᵀ ∇η̇)`` (relaxation time τ ≥ 0, 0 by default;
-a small-amplitude mode of angular frequency ω then has the damping ratio ωτ/2), the external
-tissue's spring–dashpot support of Moireau et al. (2012) on the exterior ΓN, normal direction
-only (stiffness k_s, Pa/m, and damping c_s, Pa·s/m, per unit reference length; see
-docs/wall-damping.md), a traction ``t₀`` per unit *reference*
-length (first Piola traction; a fluid's Cauchy traction σ n on the deformed interface is
-``t₀ = J σ F⁻ᵀ N``), nodal interface forces (a fluid's residual-based reaction forces) and an
-optional follower pressure ``p``. Discretised with vector Lagrange elements (P2 by default) and
-marched in time by the Newmark family of fsi/numerics/timestepping.py, in the energy-momentum form::
-
-    ∫ ρ a_{n+1-αm}·δη + F_{n+1-αf} Σ_{n+1-αf} : ∇δη dx = ∫ ρ b·δη dx + ∫ t₀_{n+1-αf}·δη ds + ...
-
-with ``Σ_{n+1-αf} = (1 − αf) Σ(F_{n+1}) + αf Σ(F_n)`` (Kuhl & Ramm's generalized
-energy-momentum method): for St. Venant–Kirchhoff and αf = 1/2 (the trapezoidal rule) the
-stress work equals the stored-energy increment exactly, so the discrete energy is conserved;
-for linear problems this is the classical Newmark/Chung–Hulbert scheme. The damping terms
-enter at the same point::
-
-    ... + ∫ F_{n+1-αf} S_v(F̄, ∇η̇_{n+1-αf}) : ∇δη dx
-        + ∫_ΓN (k_s η_{n+1-αf}·N + c_s η̇_{n+1-αf}·N)(δη·N) ds
-
-with ``η̇_{n+1}`` the scheme's velocity of η_{n+1} (so the Jacobian holds their derivatives,
-and linearised this is the Chung–Hulbert scheme for ``M a + C v + K η = f``) and the strain
-rate pulled back with the mid-step ``F̄ = (F_{n+1} + F_n)/2``: whenever ``η̇_{n+1-αf}`` is the
-difference quotient ``(η_{n+1} − η_n)/dt`` — the trapezoidal rule, and the quasi-static scheme,
-whose velocity is that backward difference — ``sym(F̄ᵀ ∇η̇) = (E_{n+1} − E_n)/dt`` exactly, so
-a rigid motion of any size makes no viscous stress and (trapezoidal rule) the viscous work of a
-step, ``∫ S_v : (E_{n+1} − E_n) dx``, is ≥ 0: the energy-momentum scheme stays exact, energy
-only leaves through the dampers. In the quasi-static scheme (no inertia, balance at t_{n+1})
-the viscous stress is backward Euler's ``τ C : (E_{n+1} − E_n)/dt``: a creep law, negligible
-when τ ≪ dt.
-
-Newton's method is dolfinx's NonlinearProblem/NewtonSolver (options prefix ``solid_``). The
-coupler drives a :class:`SolidSolver` through ``step`` / ``advance`` / ``save_state`` /
-``restore_state`` and the interface vectors (owned interface dofs, shape (n, 2)). The solver
-is built from the materials as cell fields (:func:`material_fields`), the
-:class:`DirichletConditions` and the :class:`SolidResidual`, the weak form above term by term.
+with per-region hyperelastic laws and Kelvin–Voigt stress S_v (fsi/physics/materials.py), the
+tissue's spring–dashpot support (k_s in Pa/m, c_s in Pa·s/m, per reference length;
+docs/wall-damping.md), a first Piola traction t₀ (Pa), the fluid's nodal forces (N/m) and an
+optional follower pressure p (Pa). Vector Lagrange elements (P2 by default), marched by the
+Newmark family of fsi/numerics/timestepping.py; the weak form is fsi/physics/solid_residual.py,
+the stresses fsi/physics/solid_stress.py. Newton's options prefix is ``solid_``.
 """
 
 from __future__ import annotations
@@ -68,11 +37,12 @@ import ufl
 
 from fsi import compat
 from fsi.config import Case, Material, SolverSettings, StenosisGeometry
-from fsi.numerics.newton import Newton, SolveFailed, SolveResult, petsc_options
+from fsi.numerics.newton import Newton, SolveResult, petsc_options
 from fsi.numerics.timestepping import NewmarkFamily, structural_scheme
 from fsi.physics import mesh as fsi_mesh
-from fsi.physics.materials import HyperelasticLaw, KelvinVoigt, cauchy, cauchy_zz, lame, make_law
 from fsi.physics.mesh import TaggedMesh
+from fsi.physics.solid_residual import SolidResidual, material_fields
+from fsi.physics.solid_stress import StressFields
 from geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 
 log = logging.getLogger(__name__)
@@ -192,100 +162,9 @@ def boundary_conditions(
 
 
 def region_materials(case: Case) -> dict[Region, Material]:
+    """The ``structure`` section's material of each region (wall, cap, lipid, flag)."""
     s = case.structure
     return {Region.WALL: s.wall, Region.CAP: s.cap, Region.LIPID: s.lipid, Region.FLAG: s.flag}
-
-
-# --------------------------------------------------------------------------------------------
-# Per-region laws and material fields
-
-
-@dataclass(frozen=True)
-class RegionwiseLaw:
-    """Several laws on disjoint regions: ``Σ = Σ_k χ_k Σ_k(F)`` with DG0 indicators χ_k."""
-
-    parts: tuple[tuple[object, HyperelasticLaw], ...]
-    name: str = "regionwise"
-
-    def _sum(self, method: str, F):
-        return sum(chi * getattr(law, method)(F) for chi, law in self.parts)
-
-    def strain_energy(self, F):
-        return self._sum("strain_energy", F)
-
-    def second_piola(self, F):
-        return self._sum("second_piola", F)
-
-    def second_piola_zz(self, F):
-        return self._sum("second_piola_zz", F)
-
-
-@dataclass(frozen=True)
-class MaterialFields:
-    """The materials of a structure's regions as fields on its cells.
-
-    ``regions``: the regions present on any rank; ``rho``: the density (DG0, kg/m³); ``law``:
-    the hyperelastic law with DG0 Lamé parameters (a :class:`RegionwiseLaw` where the regions'
-    laws differ); ``viscous``: the stiffness-proportional Kelvin–Voigt stress, None when every
-    relaxation time is 0 (then no viscous term is built at all); ``cells``: the DG0 space;
-    ``cell_region``: each local cell's region tag (−1 for an untagged cell).
-    """
-
-    regions: tuple[Region, ...]
-    rho: dolfinx.fem.Function
-    law: HyperelasticLaw
-    viscous: KelvinVoigt | None
-    cells: dolfinx.fem.FunctionSpace
-    cell_region: np.ndarray
-
-
-def material_fields(domain: TaggedMesh, materials: Mapping[Region, Material]) -> MaterialFields:
-    """The :class:`MaterialFields` of ``materials`` on ``domain``'s cell tags. Collective; a
-    ValueError names the regions present without a material."""
-    mesh, tags = domain.mesh, domain.cell_tags
-    present = [
-        int(r) for r in np.unique(np.concatenate(mesh.comm.allgather(np.unique(tags.values))))
-    ]
-    missing = [r for r in present if Region(r) not in materials]
-    if missing:
-        raise ValueError(f"no material for regions {[Region(r).label for r in missing]}")
-    Q = compat.function_space(mesh, "DG", 0)
-    dofs = compat.cell_dofs(Q)[:, 0]
-
-    def dg0(values_by_region: Mapping[int, float], name: str) -> dolfinx.fem.Function:
-        f = dolfinx.fem.Function(Q)
-        f.name = name
-        f.x.array[dofs[tags.indices]] = [values_by_region.get(int(v), 0.0) for v in tags.values]
-        f.x.scatter_forward()
-        return f
-
-    mats = {r: materials[Region(r)] for r in present}
-    lmbda_mu = {r: lame(m.young_modulus, m.poisson_ratio) for r, m in mats.items()}
-    rho = dg0({r: m.density for r, m in mats.items()}, "density")
-    lmbda = dg0({r: lm[0] for r, lm in lmbda_mu.items()}, "lambda")
-    mu = dg0({r: lm[1] for r, lm in lmbda_mu.items()}, "mu")
-    laws = sorted({m.law for m in mats.values()})
-    if len(laws) == 1:
-        law: HyperelasticLaw = make_law(laws[0], lmbda, mu)
-    else:
-        law = RegionwiseLaw(
-            tuple(
-                (
-                    dg0({r: 1.0 for r, m in mats.items() if m.law == name}, f"chi_{name}"),
-                    make_law(name, lmbda, mu),
-                )
-                for name in laws
-            )
-        )
-    # Kelvin–Voigt, stiffness-proportional per region: λ_v = τλ, μ_v = τμ (DG0). Left out
-    # of the forms when every τ is 0, so the elastic residual is unchanged bit for bit.
-    tau = {r: m.viscous_relaxation_time for r, m in mats.items()}
-    viscous = None
-    if any(value > 0 for value in tau.values()):
-        viscous = KelvinVoigt.stiffness_proportional(dg0(tau, "viscous_relaxation_time"), lmbda, mu)
-    cell_region = np.full(len(dofs), -1, dtype=np.int32)
-    cell_region[tags.indices] = tags.values
-    return MaterialFields(tuple(Region(r) for r in present), rho, law, viscous, Q, cell_region)
 
 
 # --------------------------------------------------------------------------------------------
@@ -383,149 +262,6 @@ class DirichletConditions:
 
 
 # --------------------------------------------------------------------------------------------
-# The residual, term by term
-
-
-class SolidResidual:
-    """The balance of momentum of a :class:`SolidSolver` (the module docstring's weak form) as
-    a sum of named terms: :attr:`form`, the residual at n+1−αf, and :attr:`jacobian`, its
-    derivative in η; :meth:`initial_acceleration_forms`, the same balance at the committed
-    state n. A term whose data is absent (no source, no follower pressure, no support, no
-    inertia in the quasi-static scheme, no viscous stress when every τ is 0) is not built.
-
-    It reads the solver's functions (η, η_n, η̇_n, η̈_n, the tractions), materials (ρ, the law,
-    the viscous stress), time step ``dt`` and boundary data, and owns what the terms add: the
-    measures :attr:`dx` and :attr:`ds` (with the cell and facet tags) and
-    :attr:`ds_interface`, all at ``quadrature_degree``; the body force :attr:`gravity`
-    (m/s²); the follower pressure at t_{n+1} and t_n, :attr:`pressure` and
-    :attr:`pressure_n` (Pa); and the support's ``(k_s, c_s, ds)``, :attr:`support` (None
-    without one).
-    """
-
-    def __init__(self, solver: SolidSolver, quadrature_degree: int):
-        self.solver = solver
-        mesh, bcs = solver.domain.mesh, solver.bcs_data
-        metadata = {"quadrature_degree": quadrature_degree}
-        cell_tags, facet_tags = solver.domain.cell_tags, solver.domain.facet_tags
-        self.dx = ufl.Measure("dx", domain=mesh, subdomain_data=cell_tags, metadata=metadata)
-        self.ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags, metadata=metadata)
-        self.ds_interface = self._ds(bcs.interface)
-        self.gravity = dolfinx.fem.Constant(
-            mesh, np.asarray(bcs.body_force, dtype=PETSc.ScalarType)
-        )
-        self.pressure = dolfinx.fem.Constant(mesh, PETSc.ScalarType(0.0))
-        self.pressure_n = dolfinx.fem.Constant(mesh, PETSc.ScalarType(0.0))
-        self.support = None
-        if bcs.support is not None:
-            self.support = (
-                dolfinx.fem.Constant(mesh, PETSc.ScalarType(bcs.support.stiffness)),
-                dolfinx.fem.Constant(mesh, PETSc.ScalarType(bcs.support.damping)),
-                self._ds(bcs.support.boundaries),
-            )
-        self.form = self._residual()
-        self.jacobian = ufl.derivative(self.form, solver.eta, ufl.TrialFunction(solver.V))
-
-    def _ds(self, boundaries: Sequence[Boundary]) -> ufl.Measure:
-        return sum((self.ds(int(b)) for b in boundaries[1:]), self.ds(int(boundaries[0])))
-
-    def _residual(self) -> ufl.Form:
-        """stress + inertia − body force − source − interface traction + follower pressure
-        + support, each at n+1−αf."""
-        s, scheme = self.solver, self.solver.scheme
-        af = scheme.alpha_f
-        deta = ufl.TestFunction(s.V)
-        I = ufl.Identity(s.domain.mesh.geometry.dim)
-        F_new, F_old = I + ufl.grad(s.eta), I + ufl.grad(s.eta_n)
-        S_alpha, v_alpha = self._second_piola_alpha(F_new, F_old)
-        residual = self._stress(scheme.at(F_new, F_old, af), S_alpha, deta)
-        if scheme.dynamic:
-            residual += self._inertia(deta)
-        residual -= self._body_force(deta)
-        if s.bcs_data.source is not None:
-            residual -= self._source(deta)
-        residual -= self._traction(scheme.at(s.traction, s.traction_n, af), deta)
-        if s.bcs_data.pressure is not None:
-            p_alpha = scheme.at(self.pressure, self.pressure_n, af)
-            residual += self._follower_pressure(p_alpha, scheme.at(F_new, F_old, af), deta)
-        if self.support is not None:
-            residual += self._support(scheme.at(s.eta, s.eta_n, af), v_alpha, deta)
-        return residual
-
-    def initial_acceleration_forms(self) -> tuple[ufl.Form, ufl.Form]:
-        """The mass form ``∫ ρ a·δη dx`` (bilinear in the acceleration a) and the force
-        ``f_ext(t_n) − f_int(η_n, η̇_n)`` of the committed state n (the follower pressure at
-        :attr:`pressure_n`): the balance ``M a_n = f`` that the acceleration a_n satisfies."""
-        s = self.solver
-        deta, da = ufl.TestFunction(s.V), ufl.TrialFunction(s.V)
-        F = ufl.Identity(s.domain.mesh.geometry.dim) + ufl.grad(s.eta_n)
-        S = s.law.second_piola(F)
-        if s.viscous is not None:
-            S = S + s.viscous.second_piola(F, ufl.grad(s.v_n))
-        force = -self._stress(F, S, deta)
-        if self.support is not None:
-            force -= self._support(s.eta_n, s.v_n, deta)
-        force += self._body_force(deta)
-        force += self._traction(s.traction_n, deta)
-        if s.bcs_data.source is not None:
-            force += self._source(deta)
-        if s.bcs_data.pressure is not None:
-            force -= self._follower_pressure(self.pressure_n, F, deta)
-        return s.rho * ufl.inner(da, deta) * self.dx, force
-
-    # -- the terms
-
-    def _second_piola_alpha(self, F_new, F_old):
-        """The generalized energy-momentum stress ``Σ_{n+1-αf} = (1 − αf) Σ(F_{n+1}) + αf Σ(F_n)``
-        plus the Kelvin–Voigt stress of η̇_{n+1-αf} (if any); and η̇_{n+1-αf}."""
-        s, scheme = self.solver, self.solver.scheme
-        af = scheme.alpha_f
-        S_alpha = scheme.at(s.law.second_piola(F_new), s.law.second_piola(F_old), af)
-        # η̇ at n+1-αf, with η̇_{n+1} the scheme's function of the unknown η_{n+1}.
-        v_alpha = scheme.at(scheme.velocity(s.eta, s.eta_n, s.v_n, s.a_n, s._dt), s.v_n, af)
-        if s.viscous is not None:
-            # The rate pulled back with the mid-step F̄: Ė = (E_{n+1} − E_n)/dt exactly when
-            # η̇_{n+1-αf} = (η_{n+1} − η_n)/dt (trapezoidal, quasi-static): see the docstring.
-            S_alpha = S_alpha + s.viscous.second_piola(
-                scheme.at(F_new, F_old, 0.5), ufl.grad(v_alpha)
-            )
-        return S_alpha, v_alpha
-
-    def _stress(self, F, S, deta):
-        """``∫ F S : ∇δη dx``, the first Piola stress ``F S`` tested."""
-        return ufl.inner(F * S, ufl.grad(deta)) * self.dx
-
-    def _inertia(self, deta):
-        """``∫ ρ a_{n+1-αm}·δη dx``."""
-        s, scheme = self.solver, self.solver.scheme
-        a_new = scheme.acceleration(s.eta, s.eta_n, s.v_n, s.a_n, s._dt)
-        return s.rho * ufl.inner(scheme.at(a_new, s.a_n, scheme.alpha_m), deta) * self.dx
-
-    def _body_force(self, deta):
-        """``∫ ρ b·δη dx``."""
-        return self.solver.rho * ufl.inner(self.gravity, deta) * self.dx
-
-    def _source(self, deta):
-        """``∫ f(x)·δη dx`` (a manufactured solution's force per reference volume)."""
-        x = ufl.SpatialCoordinate(self.solver.domain.mesh)
-        return ufl.inner(self.solver.bcs_data.source(x), deta) * self.dx
-
-    def _traction(self, t0, deta):
-        """``∫ t₀·δη ds`` over the interface."""
-        return ufl.inner(t0, deta) * self.ds_interface
-
-    def _follower_pressure(self, p, F, deta):
-        """``∫ p J F⁻ᵀ N·δη ds`` over the interface (the pressure's traction is its negative)."""
-        N = ufl.FacetNormal(self.solver.domain.mesh)
-        return p * ufl.inner(ufl.det(F) * ufl.inv(F).T * N, deta) * self.ds_interface
-
-    def _support(self, eta, v, deta):
-        """``∫ (k_s η·N + c_s η̇·N)(δη·N) ds`` over the supported boundary."""
-        k_s, c_s, ds_support = self.support
-        N = ufl.FacetNormal(self.solver.domain.mesh)
-        return (k_s * ufl.dot(eta, N) + c_s * ufl.dot(v, N)) * ufl.dot(deta, N) * ds_support
-
-
-# --------------------------------------------------------------------------------------------
 # The solver
 
 
@@ -592,7 +328,7 @@ class SolidSolver:
 
         m = material_fields(domain, materials)
         self.regions, self.rho, self.law, self.viscous = m.regions, m.rho, m.law, m.viscous
-        self.Q0, self._cell_region = m.cells, m.cell_region
+        self.Q0, self.cell_region = m.cells, m.cell_region
         self.dirichlet = DirichletConditions(domain, self.V, bcs.dirichlet)
         self._build_interface()
         self.residual = SolidResidual(self, quadrature_degree)
@@ -604,7 +340,6 @@ class SolidSolver:
         self.newton = Newton(self.comm, self.problem, solver, self.prefix, "incremental")
         self.stress = StressFields(self, self.law)
         self._det_F = None
-        self._energy_forms = None
 
     def _build_interface(self) -> None:
         """The owned interface dofs (the order of every interface vector) and their points."""
@@ -633,20 +368,6 @@ class SolidSolver:
         entries on clamped dofs are ignored."""
         forces = np.asarray(forces, dtype=float).reshape(self.forces.shape)
         self.forces[:] = forces
-
-    def set_interface_traction(self, traction: np.ndarray | dolfinx.fem.Function) -> None:
-        """The first Piola traction t₀ at t_{n+1}: a Function on the displacement space, or an
-        interface vector (n, 2) of its values at the owned interface dofs (Pa)."""
-        if isinstance(traction, dolfinx.fem.Function):
-            self.traction.x.array[:] = traction.x.array
-        else:
-            values = self.traction.x.array.reshape(-1, self.V.dofmap.index_map_bs)
-            values[self.interface_dofs] = np.asarray(traction).reshape(-1, values.shape[1])
-            self.traction.x.scatter_forward()
-
-    def set_body_force(self, g: Sequence[float]) -> None:
-        """Force per unit mass (m/s²), e.g. to ramp gravity in a static solve."""
-        self.residual.gravity.value[:] = np.asarray(g, dtype=float)
 
     # -- stepping -------------------------------------------------------------------------
 
@@ -695,6 +416,7 @@ class SolidSolver:
         self.t = self._t_new
 
     def save_state(self) -> SolidState:
+        """Snapshot of the committed state, the unknown η and the interface loads."""
         return SolidState(
             self.t,
             *(
@@ -705,7 +427,10 @@ class SolidSolver:
             self.forces_n.copy(),
         )
 
-    def restore_state(self, state: SolidState) -> None:
+    def restore_state(self, state: SolidState, warm_start: bool = False) -> None:
+        """Return to ``state``. With ``warm_start`` the current η stays as Newton's initial
+        guess of the next :meth:`step` (the committed state n is the state's)."""
+        guess = self.eta.x.array.copy() if warm_start else None
         self.t = state.t
         for f, values in (
             (self.eta, state.eta),
@@ -718,6 +443,8 @@ class SolidSolver:
             f.x.array[:] = values
         self.forces[:] = state.forces
         self.forces_n[:] = state.forces_n
+        if guess is not None:
+            self.eta.x.array[:] = guess
 
     def set_initial_conditions(
         self, eta0: Callable | None = None, v0: Callable | None = None
@@ -765,10 +492,6 @@ class SolidSolver:
         """η at the owned interface dofs, (n, 2), in the order of ``interface_points``."""
         return self.eta.x.array.reshape(-1, 2)[self.interface_dofs].copy()
 
-    def interface_velocity(self) -> np.ndarray:
-        """η̇_{n+1} of the last step at the owned interface dofs, (n, 2)."""
-        return self.v.x.array.reshape(-1, 2)[self.interface_dofs].copy()
-
     def _owned_block_values(self, f: dolfinx.fem.Function) -> np.ndarray:
         n = self.V.dofmap.index_map.size_local
         return f.x.array.reshape(-1, 2)[:n]
@@ -796,203 +519,6 @@ class SolidSolver:
         J.interpolate(expression)
         n = self.Q0.dofmap.index_map.size_local
         return float(self.comm.allreduce(float(J.x.array[:n].min(initial=np.inf)), op=MPI.MIN))
-
-    def energies(self) -> tuple[float, float]:
-        """Kinetic and stored energy of the committed state n, ``½∫ρ|η̇|²`` and ``∫W(F)`` (J/m)."""
-        if self._energy_forms is None:
-            F = ufl.Identity(2) + ufl.grad(self.eta_n)
-            self._energy_forms = [
-                dolfinx.fem.form(0.5 * self.rho * ufl.inner(self.v_n, self.v_n) * self.residual.dx),
-                dolfinx.fem.form(self.law.strain_energy(F) * self.residual.dx),
-            ]
-        kinetic, stored = (
-            float(self.comm.allreduce(dolfinx.fem.assemble_scalar(form), op=MPI.SUM))
-            for form in self._energy_forms
-        )
-        return kinetic, stored
-
-
-class CoupledSolid:
-    """The solid as the coupler's interface solver (fsi.coupled.coupling.InterfaceSolver).
-
-    ``solve(load)`` takes the fluid's interface load at t_{n+1} as a flat interface vector
-    (``"forces"``: nodal forces, N/m; ``"traction"``: first Piola traction values, Pa), solves
-    the step set by :meth:`begin_step` and returns the interface displacement, flat. A failed
-    solve raises :class:`SolveFailed`. ``restore_state`` goes back to the start of the step but,
-    with ``warm_start``, keeps the last iterate of η as Newton's initial guess.
-    """
-
-    def __init__(self, solver: SolidSolver, load: str = "forces", warm_start: bool = True):
-        if load not in ("forces", "traction"):
-            raise ValueError(f"load must be 'forces' or 'traction', got {load!r}")
-        self.solver, self.load, self.warm_start = solver, load, warm_start
-        self.t, self.dt = math.nan, math.nan
-        self.last: SolveResult | None = None
-        self._checkpoint: SolidState | None = None
-
-    def begin_step(self, t: float, dt: float) -> None:
-        self.t, self.dt = t, dt
-
-    def save_state(self) -> None:
-        self._checkpoint = self.solver.save_state()
-
-    def restore_state(self) -> None:
-        if self._checkpoint is None:
-            raise RuntimeError("restore_state before save_state")
-        guess = self.solver.eta.x.array.copy()
-        self.solver.restore_state(self._checkpoint)
-        if self.warm_start:
-            self.solver.eta.x.array[:] = guess
-
-    def solve(self, interface_input: np.ndarray) -> np.ndarray:
-        if not math.isfinite(self.dt):
-            raise RuntimeError("call begin_step(t, dt) before solve")
-        values = np.asarray(interface_input).reshape(-1, 2)
-        if self.load == "forces":
-            self.solver.set_interface_forces(values)
-        else:
-            self.solver.set_interface_traction(values)
-        self.last = self.solver.step(self.t, self.dt)
-        if not self.last.converged:
-            raise SolveFailed(
-                f"structure step to t = {self.t:g} s failed: {self.last.reason}"
-                f" (residual {self.last.residual:.3g})"
-            )
-        return self.solver.interface_displacement().ravel()
-
-    def velocity(self) -> np.ndarray:
-        """η̇_{n+1} at the interface (flat), for the fluid's kinematic condition u = η̇."""
-        return self.solver.interface_velocity().ravel()
-
-    def advance(self) -> None:
-        self.solver.advance()
-
-
-# --------------------------------------------------------------------------------------------
-# Stresses
-
-
-@dataclass(frozen=True)
-class RegionStress:
-    """Maxima over one region (Pa): von Mises, largest principal, largest |σ₁₂| (the SSS)."""
-
-    max_von_mises: float
-    max_principal: float
-    max_abs_shear: float
-
-
-class StressFields:
-    """Cauchy stress of the current η as DG fields, and their per-region maxima.
-
-    ``σ = J⁻¹ P Fᵀ`` (in-plane) on the current configuration, plane strain with
-    ``σ₃₃ = J⁻¹ Σ₃₃``; the study's structural shear stress ``σ₁₂``; von Mises
-    ``sqrt(((σ₁₁−σ₂₂)² + (σ₂₂−σ₃₃)² + (σ₃₃−σ₁₁)²)/2 + 3σ₁₂²)``; the largest principal stress
-    ``max((σ₁₁+σ₂₂)/2 + sqrt(((σ₁₁−σ₂₂)/2)² + σ₁₂²), σ₃₃)``. Fields are interpolated into DG
-    of degree ``max(k − 1, 0)`` for P``k`` displacements (the degree of ∇η), at its points.
-
-    :attr:`cell_fields` are what the field files hold (XDMF stores one value per cell): each
-    cell's extreme of the fields above (``sss``: the value of largest magnitude, sign kept;
-    ``von_mises`` and ``max_principal``: the largest), so their maxima over a region are the
-    :meth:`region_maxima`; and ``region``, the cell's region tag (geometry/tags.py ``Region``).
-    """
-
-    def __init__(self, solver: SolidSolver, law: HyperelasticLaw):
-        self.solver = solver
-        mesh = solver.domain.mesh
-        degree = max(solver.degree - 1, 0)
-        self.S = compat.function_space(mesh, "DG", degree)
-        self.T = compat.function_space(mesh, "DG", degree, (2, 2))
-        F = ufl.Identity(2) + ufl.grad(solver.eta)
-        sigma = cauchy(law, F)
-        s33 = cauchy_zz(law, F)
-        s11, s22, s12 = sigma[0, 0], sigma[1, 1], sigma[0, 1]
-        von_mises = ufl.sqrt(
-            ((s11 - s22) ** 2 + (s22 - s33) ** 2 + (s33 - s11) ** 2) / 2 + 3 * s12**2
-        )
-        in_plane = (s11 + s22) / 2 + ufl.sqrt(((s11 - s22) / 2) ** 2 + s12**2)
-        principal = ufl.max_value(in_plane, s33)
-        self.sigma = dolfinx.fem.Function(self.T)
-        self.sigma.name = "sigma"
-        self.fields = {}
-        self._expressions = [
-            (self.sigma, dolfinx.fem.Expression(sigma, compat.interpolation_points(self.T)))
-        ]
-        for name, expr in (("sss", s12), ("von_mises", von_mises), ("max_principal", principal)):
-            f = dolfinx.fem.Function(self.S)
-            f.name = name
-            self.fields[name] = f
-            self._expressions.append(
-                (f, dolfinx.fem.Expression(expr, compat.interpolation_points(self.S)))
-            )
-        dofs = compat.cell_dofs(self.S)
-        self._dof_points = self.S.tabulate_dof_coordinates()[:, :2].copy()  # reference config.
-        n_owned = mesh.topology.index_map(mesh.topology.dim).size_local
-        self._all_cell_dofs = dofs
-        self._cell_dofs = dofs[:n_owned]
-        self._cell_region = solver._cell_region[:n_owned]
-        S0 = compat.function_space(mesh, "DG", 0)
-        self._cell_value = compat.cell_dofs(S0)[:, 0]  # cell → its DG0 dof
-        self.cell_fields = {}
-        for name in (*self.fields, "region"):
-            f = dolfinx.fem.Function(S0)
-            f.name = name
-            self.cell_fields[name] = f
-        region = self.cell_fields["region"].x.array
-        region[self._cell_value] = solver._cell_region[: len(self._cell_value)]
-
-    def update(self) -> None:
-        """Interpolate the stresses of the current η; their cell extremes."""
-        for f, expr in self._expressions:
-            f.interpolate(expr)
-        for name, f in self.fields.items():
-            values = f.x.array[self._all_cell_dofs]  # (cells, dofs per cell)
-            if name == "sss":  # signed: the value of largest magnitude
-                extreme = np.take_along_axis(
-                    values, np.abs(values).argmax(axis=1)[:, None], axis=1
-                )[:, 0]
-            else:
-                extreme = values.max(axis=1)
-            self.cell_fields[name].x.array[self._cell_value] = extreme
-
-    def region_maxima(self) -> dict[str, RegionStress]:
-        """Per region (and ``"all"``): the maxima over the region's cells on all ranks.
-
-        Call :meth:`update` first.
-        """
-        out = {}
-        comm = self.solver.comm
-        vm = self.fields["von_mises"].x.array
-        pr = self.fields["max_principal"].x.array
-        sh = np.abs(self.fields["sss"].x.array)
-        regions = [(r.label, [int(r)]) for r in self.solver.regions]
-        regions.append(("all", [int(r) for r in self.solver.regions]))
-        for label, values in regions:
-            dofs = self._cell_dofs[np.isin(self._cell_region, values)].ravel()
-            local = [float(a[dofs].max(initial=-np.inf)) for a in (vm, pr, sh)]
-            out[label] = RegionStress(*(float(comm.allreduce(v, op=MPI.MAX)) for v in local))
-        return out
-
-    def location_of_max(self, name: str, region: int) -> tuple[float, float, float]:
-        """(value, x, y): the largest value of the stress field ``name`` (``max_principal``,
-        ``von_mises``) over the cells of ``region`` on all ranks (the value
-        :meth:`region_maxima` reports) and where it is attained: the point (m, reference
-        configuration) of the field's DG node that holds it (for P2 displacements a vertex of
-        the cell, for P1 its midpoint). Ties go to the smallest x, then y, so the point does not
-        depend on the partition; (NaN, NaN, NaN) for an empty region. Call :meth:`update`
-        first. Collective."""
-        values = self.fields[name].x.array
-        dofs = self._cell_dofs[np.isin(self._cell_region, [int(region)])].ravel()
-        best = (-np.inf, np.nan, np.nan)
-        if len(dofs):
-            top = values[dofs].max()
-            points = self._dof_points[dofs[values[dofs] == top]]
-            x, y = min(map(tuple, points))
-            best = (float(top), float(x), float(y))
-        found = [b for b in self.solver.comm.allgather(best) if b[0] > -np.inf]
-        if not found:
-            return (np.nan, np.nan, np.nan)
-        top = max(b[0] for b in found)
-        return min((b for b in found if b[0] == top), key=lambda b: (b[1], b[2]))
 
 
 # --------------------------------------------------------------------------------------------

@@ -28,6 +28,7 @@ from fsi.numerics import newton
 from fsi.numerics.timestepping import Step
 from fsi.output import io, metrics
 from fsi.physics import fluid, mesh, solid
+from fsi.physics.fluid_boundaries import boundary_conditions, inlet_pressure, walls
 from fsi.physics.mesh_motion import MeshQualityError
 from fsi.run import checkpoint
 from fsi.run.stops import StepFailed
@@ -75,8 +76,8 @@ def stress_columns(solver: solid.SolidSolver) -> list[str]:
     """The structure's stress maxima (Pa) beside ``max_sss``: ``max_von_mises``,
     ``max_principal`` over the whole structure, and ``max_sss_<region>``,
     ``max_von_mises_<region>``, ``max_principal_<region>`` per region (cap, lipid, wall; the
-    Turek–Hron flag), where ``max_sss`` is the largest |σ₁₂| (fsi.physics.solid.StressFields); with
-    a fibrous cap, :data:`CAP_LOCATION_COLUMNS`."""
+    Turek–Hron flag), where ``max_sss`` is the largest |σ₁₂|
+    (fsi.physics.solid_stress.StressFields); with a fibrous cap, :data:`CAP_LOCATION_COLUMNS`."""
     return (
         ["max_von_mises", "max_principal"]
         + [
@@ -90,7 +91,7 @@ def stress_columns(solver: solid.SolidSolver) -> list[str]:
 
 CAP_LOCATION_COLUMNS = ["max_principal_cap_x", "max_principal_cap_y"]
 """Where ``max_principal_cap`` is attained: the reference coordinates (m) of the stress
-field's node that holds it (fsi.physics.solid.StressFields.location_of_max)."""
+field's node that holds it (fsi.physics.solid_stress.StressFields.location_of_max)."""
 
 
 def stress_row(solver: solid.SolidSolver) -> dict[str, float]:
@@ -210,7 +211,7 @@ class FluidOutputs:
     def __init__(self, case: config.Case, solver: fluid.FluidSolver):
         self.solver = solver
         boundaries = mesh.geometry_module(case).BOUNDARIES
-        self.walls = list(fluid.walls(boundaries))
+        self.walls = list(walls(boundaries))
         self.lumen = not isinstance(case.geometry, config.TurekHronGeometry)
         # column → (∫ u·n ds over the boundary, compiled once; the sign that makes it positive
         # downstream): Q_in = −∫_inlet u·n ds, Q_out = ∫_outlet u·n ds.
@@ -444,8 +445,8 @@ class FluidOutputs:
 
 def fluid_boundaries(case: config.Case) -> tuple:
     """Rigid structure: the configured inlet and outlet, no-slip on every wall
-    (fluid.boundary_conditions)."""
-    return fluid.boundary_conditions(
+    (fsi.physics.fluid_boundaries.boundary_conditions)."""
+    return boundary_conditions(
         case.fluid, mesh.geometry_module(case).BOUNDARIES, moving_interface=False
     )
 
@@ -709,7 +710,7 @@ class StructureStepper:
         whole = mesh.build(case, comm)
         self.cells = mesh.summary(whole, case)["cells"]
         self.pressure = (
-            fluid.inlet_pressure(case.fluid.inlet)
+            inlet_pressure(case.fluid.inlet)
             if case.structure.interface_load == "inlet_pressure"
             else None
         )

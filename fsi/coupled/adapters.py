@@ -1,0 +1,184 @@
+"""The fluid and the structure as the coupler's interface solvers
+(:class:`fsi.coupled.coupling.InterfaceSolver`), through their solvers' public methods.
+
+Both adapters have the same small interface: ``begin_step(t, dt)``, ``save_state``,
+``restore_state`` (back to the start of the step, the last iterate kept as Newton's initial
+guess with ``warm_start``), ``solve(x)`` (one coupling iteration's solve, on flat interface
+vectors: owned interface dofs of the solid's displacement space) and ``advance``, and the
+counters ``solves`` and ``newton_iterations`` of the current step and ``last``, the last
+solve's :class:`fsi.numerics.newton.SolveResult`.
+
+Per coupling iteration the fluid side maps the interface displacement x (m) to the force of
+the blood on the structure (N/m) (docs/model.md, Coupling):
+
+1. η_Γ: x is transferred to the fluid's P2 interface nodes (:class:`InterfaceMap`);
+2. mesh motion: the P1 vertex values of η_Γ are the Dirichlet data of the extension ``d``
+   (:class:`fsi.physics.mesh_motion.MeshMotion`, which judges X + d and raises before the mesh
+   moves); the fluid's mesh moves to x = X + d;
+3. kinematic condition: u = w on Γw1, with ``w = Σ_k a_k d^{n+1−k}`` the fluid scheme's BDF
+   derivative of the mesh displacement, interpolated into P2: the moving wall is material for the
+   discrete fluid, ``(u − w)·n = 0``;
+4. the fluid step (Newton) on the moved mesh; after a step's first solve, Newton stops once it
+   has reduced its initial residual by ``forcing``, never looser than where the first solve
+   stopped (:class:`fsi.numerics.newton.Forcing`);
+5. the output: the residual-based nodal forces ``f_i = −R_i`` of the fluid
+   (:meth:`fsi.physics.fluid.FluidSolver.interface_force`), the force of the fluid on the
+   structure, transferred to the solid's interface dofs.
+
+The solid side adds those nodal forces to its load at t_{n+1} and returns its interface
+displacement.
+"""
+
+from __future__ import annotations
+
+import math
+
+import dolfinx.fem
+import numpy as np
+
+from fsi.coupled.interface import InterfaceMap
+from fsi.numerics.newton import Forcing, SolveFailed, SolveResult
+from fsi.physics.fluid import FluidSolver
+from fsi.physics.mesh_motion import MeshMotion
+from fsi.physics.solid import SolidSolver
+from geometry.tags import Boundary
+
+
+class _Adapter:
+    """What both sides share: the step's time, the checkpoint, the counters and the order of a
+    solve (:meth:`_solve` the subclass's step, :meth:`_output` its interface output)."""
+
+    def __init__(self, solver, warm_start: bool):
+        self.solver, self.warm_start = solver, warm_start
+        self.t, self.dt = math.nan, math.nan
+        self.last: SolveResult | None = None
+        self.newton_iterations = 0  # over the coupling iterations of the current step
+        self.solves = 0  # coupling iterations of the current step so far
+        self._checkpoint = None
+
+    def begin_step(self, t: float, dt: float) -> None:
+        """The step to solve next: to time ``t`` (s) with step ``dt`` (s)."""
+        self.t, self.dt = t, dt
+        self.newton_iterations = self.solves = 0
+
+    def save_state(self) -> None:
+        """Checkpoint the solver at the start of the step."""
+        self._checkpoint = self.solver.save_state()
+
+    def restore_state(self) -> None:
+        """Back to the checkpoint; with ``warm_start`` the last iterate stays Newton's guess."""
+        if self._checkpoint is None:
+            raise RuntimeError("restore_state before save_state")
+        self.solver.restore_state(self._checkpoint, warm_start=self.warm_start)
+
+    def solve(self, interface_input: np.ndarray) -> np.ndarray:
+        """One coupling iteration's solve: the interface input (flat) → the output (flat).
+        Raises :class:`fsi.numerics.newton.SolveFailed` if the solver's step fails."""
+        if not math.isfinite(self.dt):
+            raise RuntimeError("call begin_step(t, dt) before solve")
+        self.solves += 1
+        self.last = None
+        result = self._solve(np.asarray(interface_input))
+        self.last = result
+        self.newton_iterations += result.iterations
+        self._raise_if_failed(result)
+        return self._output().ravel()
+
+    def advance(self) -> None:
+        """Accept the last solve as the step's solution."""
+        self.solver.advance()
+
+    def _solve(self, interface_input: np.ndarray) -> SolveResult:
+        raise NotImplementedError
+
+    def _output(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def _raise_if_failed(self, result: SolveResult) -> None:
+        result.raise_if_failed()
+
+
+class FluidInterface(_Adapter):
+    """The fluid with its mesh motion: interface displacement (m) → the fluid's nodal forces on
+    the structure (N/m), both solid interface vectors (see the module docstring).
+
+    Args:
+        fluid_solver: the fluid, on the moving mesh.
+        motion: the extension of the interface displacement into the fluid mesh.
+        to_fluid, to_solid: the interface maps solid → fluid and fluid → solid.
+        interface: the fluid's boundaries that meet the structure.
+        warm_start: start each solve from the last iterate.
+        forcing: the later solves' Newton forcing (0: every solve to the fluid's tolerance).
+
+    Raises (collectively) :class:`fsi.physics.mesh_motion.MeshQualityError` when the extension
+    would collapse a cell, and :class:`fsi.numerics.newton.SolveFailed` when the fluid step fails.
+    """
+
+    def __init__(
+        self,
+        fluid_solver: FluidSolver,
+        motion: MeshMotion,
+        to_fluid: InterfaceMap,
+        to_solid: InterfaceMap,
+        interface: tuple[Boundary, ...] = (Boundary.INTERFACE,),
+        warm_start: bool = True,
+        forcing: float = 0.0,
+    ):
+        super().__init__(fluid_solver, warm_start)
+        self.motion, self.to_fluid, self.to_solid = motion, to_fluid, to_solid
+        self.interface = tuple(int(b) for b in interface)
+        self.forcing = forcing
+        self.first_residual = math.nan  # |F| where the step's first solve stopped
+        self.eta = dolfinx.fem.Function(fluid_solver.V, name="interface_displacement")
+        self.mesh_quality = 1.0  # min J/J_ref of the last mesh motion
+
+    def move_mesh(self, x: np.ndarray) -> None:
+        """η_Γ ← x; d = extension of η_Γ's vertex values (quality-checked); mesh to X + d;
+        boundary velocity u_Γ = w = Σ_k a_k d^{n+1−k}, which the step then uses."""
+        fluid = self.solver
+        self.to_fluid.set_dst(self.eta, self.to_fluid.transfer(np.asarray(x).reshape(-1, 2)))
+        self.motion.set_boundary_function(self.eta)
+        self.motion.solve()
+        self.mesh_quality = self.motion.check_quality()
+        fluid.set_mesh_displacement(self.motion.d)
+        fluid.set_boundary_velocity(fluid.mesh_velocity(self.dt))
+
+    def forces(self) -> np.ndarray:
+        """The fluid's nodal forces on the structure as a solid interface vector (n, 2), N/m."""
+        values = self.solver.nodal_forces(self.interface)
+        return self.to_solid.transfer(values[self.to_solid.src_dofs])
+
+    def _solve(self, interface_input: np.ndarray) -> SolveResult:
+        self.move_mesh(interface_input)
+        forcing = None
+        if self.forcing and self.solves > 1:
+            forcing = Forcing(self.forcing, ceiling=self.first_residual)
+        result = self.solver.step(self.t, self.dt, forcing=forcing)
+        if self.solves == 1:
+            self.first_residual = result.residual
+        return result
+
+    def _output(self) -> np.ndarray:
+        return self.forces()
+
+
+class SolidInterface(_Adapter):
+    """The structure: the fluid's nodal forces at t_{n+1} (N/m) → its interface displacement
+    (m), both flat interface vectors. A failed step raises :class:`SolveFailed`."""
+
+    def __init__(self, solver: SolidSolver, warm_start: bool = True):
+        super().__init__(solver, warm_start)
+
+    def _solve(self, interface_input: np.ndarray) -> SolveResult:
+        self.solver.set_interface_forces(interface_input.reshape(-1, 2))
+        return self.solver.step(self.t, self.dt)
+
+    def _output(self) -> np.ndarray:
+        return self.solver.interface_displacement()
+
+    def _raise_if_failed(self, result: SolveResult) -> None:
+        if not result.converged:
+            raise SolveFailed(
+                f"structure step to t = {self.t:g} s failed: {result.reason}"
+                f" (residual {result.residual:.3g})"
+            )

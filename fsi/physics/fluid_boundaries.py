@@ -1,0 +1,223 @@
+"""The fluid's boundary conditions as data, and the boundary data they need.
+
+One small frozen class per kind (:class:`NoSlip`, :class:`Velocity`, :class:`Inflow`,
+:class:`Outflow`, :class:`Slip`, :class:`Traction`), a case's set of them
+(:func:`boundary_conditions`, :func:`walls`), the inlet's pressure P(t)
+(:func:`inlet_pressure`), the Turek–Hron inflow ramp and the parabolic inflow profile on a
+straight inlet. :class:`fsi.physics.fluid_residual.FluidResidual` turns each condition into its
+Dirichlet conditions and boundary terms (docs/model.md, Fluid).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from mpi4py import MPI
+
+import dolfinx
+import dolfinx.fem
+import dolfinx.mesh
+import numpy as np
+import ufl
+
+from fsi import compat, config
+from fsi.config import boundary_data
+from fsi.physics import outlets
+from geometry.tags import Boundary
+
+TractionFunction = Callable[
+    [ufl.core.expr.Expr, ufl.core.expr.Expr, dolfinx.fem.Constant], ufl.core.expr.Expr
+]
+"""``g(x, n, t)``: a UFL vector of the spatial coordinate, the outward normal and the time."""
+
+
+def as_tags(tags) -> tuple[int, ...]:
+    """``tags`` (one tag or several) as a tuple of ints."""
+    return (int(tags),) if isinstance(tags, (int, np.integer)) else tuple(int(t) for t in tags)
+
+
+def facets_of(facet_tags: dolfinx.mesh.MeshTags, tags: Sequence[int]) -> np.ndarray:
+    """The local facets tagged with any of ``tags``."""
+    return facet_tags.indices[np.isin(facet_tags.values, list(tags))].astype(np.int32)
+
+
+# --------------------------------------------------------------------------------------------
+# Boundary conditions (data)
+
+
+@dataclass(frozen=True)
+class NoSlip:
+    """u = 0 on ``tags``."""
+
+    tags: tuple[int, ...]
+
+    def __post_init__(self):
+        object.__setattr__(self, "tags", as_tags(self.tags))
+
+
+@dataclass(frozen=True)
+class Velocity:
+    """u = the solver's :attr:`FluidSolver.boundary_velocity` on ``tags`` (the FSI interface:
+    the coupler writes ∂η/∂t there)."""
+
+    tags: tuple[int, ...]
+
+    def __post_init__(self):
+        object.__setattr__(self, "tags", as_tags(self.tags))
+
+
+@dataclass(frozen=True)
+class Inflow:
+    """The configured inlet on ``tags``: a normal traction σ n = −P(t) n (``traction_pulse``,
+    ``pressure``, ``pressure_table``, ``pressure_file``; in the ``do_nothing`` form
+    μ∇u n − p n = −P n) or a parabolic velocity (``parabolic_velocity``). A traction inlet with
+    ``inflow_stabilization`` β > 0 adds −β/2 ρ min(u·n, 0) u to σ n (as :class:`Outflow`)."""
+
+    tags: tuple[int, ...]
+    spec: config.Inlet
+    inflow_stabilization: float = 0.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "tags", as_tags(self.tags))
+
+
+@dataclass(frozen=True)
+class Outflow:
+    """An open outlet on ``tags``: σ n = −P n + β/2 ρ min(u·n, 0) u (in the ``open_boundary``
+    form), P = 0 (traction-free, the study's) or, with a lumped ``model`` (fsi/config/outlet_section.py:
+    resistance, RCR Windkessel), the model's pressure at the outlet's flow rate
+    (:class:`LumpedOutlet`); the β term removes the energy that backflow would carry in
+    (Bazilevs et al. 2009)."""
+
+    tags: tuple[int, ...]
+    backflow_stabilization: float = 1.0
+    model: outlets.OutletModel | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "tags", as_tags(self.tags))
+
+
+@dataclass(frozen=True)
+class Slip:
+    """The study's alternative wall condition: u·n = 0 (Nitsche) with a prescribed tangential
+    traction (σ n)_t = g_t, ``g`` a :data:`TractionFunction` (None: g = 0, perfect slip). The
+    normal part of g is ignored: the normal traction is the reaction to u·n = 0."""
+
+    tags: tuple[int, ...]
+    traction: TractionFunction | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "tags", as_tags(self.tags))
+
+
+@dataclass(frozen=True)
+class Traction:
+    """σ n = g(x, n, t) on ``tags``."""
+
+    tags: tuple[int, ...]
+    traction: TractionFunction
+
+    def __post_init__(self):
+        object.__setattr__(self, "tags", as_tags(self.tags))
+
+
+BoundaryCondition = NoSlip | Velocity | Inflow | Outflow | Slip | Traction
+
+
+def walls(boundaries: Sequence[Boundary], moving_interface: bool = False) -> tuple[Boundary, ...]:
+    """The fluid's walls among a geometry's ``boundaries``, in their order: the rigid wall
+    (Γw2), the Turek–Hron obstacle and the interface Γw1, unless it moves (a coupled run gives
+    it :class:`Velocity`). The one list of walls: no-slip conditions and wall shear stress."""
+    kinds = (
+        Boundary.RIGID_WALL,
+        Boundary.OBSTACLE,
+        *(() if moving_interface else (Boundary.INTERFACE,)),
+    )
+    return tuple(b for b in boundaries if b in kinds)
+
+
+def boundary_conditions(
+    fluid: config.Fluid, boundaries: Sequence[Boundary], moving_interface: bool
+) -> tuple[BoundaryCondition, ...]:
+    """The fluid's boundary conditions in every mode (docs/model.md, Fluid), for a geometry with
+    ``boundaries``: the configured inlet, the configured outlet, u = ∂η/∂t on the interface if
+    it moves (a coupled run), no-slip on the :func:`walls`."""
+    inlet = Inflow(Boundary.INLET, fluid.inlet, fluid.inflow_stabilization)
+    outlet = Outflow(
+        Boundary.OUTLET, fluid.outlet.backflow_stabilization, outlets.from_config(fluid.outlet)
+    )
+    moving = (Velocity(Boundary.INTERFACE),) if moving_interface else ()
+    return (inlet, outlet, *moving, NoSlip(walls(boundaries, moving_interface)))
+
+
+def inlet_pressure(spec: config.Inlet) -> Callable[[float], float]:
+    """P(t) (Pa) of a traction inlet, σ n = −P n: the study's pulse (A/2)(1 − cos(2πt/T)) on
+    [0, T] and 0 after, a formula in t, or a table, inline or read from a CSV file (linear
+    between rows; with a period T > 0, P(t) = P_table(t mod T), else constant beyond its ends).
+    A ``pressure_file`` inlet must come from :func:`config.load` (which reads its rows)."""
+    if isinstance(spec, config.InletPulse):
+        A, T = spec.amplitude, spec.duration
+        return lambda t: A / 2 * (1 - math.cos(2 * math.pi * t / T)) if 0 <= t <= T else 0.0
+    if isinstance(spec, config.InletPressure):
+        return boundary_data.time_function(spec.formula)
+    if isinstance(spec, (config.InletPressureTable, config.InletPressureFile)):
+        if not spec.table:
+            raise ValueError(
+                f"fluid.inlet ({spec.kind}) has no rows (a pressure_file inlet "
+                "is read by config.load or config.from_dict)"
+            )
+        times, values = np.array(spec.table, dtype=float).T
+        period = spec.period
+        if period > 0:
+            return lambda t: float(np.interp(t % period, times, values))
+        return lambda t: float(np.interp(t, times, values))
+    raise TypeError(f"{type(spec).__name__} is not a traction inlet")
+
+
+def inflow_ramp(t: float, ramp_time: float) -> float:
+    """(1 − cos(π t / T_r)) / 2 for t < T_r, 1 after (Turek–Hron: T_r = 2 s)."""
+    return 1.0 if t >= ramp_time else 0.5 * (1 - math.cos(math.pi * t / ramp_time))
+
+
+# --------------------------------------------------------------------------------------------
+# The geometry of straight open boundaries (normal flow, the parabolic inflow profile)
+
+
+def boundary_points(mesh, facet_tags, tags: Sequence[int], comm: MPI.Comm) -> np.ndarray:
+    """The (x, y) of the vertices of the facets ``tags``, gathered from every rank (the same
+    array on each; vertices shared by facets repeat). Collective."""
+    nodes = compat.entities_to_geometry(
+        mesh, mesh.topology.dim - 1, facets_of(facet_tags, tags)
+    ).ravel()
+    return np.concatenate(comm.allgather(mesh.geometry.x[nodes, :2]))
+
+
+def parabolic_profile(points: np.ndarray, mesh, comm: MPI.Comm, mean_velocity: float):
+    """The interpolation function of 1.5 Ū 4 s (H − s)/H² (−n) on the straight inlet whose
+    vertices are ``points`` (:func:`boundary_points`): H its width, s the distance along it,
+    n its outward normal (towards the inside of ``mesh``: the side of its centroid).
+    Collective (the centroid)."""
+    # The inlet's end points: the pair of its vertices farthest apart.
+    ends = points[
+        [np.argmin(points @ d) for d in ((1, 0), (0, 1))]
+        + [np.argmax(points @ d) for d in ((1, 0), (0, 1))]
+    ]
+    i, j = np.unravel_index(np.argmax(np.linalg.norm(ends[:, None] - ends[None], axis=2)), (4, 4))
+    start, tangent = ends[i], ends[j] - ends[i]
+    width = np.linalg.norm(tangent)
+    tangent = tangent / width
+    normal = np.array([tangent[1], -tangent[0]])
+    centre = comm.allreduce(mesh.geometry.x[:, :2].sum(axis=0))
+    centre /= comm.allreduce(len(mesh.geometry.x))
+    if normal @ (centre - start) < 0:
+        normal = -normal  # inward
+    peak = 1.5 * mean_velocity
+
+    def profile(xx):
+        s = np.clip((xx[:2].T - start) @ tangent, 0, width)
+        values = peak * 4 * s * (width - s) / width**2
+        return np.outer(normal, values)
+
+    return profile

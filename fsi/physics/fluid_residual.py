@@ -1,0 +1,451 @@
+"""The fluid's residual F((u, p); (v, q)) as a sum of named terms (docs/model.md, Fluid).
+
+:class:`FluidResidual` builds, on the current configuration,
+
+    ρ (Σ_k a_k u^{n+1−k}, v) + ρ (((u − w)·∇)u, v) + (2 μ D(u), D(v)) − (p, ∇·v) − (q, ∇·u)
+        − (f, v) − ⟨σ n, v⟩_natural [+ SUPG] = 0,
+
+one method per term, and turns each boundary condition (fsi/physics/fluid_boundaries.py) into
+its Dirichlet conditions and boundary terms. :class:`LumpedOutlet` is an outlet whose pressure
+comes from its flow rate through a lumped model (fsi/physics/outlets.py).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+from petsc4py import PETSc
+
+import dolfinx
+import dolfinx.fem
+import dolfinx.fem.petsc
+import numpy as np
+import ufl
+
+from fsi import config
+from fsi.physics import outlets, rheology
+from fsi.physics.fluid_boundaries import (
+    Inflow,
+    NoSlip,
+    Outflow,
+    Slip,
+    Traction,
+    Velocity,
+    boundary_points,
+    facets_of,
+    inflow_ramp,
+    inlet_pressure,
+    parabolic_profile,
+)
+
+if TYPE_CHECKING:
+    from fsi.physics.fluid import FluidSolver
+
+BodyForce = Callable[[ufl.core.expr.Expr, dolfinx.fem.Constant], ufl.core.expr.Expr]
+"""``f(x, t)``: a UFL vector (N/m³) of the spatial coordinate and the time."""
+
+NITSCHE_PENALTY = 100.0
+"""γ of the Nitsche term γ μ/h (u·n)(v·n) on slip walls; ≳ 10 (k + 1)² for P2 keeps it coercive."""
+
+
+# --------------------------------------------------------------------------------------------
+# Lumped outlets: a pressure from the outlet's flow rate (fsi/physics/outlets.py)
+
+
+class LumpedOutlet:
+    """An :class:`Outflow` whose pressure P comes from a lumped model (resistance, RCR
+    Windkessel): σ n = −P n with, within a step, P = P₀' + R' Q (the model's
+    :meth:`~fsi.physics.outlets.OutletModel.pressure_law`) and Q = ∫_Γ u·n ds the step's own flow
+    rate.
+
+    Q is linear in the unknowns, Q = b · U with b_i = ∫_Γ φ_i·n ds, so the residual's term
+    ∫_Γ P n·v ds has the Jacobian R' b bᵀ: the solver's nonlinear problem (fsi/physics/fluid.py)
+    sets P from each Newton iterate (:meth:`update`) and adds that rank-one block, dense among
+    the outlet's dofs, to each Jacobian (:meth:`add_to_jacobian`). Newton stays Newton, and
+    P = P₀' + R' Q holds at the converged solution to the solver's tolerance, however large R'
+    is. The model's state (the Windkessel's P_c^n, P_c^{n−1}) advances with the accepted step's
+    Q (:meth:`advance`).
+    """
+
+    def __init__(self, model: outlets.OutletModel, tags: Sequence[int], W, ds_outlet, normal):
+        self.model, self.tags = model, tuple(tags)
+        self.state = model.initial_state()
+        self.pressure = dolfinx.fem.Constant(W.mesh, PETSc.ScalarType(0.0))
+        self.flow_rate = 0.0
+        self._law = (0.0, 0.0)  # (P₀', R') of the step being solved
+        v, _ = ufl.TestFunctions(W)
+        self._flux = dolfinx.fem.form(ufl.dot(v, normal) * ds_outlet)
+        self._b = dolfinx.fem.petsc.create_vector(self._flux)
+
+    def begin_step(self, weights: Sequence[float]) -> None:
+        """The step's law P = P₀' + R' Q, for the time weights (a₀, a₁, a₂) of the step."""
+        self._law = self.model.pressure_law(self.state, weights)
+
+    def update(self, x: PETSc.Vec) -> None:
+        """P = P₀' + R' Q at the iterate ``x`` (Q = b · x, b on the current mesh). Collective."""
+        with self._b.localForm() as local:
+            local.set(0.0)
+        dolfinx.fem.petsc.assemble_vector(self._b, self._flux)
+        self._b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        self.flow_rate = self._b.dot(x)
+        base, slope = self._law
+        self.pressure.value = base + slope * self.flow_rate
+
+    def add_to_jacobian(self, A: PETSc.Mat, bcs) -> None:
+        """A += R' b bᵀ, without the Dirichlet rows and columns. Collective."""
+        b = self._b.copy()
+        dolfinx.fem.petsc.set_bc(b, bcs, None, 0.0)  # b = 0 at Dirichlet dofs
+        owned = b.array
+        local = np.flatnonzero(owned)
+        rows = (local + b.getOwnershipRange()[0]).astype(PETSc.IntType)
+        values = owned[local]
+        comm = A.getComm().tompi4py()
+        columns = np.concatenate(comm.allgather(rows)).astype(PETSc.IntType)
+        column_values = np.concatenate(comm.allgather(values))
+        b.destroy()
+        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+        A.setValues(
+            rows,
+            columns,
+            self._law[1] * np.outer(values, column_values),
+            addv=PETSc.InsertMode.ADD_VALUES,
+        )
+        A.assemble()
+
+    def advance(self, weights: Sequence[float]) -> None:
+        """Accept the step: the model's state after a step with flow rate Q."""
+        self.state = self.model.advance(self.state, self.flow_rate, weights)
+
+    def values(self) -> dict[str, float]:
+        """``outlet_pressure`` P (Pa) at the last flow rate, and the model's state values."""
+        return {
+            "outlet_pressure": float(self.pressure.value),
+            **self.model.state_values(self.state),
+        }
+
+
+# --------------------------------------------------------------------------------------------
+# The pieces of the residual
+
+
+@dataclass(frozen=True)
+class _WeakForm:
+    """The symbols the residual's terms share: the unknowns (u, p) = split(U), the test
+    functions (v, q), the viscosity μ(s(u)), the BDF derivative ∂u/∂t, the measures (with the
+    configured quadrature degree), the coordinate x, the outward normal n, the cell diameter h."""
+
+    u: ufl.core.expr.Expr
+    p: ufl.core.expr.Expr
+    v: ufl.core.expr.Expr
+    q: ufl.core.expr.Expr
+    mu: ufl.core.expr.Expr
+    dudt: ufl.core.expr.Expr
+    dx: ufl.Measure
+    ds: ufl.Measure
+    x: ufl.core.expr.Expr
+    n: ufl.core.expr.Expr
+    h: ufl.core.expr.Expr
+
+    def ds_of(self, tags: Sequence[int]) -> ufl.Measure:
+        """The boundary measure over the facets of ``tags``."""
+        return sum((self.ds(t) for t in tags[1:]), self.ds(tags[0]))
+
+
+_NORMAL_FLOW, _PRESCRIBED, _WALL = 0, 1, 2
+"""The precedence of Dirichlet conditions: they are applied in this order, so at a dof two of
+them share (a corner) the later one wins: walls over inlets and the interface, both over the
+normal-flow condition u·t = 0."""
+
+
+@dataclass
+class _Contribution:
+    """What one boundary condition adds to the problem: residual terms (forms added to F) and
+    Dirichlet conditions, each with its precedence."""
+
+    terms: list = field(default_factory=list)
+    dirichlet: list = field(default_factory=list)
+
+
+# --------------------------------------------------------------------------------------------
+# The residual
+
+
+class FluidResidual:
+    """The residual F((u, p); (v, q)) of a :class:`FluidSolver`, the module docstring's weak
+    form as a sum of named terms (:meth:`_residual`), and what the boundary conditions add:
+    Dirichlet conditions (:attr:`bcs`), time-dependent boundary data (:attr:`updates`, each
+    called with the time of a step before it is solved) and lumped outlets (:attr:`lumped`).
+
+    It uses the solver's spaces, functions and constants (the unknown U, u^n, u^{n−1}, the
+    boundary and mesh velocities, the BDF weights a_k, ρ and t), and is not kept after the
+    solver has taken :attr:`form` and the three lists."""
+
+    def __init__(self, solver: FluidSolver, body_force: BodyForce | None):
+        s = solver
+        self.mesh, self.facet_tags, self.comm = s.mesh, s.facet_tags, s.comm
+        self.config, self.scheme, self.law = s.config, s.scheme, s.law
+        self.boundaries = s.boundaries
+        self.W, self.V, self.U, self.u_n, self.u_nm1 = s.W, s.V, s.U, s.u_n, s.u_nm1
+        self.boundary_velocity, self.ale = s.boundary_velocity, s.ale
+        self.t, self._a, self._rho = s.t, s._a, s._rho  # the solver's constants
+        self.bcs: list = []
+        self.updates: list[Callable[[float], None]] = []
+        self.lumped: list[LumpedOutlet] = []
+        self.form = self._residual(body_force)
+
+    def _dirichlet(self, value: dolfinx.fem.Function, tags: Sequence[int]):
+        fdim = self.mesh.topology.dim - 1
+        dofs = dolfinx.fem.locate_dofs_topological(
+            (self.W.sub(0), self.V), fdim, facets_of(self.facet_tags, tags)
+        )
+        return dolfinx.fem.dirichletbc(value, dofs, self.W.sub(0))
+
+    # ---- the residual, term by term (the module docstring's weak form)
+
+    def _residual(self, body_force: BodyForce | None) -> ufl.Form:
+        """F((u, p); (v, q)) of the module docstring, one named term per line of it:
+
+            inertia + convection (ALE) + viscous stress − pressure − continuity − body force
+            + SUPG + the boundary terms of each condition (:attr:`BOUNDARY_KINDS`),
+
+        and the Dirichlet conditions of the boundaries (in ``self.bcs``, ordered by
+        :data:`_Contribution` precedence: later ones win at shared corner dofs)."""
+        s = self._weak_form()
+        F = (
+            self._inertia(s)
+            + self._convection(s)
+            + self._viscous_stress(s)
+            - self._pressure(s)
+            - self._continuity(s)
+        ) * s.dx
+        if body_force is not None:
+            F -= self._body_force(s, body_force) * s.dx
+        if self.config.supg:
+            F += self._supg(s, body_force) * s.dx
+        dirichlet = []
+        for bc in self.boundaries:
+            kind = self.BOUNDARY_KINDS.get(type(bc))
+            if kind is None:
+                raise TypeError(f"unknown boundary condition {bc!r}")
+            contribution = kind(self, bc, s)
+            for term in contribution.terms:
+                F += term
+            dirichlet += contribution.dirichlet
+        # A stable sort: normal flow first, then prescribed velocities, walls last.
+        self.bcs.extend(bc for _, bc in sorted(dirichlet, key=lambda pair: pair[0]))
+        return F
+
+    def _weak_form(self) -> _WeakForm:
+        mesh, cfg = self.mesh, self.config
+        metadata = {"quadrature_degree": cfg.quadrature_degree}
+        u, p = ufl.split(self.U)
+        v, q = ufl.TestFunctions(self.W)
+        a0, a1, a2 = self._a
+        return _WeakForm(
+            u=u,
+            p=p,
+            v=v,
+            q=q,
+            mu=self.law.mu(rheology.shear_rate(u)),
+            dudt=a0 * u + a1 * self.u_n + a2 * self.u_nm1,
+            dx=ufl.Measure("dx", domain=mesh, metadata=metadata),
+            ds=ufl.Measure("ds", domain=mesh, subdomain_data=self.facet_tags, metadata=metadata),
+            x=ufl.SpatialCoordinate(mesh),
+            n=ufl.FacetNormal(mesh),
+            h=ufl.CellDiameter(mesh),
+        )
+
+    def _inertia(self, s: _WeakForm):
+        """ρ (Σ_k a_k u^{n+1−k}) · v: the BDF derivative at fixed reference position X."""
+        return self._rho * ufl.dot(s.dudt, s.v)
+
+    def _convection(self, s: _WeakForm):
+        """ρ ((u − w)·∇)u · v: convection relative to the mesh velocity w (ALE)."""
+        return self._rho * ufl.dot(ufl.grad(s.u) * (s.u - self.ale.w), s.v)
+
+    def _viscous_stress(self, s: _WeakForm):
+        """2 μ(s(u)) D(u) : D(v), the viscous part of σ(u, p) : ∇v (rheology.cauchy_stress)."""
+        D = rheology.strain_rate
+        return 2 * s.mu * ufl.inner(D(s.u), D(s.v))
+
+    def _pressure(self, s: _WeakForm):
+        """p ∇·v, the pressure part of σ(u, p) : ∇v (subtracted)."""
+        return s.p * ufl.div(s.v)
+
+    def _continuity(self, s: _WeakForm):
+        """q ∇·u (subtracted: the symmetric saddle-point form)."""
+        return s.q * ufl.div(s.u)
+
+    def _body_force(self, s: _WeakForm, body_force: BodyForce):
+        """f(x, t) · v (subtracted)."""
+        return ufl.dot(body_force(s.x, self.t), s.v)
+
+    # ---- boundary terms: one function per kind of condition (BOUNDARY_KINDS)
+
+    def _no_slip(self, bc: NoSlip, s: _WeakForm) -> _Contribution:
+        """u = 0, applied last so that walls win at the corners they share."""
+        zero = dolfinx.fem.Function(self.V)
+        return _Contribution(dirichlet=[(_WALL, self._dirichlet(zero, bc.tags))])
+
+    def _velocity(self, bc: Velocity, s: _WeakForm) -> _Contribution:
+        """u = :attr:`boundary_velocity` (the coupler's ∂η/∂t on the interface)."""
+        return _Contribution(
+            dirichlet=[(_PRESCRIBED, self._dirichlet(self.boundary_velocity, bc.tags))]
+        )
+
+    def _inflow(self, bc: Inflow, s: _WeakForm) -> _Contribution:
+        """A parabolic velocity inlet (Dirichlet), or a traction inlet: σ n = −P(t) n as an
+        open boundary (:meth:`_open_boundary`), its inflow energy term, and u·t = 0 with
+        ``normal_flow`` (first, so that walls and the interface win at the corners)."""
+        if isinstance(bc.spec, config.ParabolicInflow):
+            return _Contribution(dirichlet=[(_PRESCRIBED, self._parabolic_inflow(bc))])
+        pressure = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(0.0))
+        law = inlet_pressure(bc.spec)
+        self.updates.append(lambda t, c=pressure, law=law: c.value.fill(law(t)))
+        terms = [
+            *self._open_boundary(s, pressure, bc.tags),
+            self._inflow_energy_balance(s, bc.inflow_stabilization, bc.tags),
+        ]
+        dirichlet = [(_NORMAL_FLOW, self._normal_flow(bc.tags))] if self.config.normal_flow else []
+        return _Contribution(terms, dirichlet)
+
+    def _outflow(self, bc: Outflow, s: _WeakForm) -> _Contribution:
+        """An outlet σ n = −P n (in the configured open-boundary form; P = 0 traction-free, or
+        a lumped model's pressure, :class:`LumpedOutlet`) with the backflow energy term."""
+        pressure = None
+        if bc.model is not None:
+            outlet = LumpedOutlet(bc.model, bc.tags, self.W, s.ds_of(bc.tags), s.n)
+            self.lumped.append(outlet)
+            pressure = outlet.pressure
+        return _Contribution(
+            [
+                *self._open_boundary(s, pressure, bc.tags),
+                self._inflow_energy_balance(s, bc.backflow_stabilization, bc.tags),
+            ]
+        )
+
+    def _slip(self, bc: Slip, s: _WeakForm) -> _Contribution:
+        """u·n = 0 by Nitsche's method (consistency, symmetry and penalty γ μ/h terms) and the
+        tangential part of the prescribed traction g."""
+        u, v, n = s.u, s.v, s.n
+        sigma = rheology.cauchy_stress(u, s.p, self.law)
+        sigma_v = -s.q * ufl.Identity(len(u)) + 2 * s.mu * rheology.strain_rate(v)
+        un, vn = ufl.dot(u, n), ufl.dot(v, n)
+        terms = [
+            (
+                -ufl.dot(n, sigma * n) * vn
+                - ufl.dot(n, sigma_v * n) * un
+                + NITSCHE_PENALTY * s.mu / s.h * un * vn
+            )
+            * s.ds_of(bc.tags)
+        ]
+        if bc.traction is not None:
+            g = bc.traction(s.x, n, self.t)
+            terms.append(-(ufl.dot(g - ufl.dot(g, n) * n, v) * s.ds_of(bc.tags)))
+        return _Contribution(terms)
+
+    def _traction(self, bc: Traction, s: _WeakForm) -> _Contribution:
+        """σ n = g(x, n, t): −∫ g · v."""
+        return _Contribution([-(ufl.dot(bc.traction(s.x, s.n, self.t), s.v) * s.ds_of(bc.tags))])
+
+    BOUNDARY_KINDS: dict[type, Callable] = {
+        NoSlip: _no_slip,
+        Velocity: _velocity,
+        Inflow: _inflow,
+        Outflow: _outflow,
+        Slip: _slip,
+        Traction: _traction,
+    }
+    """The function that turns each kind of boundary condition into its residual terms and
+    Dirichlet conditions."""
+
+    def _open_boundary(self, s: _WeakForm, pressure, tags: Sequence[int]) -> list:
+        """−∫ σn·v with σn = −P n (P = 0 if ``pressure`` is None), plus −∫ μ (∇u)ᵀn·v in the
+        do-nothing form μ∇u n − p n = −P n."""
+        terms = [] if pressure is None else [pressure * ufl.dot(s.n, s.v) * s.ds_of(tags)]
+        if self.config.open_boundary == "do_nothing":
+            terms.append(-s.mu * ufl.dot(ufl.grad(s.u).T * s.n, s.v) * s.ds_of(tags))
+        return terms
+
+    def _inflow_energy_balance(self, s: _WeakForm, beta: float, tags: Sequence[int]):
+        """−β/2 ρ min(u·n, 0) u·v on an open boundary: balances the kinetic energy that inflow
+        (u·n < 0) carries into the domain (Bazilevs et al. 2009); 0 for β = 0."""
+        return -(
+            beta
+            / 2
+            * self._rho
+            * ufl.min_value(ufl.dot(s.u, s.n), 0.0)
+            * ufl.dot(s.u, s.v)
+            * s.ds_of(tags)
+        )
+
+    def _supg(self, s: _WeakForm, body_force: BodyForce | None):
+        """SUPG: τ ((u − w)·∇)v · R with the strong momentum residual
+
+            R = ρ (∂u/∂t + ((u − w)·∇)u) + ∇p − ∇·(2 μ(s) D(u)) − f
+
+        (zero for the exact solution: the method is consistent; P2 velocities make the viscous
+        term exact for Poiseuille flow, which stays a discrete solution) and
+        τ = ((2 a₀)² + (2|u − w|/h)² + (4 μ/(ρ h²))²)^(−1/2) (Tezduyar & Osawa 2000; a₀ the
+        BDF weight of u^{n+1}, 1/Δt for backward Euler, 0 when steady; u and μ of the last
+        accepted step, so that τ is a coefficient of the step, not a function of its unknown;
+        the residual R is the step's own). It adds the streamline
+        diffusion ≈ ρ|u − w|h/2 that the Galerkin form lacks where the cell Reynolds number is
+        large, in particular in the cells of an open inlet (docs/boundary-conditions.md)."""
+        rho, w, u, h = self._rho, self.ale.w, s.u, s.h
+        a = u - w
+        residual = (
+            rho * s.dudt
+            + rho * ufl.grad(u) * a
+            + ufl.grad(s.p)
+            - ufl.div(2 * s.mu * rheology.strain_rate(u))
+        )
+        if body_force is not None:
+            residual -= body_force(s.x, self.t)
+        a_n = self.u_n - w
+        mu_n = self.law.mu(rheology.shear_rate(self.u_n))
+        speed = ufl.sqrt(ufl.dot(a_n, a_n))
+        tau = (
+            (2 * self._a[0]) ** 2 + (2 * speed / h) ** 2 + (4 * mu_n / (rho * h**2)) ** 2
+        ) ** -0.5
+        return tau * ufl.dot(ufl.grad(s.v) * a, residual)
+
+    # ---- Dirichlet conditions
+
+    def _normal_flow(self, tags: Sequence[int]):
+        """u·t = 0 on the open boundary ``tags``, which must be a straight segment parallel to a
+        coordinate axis (every inlet and outlet of the shipped geometries): the velocity
+        component along it is 0, the normal one stays free."""
+        points = boundary_points(self.mesh, self.facet_tags, tags, self.comm)
+        extent = points.max(axis=0) - points.min(axis=0)
+        normal_axis = int(np.argmin(extent))
+        if extent[normal_axis] > 1e-9 * extent.max():
+            raise ValueError(
+                f"fluid.normal_flow needs straight open boundaries parallel to an "
+                f"axis; boundary {list(tags)} spans {extent[0]:g} x {extent[1]:g} m"
+            )
+        component = self.W.sub(0).sub(1 - normal_axis)
+        dofs = dolfinx.fem.locate_dofs_topological(
+            component, self.mesh.topology.dim - 1, facets_of(self.facet_tags, tags)
+        )
+        zero = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(0.0))
+        return dolfinx.fem.dirichletbc(zero, dofs, component)
+
+    def _parabolic_inflow(self, bc: Inflow):
+        """u = ramp(t) 1.5 Ū 4 s (H − s)/H² (−n) on a straight inlet of width H."""
+        spec: config.ParabolicInflow = bc.spec
+        points = boundary_points(self.mesh, self.facet_tags, bc.tags, self.comm)
+        shape = dolfinx.fem.Function(self.V)
+        shape.interpolate(parabolic_profile(points, self.mesh, self.comm, spec.mean_velocity))
+        inflow = dolfinx.fem.Function(self.V, name="inflow")
+
+        ramped = self.scheme != "steady" and spec.ramp_time > 0
+
+        def update(t: float) -> None:  # no reference to self: no cycle for the GC to break
+            factor = inflow_ramp(t, spec.ramp_time) if ramped else 1.0
+            inflow.x.array[:] = factor * shape.x.array
+
+        self.updates.append(update)
+        return self._dirichlet(inflow, bc.tags)

@@ -1,0 +1,114 @@
+"""What only the tests need from the fluid and structure solvers: initial fields, the fluid's
+traction as a field, the structure's first Piola traction load, its interface velocity and its
+energies. Built on the solvers' public attributes and methods."""
+
+from __future__ import annotations
+
+import weakref
+from collections.abc import Sequence
+
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import dolfinx
+import dolfinx.fem
+import dolfinx.fem.petsc
+import numpy as np
+import ufl
+
+from fsi.physics.fluid import FluidSolver
+from fsi.physics.fluid_boundaries import Velocity, as_tags
+from fsi.physics.solid import SolidSolver
+
+# --------------------------------------------------------------------------------------------
+# The fluid
+
+
+def _copy_to_mixed(
+    U: dolfinx.fem.Function, source: dolfinx.fem.Function, source_to_U: np.ndarray
+) -> None:
+    owned = source_to_U >= 0
+    U.x.array[source_to_U[owned]] = source.x.array[owned]
+    U.x.scatter_forward()
+
+
+def initialize(solver: FluidSolver, u=None, p=None) -> None:
+    """Initial velocity (and pressure, a Newton initial guess) of ``solver``: Functions or
+    callables x ↦ values as for ``Function.interpolate``; u^n = u^{n−1} = u. Default: rest."""
+    V_to_W, Q_to_W = solver.mixed_dofs()
+    if u is not None:
+        solver.u.interpolate(u)
+        solver.velocity_history.start()
+        _copy_to_mixed(solver.U, solver.u, V_to_W)
+    if p is not None:
+        solver.p.interpolate(p)
+        _copy_to_mixed(solver.U, solver.p, Q_to_W)
+
+
+def traction(solver: FluidSolver, tags: Sequence[int] | None = None) -> dolfinx.fem.Function:
+    """The traction (Pa) the fluid exerts on ``tags`` (default: the :class:`Velocity`
+    boundaries) as a P2 field, nodal force / lumped boundary mass (f_i / ∫_Γ φ_i ds; exact for
+    a constant traction), 0 off the boundary."""
+    if tags is None:
+        tags = [t for bc in solver.boundaries if isinstance(bc, Velocity) for t in bc.tags]
+    tags = list(as_tags(tags))
+    mesh = solver.mesh
+    ds = ufl.Measure(
+        "ds", domain=mesh, subdomain_data=solver.facet_tags, metadata={"quadrature_degree": 2}
+    )
+    v = ufl.TestFunction(solver.V)
+    one = ufl.as_vector([1.0] * mesh.geometry.dim)
+    mass = dolfinx.fem.petsc.assemble_vector(
+        dolfinx.fem.form(
+            sum((ufl.dot(one, v) * ds(t) for t in tags[1:]), ufl.dot(one, v) * ds(tags[0]))
+        )
+    )
+    mass.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    field = dolfinx.fem.Function(solver.V, name="traction")
+    gdim = mesh.geometry.dim
+    nodal = solver.interface_force(tags)
+    values = field.x.array.reshape(-1, gdim)
+    values[nodal.dofs] = nodal.force / mass.array.reshape(-1, gdim)[nodal.dofs]
+    field.x.scatter_forward()
+    mass.destroy()
+    return field
+
+
+# --------------------------------------------------------------------------------------------
+# The structure
+
+
+def set_interface_traction(solver: SolidSolver, value: np.ndarray | dolfinx.fem.Function) -> None:
+    """The first Piola traction t₀ (Pa) at t_{n+1} on the interface: a Function on the
+    displacement space, or an interface vector (n, 2) of its values at the owned interface
+    dofs."""
+    if isinstance(value, dolfinx.fem.Function):
+        solver.traction.x.array[:] = value.x.array
+    else:
+        values = solver.traction.x.array.reshape(-1, solver.V.dofmap.index_map_bs)
+        values[solver.interface_dofs] = np.asarray(value).reshape(-1, values.shape[1])
+        solver.traction.x.scatter_forward()
+
+
+def interface_velocity(solver: SolidSolver) -> np.ndarray:
+    """η̇_{n+1} (m/s) of the last step at the owned interface dofs, (n, 2)."""
+    return solver.v.x.array.reshape(-1, 2)[solver.interface_dofs].copy()
+
+
+_energy_forms: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def energies(solver: SolidSolver) -> tuple[float, float]:
+    """Kinetic and stored energy of the committed state n, ``½∫ρ|η̇|²`` and ``∫W(F)`` (J/m)."""
+    if solver not in _energy_forms:
+        F = ufl.Identity(2) + ufl.grad(solver.eta_n)
+        dx = solver.residual.dx
+        _energy_forms[solver] = [
+            dolfinx.fem.form(0.5 * solver.rho * ufl.inner(solver.v_n, solver.v_n) * dx),
+            dolfinx.fem.form(solver.law.strain_energy(F) * dx),
+        ]
+    kinetic, stored = (
+        float(solver.comm.allreduce(dolfinx.fem.assemble_scalar(form), op=MPI.SUM))
+        for form in _energy_forms[solver]
+    )
+    return kinetic, stored
