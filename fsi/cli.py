@@ -247,6 +247,8 @@ class _WarningsOnly(logging.Filter):
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``fsi``'s entry point: parse ``argv`` (default: the command line), run the command and
+    return its exit status (the module docstring lists them)."""
     comm = MPI.COMM_WORLD
     _setup_logging(comm)
     try:

@@ -26,6 +26,8 @@ import numpy as np
 
 
 class Segment(Protocol):
+    """A stretch of the schedule: steps of ``dt`` (s) until time ``until`` (s)."""
+
     until: float
     dt: float
 

@@ -31,6 +31,8 @@ class ReportError(ValueError):
 
 @dataclass(frozen=True)
 class Run:
+    """A finished run folder: its resolved case, metrics rows (SI) and summary."""
+
     path: Path
     case: config.Case
     rows: list[dict[str, float]]
@@ -38,6 +40,7 @@ class Run:
 
     @property
     def label(self) -> str:
+        """The run's name in tables and legends: its folder, mode, rheology and mesh level."""
         c = self.case
         return f"{self.path.name} ({c.structure.mode}, {c.fluid.rheology.model}, {c.mesh.level})"
 

@@ -94,6 +94,7 @@ class FluidOutputs:
 
     @property
     def fields(self) -> list:
+        """The fluid's output fields: u, p, then the derived ones (:meth:`update`)."""
         return [self.solver.u, self.solver.p, *self.derived.fields]
 
     def update(self) -> dict:

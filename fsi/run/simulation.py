@@ -31,6 +31,8 @@ log = logging.getLogger("fsi")
 
 @dataclass
 class RunResult:
+    """A finished run: the steps this run took, its wall time (s) and its summary.json."""
+
     steps: int
     wall_time_s: float
     summary: dict

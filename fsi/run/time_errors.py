@@ -46,6 +46,7 @@ class TimeErrors:
 
     @property
     def columns(self) -> list[str]:
+        """The metrics column :data:`COLUMN`, or none without controlled fields."""
         return [COLUMN] if self.fields else []
 
     def _accept(self, t: float) -> None:
@@ -66,6 +67,7 @@ class TimeErrors:
         return {COLUMN: max(known) if known else ""}
 
     def layouts(self) -> dict[str, Layout]:
+        """The checkpoint layout of each field's recorded levels (:meth:`state`)."""
         return {f"time_error.{name}.values": layout for name, (_, layout) in self.fields.items()}
 
     def state(self) -> dict[str, np.ndarray]:
