@@ -247,6 +247,8 @@ class _WarningsOnly(logging.Filter):
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``fsi``'s entry point: parse ``argv`` (default: the command line), run the command and
+    return its exit status (the module docstring lists them)."""
     comm = MPI.COMM_WORLD
     _setup_logging(comm)
     try:
@@ -330,25 +332,58 @@ def _run(args: argparse.Namespace, case: config.Case) -> int:
 
 def run_case(request: RunRequest, case: config.Case) -> RunOutcome:
     """Run ``case`` as ``fsi run`` does (the same checks, messages, files and stops; SIGINT,
-    SIGTERM and SIGUSR1 stop it after the current step). Collective."""
-    from fsi.output import io, provenance
-    from fsi.run import checkpoint, simulation, stops
+    SIGTERM and SIGUSR1 stop it after the current step).
 
+    Args:
+        request: the command line's case file, ``--out``, ``--set``, ``--restart`` and
+            ``--overwrite``.
+        case: the resolved case.
+
+    Returns:
+        The exit status and, unless the run is done, why it ended. Collective.
+    """
     comm = MPI.COMM_WORLD
+    try:
+        restart = _checked_start(request, case, comm)
+    except _Refused as e:
+        return _refused(comm, str(e))
+    _warn_before_run(case, restart, comm)
+    return _run_checked(request, case, restart, comm)
+
+
+class _Refused(Exception):
+    """A run refused before any computation (its ``fsi: error:`` message)."""
+
+
+def _checked_start(request: RunRequest, case: config.Case, comm: MPI.Comm):
+    """The checks before any computation: the case is supported, ``--restart``'s checkpoint is
+    read (returned, or None without one) and ``--out`` may be written; :class:`_Refused` if
+    one fails."""
+    from fsi.output import io
+    from fsi.run import checkpoint, simulation
+
     reason = simulation.unsupported(case)
     if reason is not None:
-        return _refused(comm, f"{request.config}: {reason}")
+        raise _Refused(f"{request.config}: {reason}")
     restart = None
     try:
         if request.restart is not None:
             restart = checkpoint.read(request.restart, case, comm)
     except checkpoint.CheckpointError as e:
-        return _refused(comm, f"--restart: {e}")
+        raise _Refused(f"--restart: {e}") from e
     continuing = restart is not None and restart.continues(request.out)
     try:
         io.check_folder(comm, request.out, earlier_run=continuing or request.overwrite)
     except io.RunFolderError as e:
-        return _refused(comm, f"--out: {e}")
+        raise _Refused(f"--out: {e}") from e
+    return restart
+
+
+def _warn_before_run(case: config.Case, restart, comm: MPI.Comm) -> None:
+    """Log where a restart starts (and the mesh motion settings it changes), and warn of a
+    reference BLAS under MUMPS."""
+    from fsi.output import provenance
+
     if restart is not None:
         log.info("restarting from %s: step %d, t = %.6g s", restart.path, restart.step, restart.t)
         changed = restart.changed_mesh_motion(case) if case.structure.mode != "rigid" else []
@@ -363,13 +398,20 @@ def run_case(request: RunRequest, case: config.Case) -> RunOutcome:
             "fsi: warning: MUMPS runs on Debian's reference BLAS, its LU factorisations ~3.6x "
             "slower than on OpenBLAS (fine mesh); `make setup` installs libopenblas0-serial"
         )
+
+
+def _run_checked(request: RunRequest, case: config.Case, restart, comm: MPI.Comm) -> RunOutcome:
+    """The run itself, once checked, under :class:`_StopOnSignal`; its outcome."""
+    from fsi.output import io
+    from fsi.run import checkpoint, errors, simulation
+
     at_once = False  # a second interrupt: the ranks may be anywhere, no collective after it
     try:
         with _StopOnSignal() as stop:
             result = simulation.run(case, request.out, comm, restart, stop)
     except checkpoint.CheckpointError as e:
         return _refused(comm, f"--restart: {e}")
-    except stops.RunStopped as e:
+    except errors.RunStopped as e:
         return _stopped(request, e)
     except KeyboardInterrupt:  # a second interrupt: at once, without a checkpoint
         at_once = True
@@ -403,13 +445,13 @@ def _stopped(request: RunRequest, e: Exception) -> RunOutcome:
     """Say why a run stopped early and where its checkpoint is (rank 0: every rank has the
     same exception; also into DIR/run.log); return the exit status and why, in one line."""
     from fsi.output import io
-    from fsi.run import stops
+    from fsi.run import errors
 
-    if isinstance(e, stops.Interrupted):
+    if isinstance(e, errors.Interrupted):
         status = 128 + e.signal
         reason = f"stopped by signal {e.signal} ({signal.Signals(e.signal).name})"
         lines = [f"fsi: {reason}."]
-    elif isinstance(e, stops.OutputFailed):
+    elif isinstance(e, errors.OutputFailed):
         status = EXIT_OUTPUT_FAILED
         reason = f"cannot write the run's files: {e}"
         lines = [f"fsi: {reason}"]

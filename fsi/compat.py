@@ -77,18 +77,6 @@ def write_meshtags(xdmf: dolfinx.io.XDMFFile, mesh, tags) -> None:
         xdmf.write_meshtags(tags, mesh.geometry)
 
 
-def read_mesh_with_tags(comm: MPI.Comm, path: str):
-    """Read ``mesh.xdmf`` as written by :func:`fsi.physics.mesh.write`: the mesh, cell and facet
-    tags."""
-    with dolfinx.io.XDMFFile(comm, path, "r") as xdmf:
-        mesh = xdmf.read_mesh(name="mesh")
-        tdim = mesh.topology.dim
-        cell_tags = xdmf.read_meshtags(mesh, name="cell_tags")
-        mesh.topology.create_connectivity(tdim - 1, tdim)
-        facet_tags = xdmf.read_meshtags(mesh, name="facet_tags")
-    return mesh, cell_tags, facet_tags
-
-
 # --------------------------------------------------------------------------------------------
 # Dof layouts and PETSc vectors
 

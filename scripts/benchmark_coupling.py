@@ -66,7 +66,7 @@ from benchmarking import (  # noqa: E402 (this folder, on the path of a script r
 
 from fsi import config  # noqa: E402
 from fsi.numerics.timestepping import steps  # noqa: E402
-from fsi.run import steppers, stops  # noqa: E402
+from fsi.run import errors, steppers  # noqa: E402
 
 CASE = Path(__file__).resolve().parents[1] / "configs" / "stenosis_moving_carreau.yaml"
 
@@ -101,7 +101,7 @@ def _run(case: config.Case, comm: MPI.Comm) -> dict:
         tic, cpu_tic = time.perf_counter(), time.process_time()
         try:
             rows.append(stepper.step(step))
-        except stops.StepFailed as e:
+        except errors.StepFailed as e:
             failure = f"step {step.index}: {str(e).splitlines()[0][:200]}"
             break
         times.append(comm.allreduce(time.perf_counter() - tic, op=MPI.MAX))

@@ -98,7 +98,7 @@ def worker(args: argparse.Namespace) -> int:
 
     from fsi import config
     from fsi.output import io
-    from fsi.run import outputs, simulation, steppers, stops
+    from fsi.run import errors, outputs, simulation, steppers
 
     comm = MPI.COMM_WORLD
     logging.disable(logging.WARNING)
@@ -132,7 +132,7 @@ def worker(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     try:
         simulation.march(case, out, comm, stepper, start)
-    except stops.RunStopped as e:
+    except errors.RunStopped as e:
         failure = str(e).splitlines()[0][:200]
     rows = io.read_metrics(out / "metrics.csv") if comm.rank == 0 else []
     if comm.rank == 0:

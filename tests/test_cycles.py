@@ -26,7 +26,7 @@ from fsi.config.run_size import count_steps
 from fsi.numerics.timestepping import steps
 from fsi.output import report
 from fsi.physics import fluid_boundaries, mesh
-from fsi.run import simulation, steppers, stops
+from fsi.run import errors, simulation, steppers
 from geometry.tags import Region
 
 CHANNEL = "configs/channel_poiseuille.yaml"
@@ -107,7 +107,7 @@ def runs():
         return 10 if len(polls) == 6 else None
 
     case = config.load(CHANNEL, cycles_set(path, steady=False))
-    with pytest.raises(stops.Interrupted) as stop:
+    with pytest.raises(errors.Interrupted) as stop:
         simulation.run(case, folders["split"], comm, stop_requested=stop_after_step_6)
     stopped = read_csv(folders["split"] / "wall_indices.csv")[1]
     codes.append(

@@ -20,7 +20,7 @@ import pytest
 
 from fsi import cli, config
 from fsi.output import io
-from fsi.run import simulation, stops
+from fsi.run import errors, simulation
 
 ROOT = Path(__file__).resolve().parents[1]
 CHANNEL = str(ROOT / "configs/channel_poiseuille.yaml")
@@ -319,7 +319,7 @@ def test_an_inlet_formula_failing_mid_run_fails_the_step_with_a_checkpoint(share
     inlet = config.InletPressure(formula="1/(t - 0.003) * 0 + 1")
     case = dataclasses.replace(case, fluid=dataclasses.replace(case.fluid, inlet=inlet))
     out = shared_tmp / "run"
-    with pytest.raises(stops.StepFailed, match=r"step 3 .*fluid\.inlet: .*t = 0\.003") as failed:
+    with pytest.raises(errors.StepFailed, match=r"step 3 .*fluid\.inlet: .*t = 0\.003") as failed:
         simulation.run(case, out, MPI.COMM_WORLD)
     assert (failed.value.step, failed.value.checkpoint) == (2, out / "checkpoint")
     assert metrics_steps(out) == [1, 2]

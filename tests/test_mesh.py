@@ -6,9 +6,10 @@ from mpi4py import MPI
 
 import numpy as np
 import pytest
+import support_run
 from mesh_checks import boundary_vertices
 
-from fsi import cli, compat, config
+from fsi import cli, config
 from fsi.config import reader
 from fsi.physics import mesh
 from geometry import stenosis
@@ -140,7 +141,9 @@ def test_fsi_mesh_writes_xdmf_and_json(shared_tmp, coarse):
     assert summary["cells"] == coarse[2]["cells"]
 
     # The XDMF file reads back with the same tags.
-    msh, cell_tags, facet_tags = compat.read_mesh_with_tags(MPI.COMM_WORLD, str(out / "mesh.xdmf"))
+    msh, cell_tags, facet_tags = support_run.read_mesh_with_tags(
+        MPI.COMM_WORLD, str(out / "mesh.xdmf")
+    )
     n_cells = msh.topology.index_map(2).size_local
     owned = cell_tags.indices < n_cells
     fluid = MPI.COMM_WORLD.allreduce(int(np.count_nonzero(cell_tags.values[owned] == Region.FLUID)))

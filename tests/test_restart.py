@@ -35,7 +35,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from fsi import cli, config
-from fsi.run import checkpoint, simulation
+from fsi.run import checkpoint, simulation, state_arrays
 
 RIGID = "configs/stenosis_fixed_newtonian.yaml"
 COUPLED = "configs/stenosis_moving_newtonian.yaml"
@@ -683,7 +683,7 @@ def test_a_checkpoint_is_replaced_atomically(shared_tmp):
         )
     comm.barrier()
     # One row per rank, keyed by the rank: after reading, each rank finds its own value.
-    layouts = {"x": checkpoint.Layout("ranks", np.array([[float(comm.rank)]]), 1, 1)}
+    layouts = {"x": state_arrays.Layout("ranks", np.array([[float(comm.rank)]]), 1, 1)}
 
     def save(step: int) -> None:
         checkpoint.write(
@@ -739,11 +739,13 @@ def test_state_dataclasses_round_trip_through_arrays():
     from fsi.physics.fluid import FluidState
 
     s = FluidState(0.25, None, 3, *(np.arange(4.0) + i for i in range(7)), True)
-    back = checkpoint.from_arrays(FluidState, "fluid.", checkpoint.to_arrays("fluid.", s))
+    back = state_arrays.from_arrays(FluidState, "fluid.", state_arrays.to_arrays("fluid.", s))
     assert back.dt_previous is None and back.time == 0.25 and back.accepted_steps == 3
     assert back.mesh_velocity_given is True and np.array_equal(back.w, s.w)
     s2 = FluidState(0.5, 1e-3, 4, *(np.arange(4.0) for _ in range(7)), False)
-    assert checkpoint.from_arrays(FluidState, "", checkpoint.to_arrays("", s2)).dt_previous == 1e-3
+    assert (
+        state_arrays.from_arrays(FluidState, "", state_arrays.to_arrays("", s2)).dt_previous == 1e-3
+    )
 
 
 @pytest.mark.parametrize("acceleration", ["aitken", "iqn-ils"])
@@ -782,8 +784,8 @@ def test_coupling_memory_carries_over_through_its_arrays(acceleration):
     saved = {**acc.state(), **{f"p.{k}": v for k, v in predictor.state().items()}}
     again, fresh = build(), build()
     again[0].load_state(saved)
-    again[1].load_state(checkpoint.subset("p.", saved))
-    fresh[1].load_state(checkpoint.subset("p.", saved))
+    again[1].load_state(state_arrays.subset("p.", saved))
+    fresh[1].load_state(state_arrays.subset("p.", saved))
     expected, repeated, without = (step(*pair, 0.3) for pair in ((acc, predictor), again, fresh))
     assert len(expected) == len(repeated) and all(
         np.array_equal(a, b) for a, b in zip(expected, repeated)

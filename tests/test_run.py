@@ -12,7 +12,7 @@ import pytest
 import fsi
 from fsi import cli, config
 from fsi.output import io, provenance
-from fsi.run import simulation, stops
+from fsi.run import errors, simulation
 
 SHORT = ["structure.mode=rigid", "time.end=0.004", "time.schedule=[{until: 0.004, dt: 0.001}]"]
 CASE = "configs/stenosis_fixed_newtonian.yaml"
@@ -173,7 +173,7 @@ class HalfStepOnly:
     def step(self, step):
         if step.dt > self.limit * (1 + 1e-12):
             self.t = float("nan")  # a failed solve leaves garbage behind
-            raise stops.StepFailed(f"dt = {step.dt} is too long")
+            raise errors.StepFailed(f"dt = {step.dt} is too long")
         assert step.t - step.dt == pytest.approx(self.t)  # continues from where it is
         self.t = step.t
         self.taken.append(step.dt)
@@ -197,10 +197,10 @@ def test_a_failed_step_is_retried_as_halves_from_the_state_before_it():
     assert [(s.index, s.dt) for s in retried] == [(3, 0.4), (3, 0.2), (3, 0.2)]
     # One retry is not enough: the failure is raised (march then checkpoints the state before).
     stepper = HalfStepOnly(limit=0.1)
-    with pytest.raises(stops.StepFailed, match="too long"):
+    with pytest.raises(errors.StepFailed, match="too long"):
         simulation.advance(stepper, Step(1, 0.4, 0.4), stepper.state(), 1, [])
     # No retries: the first failure ends it, as before time.retries existed.
-    with pytest.raises(stops.StepFailed):
+    with pytest.raises(errors.StepFailed):
         simulation.advance(HalfStepOnly(0.1), Step(1, 0.2, 0.2), {"t": np.array(0.0)}, 0, [])
 
 

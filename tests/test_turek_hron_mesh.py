@@ -7,9 +7,10 @@ from mpi4py import MPI
 
 import numpy as np
 import pytest
+import support_run
 from mesh_checks import boundary_vertices
 
-from fsi import cli, compat, config
+from fsi import cli, config
 from fsi.config import reader
 from fsi.physics import mesh
 from geometry import turek_hron
@@ -209,6 +210,6 @@ def test_fsi_mesh_writes_the_benchmark_mesh(shared_tmp, coarse):
     assert summary["cells"] == coarse[2]["cells"]
     assert summary["facets"] == coarse[2]["facets"]
     assert summary["measures"]["point_a_distance_m"] == 0.0
-    msh, _, facet_tags = compat.read_mesh_with_tags(MPI.COMM_WORLD, str(out / "mesh.xdmf"))
+    msh, _, facet_tags = support_run.read_mesh_with_tags(MPI.COMM_WORLD, str(out / "mesh.xdmf"))
     tags = set(np.unique(np.concatenate(MPI.COMM_WORLD.allgather(facet_tags.values))))
     assert tags == {int(b) for b in TH_BOUNDARIES}

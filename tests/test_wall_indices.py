@@ -1,5 +1,5 @@
 """The hemodynamic indices TAWSS, OSI and RRT (fsi.output.metrics.WallIndices, accumulated in-run by
-fsi.run.steppers.FluidOutputs; docs/hemodynamic-indices.md).
+fsi.output.wall_outputs.FluidOutputs; docs/hemodynamic-indices.md).
 
 The accumulator against known answers on synthetic τ(t) (constant, sinusoidal over whole
 periods, with uniform and non-uniform steps); ``fsi run`` on the straight channel against the
@@ -25,8 +25,8 @@ from scipy.spatial import cKDTree
 
 from fsi import cli, config
 from fsi.numerics.timestepping import steps
-from fsi.output import io, metrics
-from fsi.run import simulation, steppers, stops
+from fsi.output import io, metrics, wall_outputs
+from fsi.run import errors, simulation, steppers
 from geometry.tags import Boundary
 
 CHANNEL = "configs/channel_poiseuille.yaml"
@@ -300,7 +300,7 @@ def channel_runs():
         return 10 if len(polls) == 2 else None
 
     case = config.load(CHANNEL, [*RESTART_SET, "time.end=0.004"])
-    with pytest.raises(stops.Interrupted) as stop:
+    with pytest.raises(errors.Interrupted) as stop:
         simulation.run(case, stopped, comm, stop_requested=stop_after_step_2)
     yield {
         "codes": codes,
@@ -399,7 +399,7 @@ def test_moving_wall_samples_keep_their_reference_coordinates(shared_tmp):
     state = stepper.state()
     assert np.array_equal(state["wall_indices.points"], reference)
     assert state["wall_indices.window"].tolist() == [0.001, 0.001]
-    steppers.FluidOutputs.write_indices(shared_tmp, comm, state)
+    wall_outputs.FluidOutputs.write_indices(shared_tmp, comm, state)
     _, rows = read_indices(shared_tmp)
     written = np.column_stack([column(rows, "x"), column(rows, "y")])
     everywhere = np.concatenate(comm.allgather(reference))

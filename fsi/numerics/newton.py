@@ -1,44 +1,26 @@
-"""Newton callbacks with an optionally reused Jacobian (modified Newton) for dolfinx's
-NewtonSolver, shared by the fluid and the solid.
+"""Newton solves for the fluid and the solid: dolfinx's NewtonSolver with its PETSc options scoped
+to one solver (:func:`petsc_options`), failures returned rather than raised (:class:`Newton`),
+and an optionally reused Jacobian (modified Newton, :class:`NewtonCallbacks`).
 
 Newton's iteration for ``F(x) = 0`` is ``x_{k+1} = x_k − J̃⁻¹ F(x_k)``. With reuse ``none``
-``J̃ = J(x_k)`` at every iteration (Newton). Otherwise ``J̃`` is the Jacobian assembled last — at
-an earlier iterate or coupling iteration of the step (reuse ``step``), or also of an earlier
-step (reuse ``run``) — for as long as it still contracts the residual: it is assembled anew at
-``x_k`` when
+``J̃ = J(x_k)``. With ``step`` (``run``) ``J̃`` is the Jacobian assembled last in the step (also
+in an earlier step), its LU factorisation kept, for as long as it contracts the residual: it is
+assembled anew at ``x_k`` when
 
-    |F(x_k)| > max_rate · |F(x_{k−1})|      (the last iteration did not reduce F enough),
+    |F(x_k)| > max_rate · |F(x_{k−1})|,
 
-when there is none yet, and (reuse ``step``) at the first iteration of every time step. A matrix
-that is not re-assembled keeps its PETSc object state, so the linear solver's ``PCSetUp`` keeps
-its LU factorisation: a reused iteration costs one residual assembly and one pair of triangular
-solves instead of an assembly, a factorisation and the solves.
+when there is none yet, and (``step``) at the first iteration of every time step. The answer
+does not change: the solver's own test decides convergence, and a reused-Jacobian solve that
+fails is repeated from the same guess with a fresh Jacobian at every iteration. With ``step`` a
+restart from a checkpoint repeats the run's arithmetic; with ``run`` only from the checkpoints
+after which the kept Jacobian is dropped (:meth:`NewtonCallbacks.forget`, fsi/run/simulation.py).
 
-With ``step`` the path of a step depends only on the state at its start, so a run restarted
-from a checkpoint repeats the uninterrupted run's arithmetic. With ``run`` that holds for the
-checkpoints after which every run drops its kept Jacobian (:meth:`NewtonCallbacks.forget`;
-``fsi run`` does so at its periodic checkpoints, fsi/run/simulation.py); from any other state
-the restarted run starts with a fresh Jacobian where the uninterrupted one had an older one (the
-same answer to the solver's tolerance, not to the bit).
+A failed solve replaces the NewtonSolver by a new one: the solver carries the reference of its
+relative test (|δx_1|) from one solve to the next, and a failed solve can leave it infinite.
 
-A failed solve replaces dolfinx's NewtonSolver by a new one (:meth:`Newton.solve`, and before
-the retry of a failed reused-Jacobian solve): the solver keeps the reference of its relative test
-(|δx_1|, its ``residual0``) from one solve to the next, so a solve whose first increment was not
-finite (a failed factorisation: PETSc's failed preconditioner returns an infinite increment)
-left it infinite, and every later solve then passed the test at iteration 0 and returned its
-initial guess as converged.
-
-Only the path changes, not the answer: the solver's own stopping test (dolfinx's: |F(x_k)|, or
-the increment |δx_k|, below ``atol`` or below ``rtol`` times the first increment |δx_1|) decides
-convergence as with Newton's Jacobians. Should a solve with a reused Jacobian fail, it is
-repeated from the same initial guess with a fresh Jacobian at every iteration (plain Newton), so
-reuse never turns a solvable step into a failure.
-
-A solve may also be *forced* (:class:`Forcing`, inexact Newton's forcing term): it then stops as
-soon as |F(x_k)| <= max(atol, min(ceiling, eta |F(x_0)|)), its residual reduced by the factor eta
-from where it started but never stopped looser than ``ceiling``. The coupling uses it for the
-fluid solves after a step's first (fsi/coupled/partitioned.py): those start from the last
-iterate, so the usual test (relative to their own small first increment) over-solves them.
+A *forced* solve (:class:`Forcing`, inexact Newton) also stops once
+|F(x_k)| <= max(atol, min(ceiling, η |F(x_0)|)): the coupling's fluid solves after a step's
+first (fsi/coupled/partitioned.py), which start near the answer.
 """
 
 from __future__ import annotations
@@ -277,11 +259,18 @@ class Newton:
         step: Hashable = None,
         forcing: Forcing | None = None,
     ) -> SolveResult:
-        """Solve for ``u`` from its current value (collective). ``residual()`` gives the
-        residual norm after the solve; ``step`` identifies the time step for Jacobian reuse;
-        ``forcing`` (residual criterion only) also stops the solve at its :class:`Forcing`.
-        On failure (no convergence, a PETSc error, a non-finite residual or ``u``) ``u`` is
-        reset to its value before the solve and the result says why."""
+        """Solve for ``u`` from its current value. Collective.
+
+        Args:
+            u: the unknown, updated in place; on failure (no convergence, a PETSc error, a
+                non-finite residual or ``u``) reset to its value before the solve.
+            residual: gives the residual norm after the solve (F's units).
+            step: identifies the time step, for Jacobian reuse.
+            forcing: also stop at this :class:`Forcing` (residual criterion only).
+
+        Returns:
+            Converged or not, the iterations, the residual norm and why it failed.
+        """
         guess = u.x.array.copy()
         reason = ""
         atol = self.solver.atol

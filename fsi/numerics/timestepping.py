@@ -1,4 +1,4 @@
-"""Time schemes, kept apart from the physics (STYLE.md §3).
+"""Time schemes, kept apart from the physics.
 
 * :func:`steps` walks the configured step schedule (the study's 5 ms / 10 ms, or a resolved one).
 * :func:`bdf_weights` gives the variable-step backward-difference weights used by the fluid:
@@ -26,6 +26,8 @@ import numpy as np
 
 
 class Segment(Protocol):
+    """A stretch of the schedule: steps of ``dt`` (s) until time ``until`` (s)."""
+
     until: float
     dt: float
 

@@ -1,9 +1,9 @@
-"""Fluid metrics (MODEL.md §6): peaks, wall shear stress, recirculation, the hemodynamic indices
-TAWSS, OSI and RRT, forces, flow rates, mean boundary pressures, and the shear rate and
-effective viscosity as fields.
+"""Fluid metrics (docs/model.md, What the study reports): peaks, wall shear stress,
+recirculation, the hemodynamic indices TAWSS, OSI and RRT, flow rates, mean boundary pressures,
+and the shear rate, effective viscosity and wall shear stress as fields.
 
 Every function here is collective over the mesh's communicator and returns the same value on
-every rank (peaks, forces and flow rates are reduced, wall samples are gathered); the per-rank
+every rank (peaks and flow rates are reduced, wall samples are gathered); the per-rank
 exceptions say so (:meth:`WallSampler.local`, :class:`WallIndices` of a rank's samples).
 """
 
@@ -223,7 +223,8 @@ def lumen_sides(wss: WallShearStress) -> dict[str, WallShearStress]:
 
 def wall_shear_summary(wss: WallShearStress) -> dict[str, float]:
     """``min_wss``, ``max_wss`` (Pa) over the walls and ``recirculation_length`` (m), the
-    longest reversed-flow zone along either wall of the lumen (MODEL.md §6, Figure 9)."""
+    longest reversed-flow zone along either wall of the lumen (docs/model.md, What the study
+    reports)."""
     length = max(
         (
             recirculation_length(side.s, side.tau)
@@ -268,12 +269,6 @@ def recirculation_zones(s: np.ndarray, tau: np.ndarray) -> list[tuple[float, flo
 def recirculation_length(s: np.ndarray, tau: np.ndarray) -> float:
     """Length of the longest reversed-flow zone along the wall (0 if none)."""
     return max((b - a for a, b in recirculation_zones(s, tau)), default=0.0)
-
-
-def reattachment_point(s: np.ndarray, tau: np.ndarray) -> float | None:
-    """Where the longest reversed-flow zone ends (the flow reattaches), or None."""
-    zones = recirculation_zones(s, tau)
-    return max(zones, key=lambda z: z[1] - z[0])[1] if zones else None
 
 
 # --------------------------------------------------------------------------------------------
@@ -419,19 +414,6 @@ def boundary_measure(
     return sum((ds(t) for t in tags[1:]), ds(tags[0]))
 
 
-def surface_force(flow: WallFlow, quadrature_degree: int = 4) -> np.ndarray:
-    """(F_x, F_y) = ∫ σ n_b ds over ``flow.tags``, the force of the fluid on a body whose outward
-    normal n_b = −n points into the fluid (Turek–Hron's drag and lift, N/m). The residual-based
-    :meth:`fsi.physics.fluid.FluidSolver.boundary_force` is the more accurate variant."""
-    mesh, measure = flow.mesh, flow.measure(quadrature_degree)
-    traction = -flow.stress() * ufl.FacetNormal(mesh)
-    force = [
-        dolfinx.fem.assemble_scalar(dolfinx.fem.form(traction[i] * measure))
-        for i in range(mesh.geometry.dim)
-    ]
-    return mesh.comm.allreduce(np.array(force, dtype=float), op=MPI.SUM)
-
-
 # --------------------------------------------------------------------------------------------
 # Flow rates
 
@@ -506,28 +488,6 @@ class BoundaryMean:
 
 # --------------------------------------------------------------------------------------------
 # Fields for output
-
-
-def _field(expr, mesh, name: str, degree: int) -> dolfinx.fem.Function:
-    space = compat.function_space(mesh, "DG", degree)
-    f = dolfinx.fem.Function(space, name=name)
-    if isinstance(expr, ufl.constantvalue.ConstantValue):  # e.g. a Newtonian viscosity
-        f.x.array[:] = float(expr)
-    else:
-        f.interpolate(dolfinx.fem.Expression(expr, compat.interpolation_points(space)))
-    return f
-
-
-def shear_rate_field(u: dolfinx.fem.Function, degree: int = 1) -> dolfinx.fem.Function:
-    """s(u) = sqrt(2 D(u):D(u)) (1/s) interpolated into discontinuous P``degree``."""
-    return _field(rheology.shear_rate(u), u.function_space.mesh, "shear_rate", degree)
-
-
-def viscosity_field(
-    u: dolfinx.fem.Function, law: rheology.ViscosityLaw, degree: int = 1
-) -> dolfinx.fem.Function:
-    """The effective viscosity μ(s(u)) (Pa s) interpolated into discontinuous P``degree``."""
-    return _field(law.mu(rheology.shear_rate(u)), u.function_space.mesh, "viscosity", degree)
 
 
 class FluidFields:

@@ -7,8 +7,8 @@ Over the last full period ``[t_c[-2], t_c[-1]]`` of a signal y(t),
     frequency = 1 / (t_c[-1] − t_c[-2]),
 
 where the t_c are the signal's successive upward crossings of its mean level, interpolated
-linearly between samples (../shared/reference/turek_hron.md, "Periodic results"). Pure numpy:
-no MPI, no files; metrics tables come from :func:`fsi.output.io.read_metrics`.
+linearly between samples (the convention of the Turek–Hron reference values, docs/model.md).
+Pure numpy: no MPI, no files; metrics tables come from :func:`fsi.output.io.read_metrics`.
 
 Accuracy for a signal sampled every dt (the tests check these bounds):
 

@@ -1,35 +1,11 @@
-"""``fsi report``: the study's tables and plots from finished run folders (MODEL.md §6).
-
-Tables 1–3 are the peak velocity, pressure and displacement at the report times (the rows of
-``metrics.csv`` at those times); a fourth table gives each run's solver effort. The plots
-(:data:`FIGURES`) show, over time, every metric the tables report, the study's Figure 6
-(``max_sss``) in the whole structure and in the plaque (the maximum of ``max_sss_cap`` and
-``max_sss_lipid``), the fibrous cap's largest principal stress (``max_principal_cap``), the range
-of the wall shear stress (``min_wss`` to ``max_wss``, shaded), the recirculation length, the
-coupling iterations, the inlet and outlet flow rates and the inlet pressure P(t) of each run's
-configuration (one line per distinct waveform; velocity inlets have none). A run without a
-column (an older run folder, a structure-only run) is left out of that plot and shows '–' in
-the tables; a plot that no run has a line for is not written. Runs with heartbeats (a
-periodic inlet: summary.json's ``cycles``) get a table of their heartbeats
-(:func:`cycles_table`). ``report.md`` lists every PNG
-with a caption line. Reads only the files ``fsi run`` writes: ``config.yaml``, ``metrics.csv``,
-``summary.json``.
-
-Units (:func:`fsi.output.units.choose_unit`). ``metrics.csv`` holds SI units; each table and plot
-shows its quantity in one of a few units (:data:`fsi.output.units.UNITS`: stress and pressure Pa,
-kPa or MPa; displacement µm or mm; velocity cm/s or m/s; length mm; flow rate per unit depth cm²/s):
-the largest unit in which the largest magnitude shown is at least 1 (17 kPa, 300 Pa, 230 µm,
-1.5 mm, 30 cm/s), the smallest one when there is none. Tables keep 4 significant digits.
-
-Scales (:func:`choose_scale`). Each plot has one group of lines per run (per waveform for
-P(t)), and a group's magnitude is its largest |value|. The plot is
-
-- ``linear`` when the magnitudes lie within a factor :data:`MAGNITUDE_RATIO` (10) of each other
-  (or there is one group);
-- ``log`` (a logarithmic y-axis) when they differ more and every value is positive (the fixed
-  wall's ~300 Pa beside the moving wall's 17 kPa: both curves readable on one axis);
-- ``panels`` otherwise (some value ≤ 0, where a log axis cannot go: one panel per group, stacked
-  and sharing t, each with its own y-range).
+"""``fsi report``: the study's tables and plots (docs/model.md, What the study reports) from
+finished run folders, read from the files ``fsi run`` writes (``config.yaml``, ``metrics.csv``,
+``summary.json``). Tables 1–3 give the peak velocity, pressure and displacement at the report
+times, a fourth each run's solver effort, and runs with heartbeats a table of them
+(:func:`cycles_table`). The plots (:data:`FIGURES`) show the reported metrics over time in
+readable units (:func:`fsi.output.units.choose_unit`), on a linear or log axis or in panels
+(:func:`choose_scale`); a run without a column is left out of that plot and shows '–' in the
+tables. ``report.md`` lists every PNG with a caption line.
 """
 
 from __future__ import annotations
@@ -55,6 +31,8 @@ class ReportError(ValueError):
 
 @dataclass(frozen=True)
 class Run:
+    """A finished run folder: its resolved case, metrics rows (SI) and summary."""
+
     path: Path
     case: config.Case
     rows: list[dict[str, float]]
@@ -62,6 +40,7 @@ class Run:
 
     @property
     def label(self) -> str:
+        """The run's name in tables and legends: its folder, mode, rheology and mesh level."""
         c = self.case
         return f"{self.path.name} ({c.structure.mode}, {c.fluid.rheology.model}, {c.mesh.level})"
 
@@ -604,12 +583,6 @@ def _plot_group(ax, group: Group, factor: float) -> None:
             alpha=0.2,
             label=group.label,
         )
-
-
-def flow_rate_plot(runs: Sequence[Run], path: Path) -> bool:
-    """The inlet (solid) and outlet (dashed, same colour) flow rates per unit depth over time,
-    in cm²/s, as a PNG; False if no run has them."""
-    return draw(flow_rate_groups(runs), "flow rate", "flow_rate", path) is not None
 
 
 SCALE_NOTES = {

@@ -86,8 +86,9 @@ class Inflow:
 @dataclass(frozen=True)
 class Outflow:
     """An open outlet on ``tags``: σ n = −P n + β/2 ρ min(u·n, 0) u (in the ``open_boundary``
-    form), P = 0 (traction-free, the study's) or, with a lumped ``model`` (fsi/config/outlet_section.py:
-    resistance, RCR Windkessel), the model's pressure at the outlet's flow rate
+    form), P = 0 (traction-free, the study's) or, with a lumped ``model``
+    (fsi/config/outlet_section.py: resistance, RCR Windkessel), the model's pressure at the outlet's
+    flow rate
     (:class:`LumpedOutlet`); the β term removes the energy that backflow would carry in
     (Bazilevs et al. 2009)."""
 

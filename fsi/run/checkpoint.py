@@ -1,7 +1,7 @@
 """Checkpoints of ``fsi run``: the files. The state itself comes from the run's stepper
 (:meth:`fsi.run.steppers.Stepper.state`) as named numpy arrays of its local dofs, with a
-:class:`Layout` for each distributed array; this module writes, finds, reads and redistributes
-them, and opens nothing else.
+:class:`fsi.run.state_arrays.Layout` for each distributed array; this module writes, finds,
+reads and redistributes them, and opens nothing else.
 
 ``RUN_DIR/checkpoint/`` holds the latest complete checkpoint::
 
@@ -26,7 +26,6 @@ complete checkpoint (``checkpoint/``, else ``checkpoint.previous/``).
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import logging
 import math
@@ -45,9 +44,10 @@ import numpy as np
 import yaml
 
 import fsi
-from fsi import compat, config
+from fsi import config
 from fsi.config import reader
 from fsi.output import io
+from fsi.run.state_arrays import Layout, layout_of
 
 log = logging.getLogger("fsi")
 
@@ -60,7 +60,8 @@ predictor order, counters, adaptive steps' error levels); every other array of a
 stepper's state must be restored."""
 ADDED = ("wall_indices.",)
 """Groups of state arrays added after checkpoints were first written: a checkpoint without
-them still restarts (the stepper starts those from the restart; fsi.run.steppers.FluidOutputs)."""
+them still restarts (the stepper starts those from the restart;
+fsi.output.wall_outputs.FluidOutputs)."""
 MATCH_TOLERANCE = 1e-9
 """Keys match within this fraction of the extent of the stored keys (they are equal bit for bit
 when the mesh is the same; 1e-9 of a 2 cm artery is 20 pm, far below any mesh size)."""
@@ -72,105 +73,6 @@ class CheckpointError(Exception):
 
 def rank_file(rank: int) -> str:
     return f"rank{rank:04d}.npz"
-
-
-# --------------------------------------------------------------------------------------------
-# Layouts: where the rows of a distributed array live
-
-
-@dataclass(frozen=True)
-class Layout:
-    """The local rows of distributed arrays (a Function's values, or an interface vector):
-    ``points`` a key per local row (owned rows first; NaN for a ghost row on no local cell),
-    ``owned`` the number of owned rows, ``block`` the values per row. An array of this layout
-    has shape (rows · block, ...) (extra axes: e.g. columns of interface vectors)."""
-
-    name: str
-    points: np.ndarray
-    owned: int
-    block: int
-
-
-def space_layout(name: str, V) -> Layout:
-    """The layout of the values of a (blocked) Lagrange space: one row per node, keyed by the
-    node's coordinates. Call it while the mesh is in its reference configuration."""
-    gdim = V.mesh.geometry.dim
-    points = V.tabulate_dof_coordinates()[:, :gdim].copy()
-    used = np.zeros(len(points), dtype=bool)
-    used[np.unique(compat.cell_dofs(V))] = True
-    points[~used] = np.nan  # a submesh's orphan ghost (dolfinx 0.5): never read
-    return Layout(name, points, V.dofmap.index_map.size_local, V.dofmap.index_map_bs)
-
-
-def mixed_layout(name: str, W, parts: typing.Sequence[tuple[np.ndarray, Layout]]) -> Layout:
-    """The layout of a mixed space's values (one value per row), keyed by the node coordinates
-    and the component number over the parts: ``parts`` pairs each sub-space's layout with the
-    mixed dof behind each of its (unrolled) dofs (−1: none)."""
-    index_map = W.dofmap.index_map
-    size = (index_map.size_local + index_map.num_ghosts) * W.dofmap.index_map_bs
-    gdim = parts[0][1].points.shape[1]
-    points = np.full((size, gdim + 1), np.nan)
-    component = 0
-    for to_mixed, layout in parts:
-        for c in range(layout.block):
-            dofs = to_mixed[c :: layout.block]
-            ok = dofs >= 0
-            points[dofs[ok], :gdim] = layout.points[ok]
-            points[dofs[ok], gdim] = component
-            component += 1
-    return Layout(name, points, index_map.size_local * W.dofmap.index_map_bs, 1)
-
-
-def interface_layout(name: str, points: np.ndarray, block: int) -> Layout:
-    """Owned entries only, ``block`` values (a flat interface vector: gdim) at each of
-    ``points`` (n, gdim)."""
-    return Layout(name, np.asarray(points, dtype=float), len(points), block)
-
-
-def layout_of(key: str, layouts: dict[str, Layout]) -> Layout | None:
-    """The layout of array ``key``: ``layouts[name]`` for ``key == name`` or ``key`` starting
-    with ``name + "."`` (e.g. ``coupling.iqn.V`` for ``coupling.iqn.V.0``); None: global."""
-    for name, layout in layouts.items():
-        if key == name or key.startswith(name + "."):
-            return layout
-    return None
-
-
-# --------------------------------------------------------------------------------------------
-# State dataclasses <-> named arrays
-
-
-def to_arrays(prefix: str, state) -> dict[str, np.ndarray]:
-    """The fields of a state dataclass (e.g. :class:`fsi.physics.fluid.FluidState`) as arrays named
-    ``prefix + field``; ``None`` becomes an empty array."""
-    return {
-        prefix + f.name: (
-            np.zeros(0) if (v := getattr(state, f.name)) is None else np.array(v, copy=True)
-        )
-        for f in dataclasses.fields(state)
-    }
-
-
-def from_arrays(cls, prefix: str, arrays: dict[str, np.ndarray]):
-    """The state dataclass ``cls`` from :func:`to_arrays`'s arrays (0-d arrays become Python
-    scalars, an empty array ``None`` where the field allows it)."""
-    hints = typing.get_type_hints(cls)
-    values = {}
-    for f in dataclasses.fields(cls):
-        a = arrays[prefix + f.name]
-        optional = type(None) in typing.get_args(hints[f.name])
-        if optional and a.size == 0:
-            values[f.name] = None
-        elif a.ndim == 0:
-            values[f.name] = a.item()
-        else:
-            values[f.name] = a.copy()
-    return cls(**values)
-
-
-def subset(prefix: str, arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """The arrays named ``prefix...``, with the prefix removed."""
-    return {k[len(prefix) :]: v for k, v in arrays.items() if k.startswith(prefix)}
 
 
 # --------------------------------------------------------------------------------------------

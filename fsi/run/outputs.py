@@ -18,9 +18,10 @@ from mpi4py import MPI
 from fsi import config
 from fsi.numerics.timestepping import Step
 from fsi.output import io, provenance
+from fsi.output.columns import heartbeat
 from fsi.run import checkpoint
-from fsi.run.steppers import Stepper, heartbeat
-from fsi.run.stops import OutputFailed
+from fsi.run.errors import OutputFailed
+from fsi.run.steppers import Stepper
 
 log = logging.getLogger("fsi")
 

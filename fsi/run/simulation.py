@@ -2,7 +2,7 @@
 coupled or structure alone) advances one step and returns its metrics row; the run's files
 (:class:`fsi.run.outputs.RunOutputs`) take the row and the fields; the checkpoints
 (fsi/run/checkpoint.py) take the stepper's state. A step that fails is retried as two half steps
-(:func:`advance`); a run that stops early raises one of fsi/run/stops.py's exceptions.
+(:func:`advance`); a run that stops early raises one of fsi/run/errors.py's exceptions.
 """
 
 from __future__ import annotations
@@ -20,22 +20,19 @@ from fsi import config
 from fsi.config import boundary_data
 from fsi.numerics.timestepping import AdaptiveSteps, Step, StepSizeControl, steps
 from fsi.output import io
-from fsi.run import checkpoint, time_control
+from fsi.run import checkpoint, time_errors
+from fsi.run.errors import Interrupted, OutputFailed, RunStopped, StepFailed
 from fsi.run.outputs import RunOutputs
-from fsi.run.steppers import (
-    CoupledStepper,
-    FluidOutputs,
-    RigidStepper,
-    Stepper,
-    StructureStepper,
-)
-from fsi.run.stops import Interrupted, OutputFailed, RunStopped, StepFailed
+from fsi.run.state_arrays import Layout
+from fsi.run.steppers import CoupledStepper, RigidStepper, Stepper, StructureStepper
 
 log = logging.getLogger("fsi")
 
 
 @dataclass
 class RunResult:
+    """A finished run: the steps this run took, its wall time (s) and its summary.json."""
+
     steps: int
     wall_time_s: float
     summary: dict
@@ -89,25 +86,16 @@ def march(
     restart: checkpoint.Checkpoint | None = None,
     stop_requested: Callable[[], int | None] = lambda: None,
 ) -> RunResult:
-    """Step ``stepper`` through ``case.time.run_schedule`` (``time.cycles`` heartbeats one after
-    another), from t = 0 or after ``restart``'s step k: each step's row and fields go to the
-    run's files (:class:`fsi.run.outputs.RunOutputs`, opened once; ``summary.json`` once every
-    step is done), its state to the checkpoints (:class:`_Checkpoints`: every
-    ``output.checkpoint_every`` steps, at the end and when the run stops early); after each
-    periodic checkpoint the solvers drop the Jacobians they keep across steps, so a restart from
-    it repeats this run's arithmetic (:meth:`Stepper.forget_jacobians`). ``start`` is
-    the wall clock (``time.perf_counter``) when the run began. With ``restart`` the
-    checkpoint's arrays are placed on this run's dofs and checked
-    (:func:`fsi.run.checkpoint.localize`) before any file is touched, then loaded.
-
-    The run stops early with a :class:`fsi.run.stops.RunStopped` raised on every rank:
-    ``StepFailed`` when a step fails, ``OutputFailed`` when a file cannot be written (rank 0's
-    failures are shared, :func:`fsi.output.io.collectively`), ``Interrupted`` after the step
-    during which ``stop_requested`` (polled on every rank) returned a signal. A failed step
-    leaves the solvers anywhere (the coupler keeps its last iterates as initial guesses; a
-    sub-solver's exception skips the restore), so the checkpoint written then is the snapshot of
-    the stepper's state taken after the last converged step, whose metrics row is the last one
-    written; the exception says where it is. Collective."""
+    """Step ``stepper`` through ``case.time.run_schedule`` (``time.cycles`` heartbeats), from
+    t = 0 or after ``restart``'s step (its arrays placed on this run's dofs and checked,
+    :func:`fsi.run.checkpoint.localize`, before any file is touched): each step's row and
+    fields go to the run's files (:class:`fsi.run.outputs.RunOutputs`), its state to the
+    checkpoints (:func:`_record_steps`). ``start``: the wall clock (``time.perf_counter``) when
+    the run began. A run that stops early raises a :class:`fsi.run.errors.RunStopped` on every
+    rank (``StepFailed``, ``OutputFailed``, or ``Interrupted`` after the step during which
+    ``stop_requested`` returned a signal), with the stepper's state after the last converged
+    step, whose row is the last one written, checkpointed (a failed step leaves the solvers
+    anywhere). Collective."""
     schedule = config.run_time(case)
     t0, first, last = _step_range(schedule, restart)
     adaptive = case.time.step_control == "adaptive"
@@ -118,39 +106,19 @@ def march(
         if restart is not None:
             stepper.load_state(loaded)
         clock = _clock(case, schedule, t0, first, restart) if adaptive else None
-        before = _Snapshot(
-            first,
-            t0,
-            None if restart is None else restart.dt,
-            stepper.state(),
-            clock.dt if clock else None,
-        )
-        saved = _Checkpoints(out, comm, case, layouts, before)
+        before = _first_snapshot(stepper, first, t0, restart, clock)
+        saved = _Checkpoints(out, comm, case, stepper, layouts, before)
         retried: list[Step] = []  # the steps that had to be split
         rejected: list[Step] | None = None if clock is None else []  # for their time error
-        taken = 0
         try:
             outputs.write_fields(t0)
             if clock is None:
                 taken_steps = _scheduled_steps(stepper, schedule, t0, first, saved, retried)
             else:
                 taken_steps = _adaptive_steps(stepper, clock, saved, retried, rejected)
-            for step, row in taken_steps:
-                final = step.index == last if clock is None else clock.next_step() is None
-                outputs.write_step(row, final)
-                saved.after(
-                    _Snapshot(
-                        step.index, step.t, step.dt, stepper.state(), clock.dt if clock else None
-                    ),
-                    final,
-                )
-                if step.index % case.output.checkpoint_every == 0:
-                    stepper.forget_jacobians()  # restarts from these checkpoints stay exact
-                taken += 1
-                _report_progress(
-                    stepper, row, schedule.end, last if clock is None else None, start, taken
-                )
-                _stop_if_requested(comm, stop_requested, final)
+            taken = _record_steps(
+                taken_steps, outputs, saved, clock, last, schedule.end, start, stop_requested
+            )
             if taken == 0:  # restarted at (or past) the end: the checkpoint goes to out as well
                 saved.write_good()
             summary = outputs.write_summary(retried, saved.latest, start, rejected)
@@ -163,6 +131,57 @@ def march(
             finally:
                 del stopped  # its traceback holds this frame: no cycle through this local
     return RunResult(taken, summary["wall_time_s"], summary)
+
+
+def _first_snapshot(
+    stepper: Stepper,
+    first: int,
+    t0: float,
+    restart: checkpoint.Checkpoint | None,
+    clock: AdaptiveSteps | None,
+) -> _Snapshot:
+    """The stepper's state at the run's start, after step ``first`` at ``t0``."""
+    return _Snapshot(
+        first,
+        t0,
+        None if restart is None else restart.dt,
+        stepper.state(),
+        clock.dt if clock else None,
+    )
+
+
+def _record_steps(
+    taken_steps: Iterator[tuple[Step, dict]],
+    outputs: RunOutputs,
+    saved: _Checkpoints,
+    clock: AdaptiveSteps | None,
+    last: int,
+    end: float,
+    start: float,
+    stop_requested: Callable[[], int | None],
+) -> int:
+    """Record each step ``taken_steps`` takes: its row and fields to ``outputs``, its state to
+    ``saved`` (checkpointed every ``output.checkpoint_every`` steps and after the last one, step
+    ``last`` or, with adaptive steps, ``clock``'s last); after each periodic checkpoint the
+    solvers drop the Jacobians they keep across steps, so a restart from it repeats this run's
+    arithmetic (:meth:`Stepper.forget_jacobians`); the progress towards ``end`` (s) is logged
+    and a stop request honoured (:func:`_stop_if_requested`). Returns the number of steps taken.
+    Collective."""
+    case, comm, stepper = saved.case, saved.comm, saved.stepper
+    taken = 0
+    for step, row in taken_steps:
+        final = step.index == last if clock is None else clock.next_step() is None
+        outputs.write_step(row, final)
+        saved.after(
+            _Snapshot(step.index, step.t, step.dt, stepper.state(), clock.dt if clock else None),
+            final,
+        )
+        if step.index % case.output.checkpoint_every == 0:
+            stepper.forget_jacobians()  # restarts from these checkpoints stay exact
+        taken += 1
+        _report_progress(stepper, row, end, last if clock is None else None, start, taken)
+        _stop_if_requested(comm, stop_requested, final)
+    return taken
 
 
 def _step_range(
@@ -227,7 +246,7 @@ def _adaptive_steps(
     while (step := clock.next_step()) is not None:
         while True:
             row = _take_step(stepper, step, saved.good.state, retries, retried)
-            error = None if row[time_control.COLUMN] == "" else row[time_control.COLUMN]
+            error = None if row[time_errors.COLUMN] == "" else row[time_errors.COLUMN]
             if control.accepts(error):
                 break
             if step.dt <= control.min_dt * (1 + 1e-9):
@@ -344,31 +363,6 @@ class _Snapshot:
     state: dict
     next_dt: float | None = None  # adaptive steps: the size the next step will try
 
-    def write(
-        self, out: Path, comm: MPI.Comm, case: config.Case, layouts: dict[str, checkpoint.Layout]
-    ) -> tuple[Path, int, float] | None:
-        """Write it as ``out/checkpoint``, then the files derived from the state
-        (``wall_indices.csv``); return (the folder, step, t), or if the checkpoint fails log why
-        and return None (the previous checkpoint stays). Collective."""
-        try:
-            folder = checkpoint.write(
-                out,
-                comm,
-                self.state,
-                layouts,
-                checkpoint.metadata(case, comm, self.step, self.t, self.dt, self.next_dt),
-            )
-        except checkpoint.CheckpointError as e:  # raised on every rank: said once
-            if comm.rank == 0:
-                log.error("fsi: no checkpoint of step %d: %s", self.step, e)
-            return None
-        try:  # the files derived from the checkpointed state: wall_indices.csv
-            FluidOutputs.write_indices(out, comm, self.state, config.heartbeat_period(case))
-        except io.OutputError as e:  # raised on every rank; the checkpoint holds the values
-            if comm.rank == 0:
-                log.error("fsi: %s", e)
-        return folder, self.step, self.t
-
 
 class _Checkpoints:
     """The run's checkpoints: ``good``, the snapshot after the last converged step, written
@@ -380,16 +374,40 @@ class _Checkpoints:
         out: Path,
         comm: MPI.Comm,
         case: config.Case,
-        layouts: dict[str, checkpoint.Layout],
+        stepper: Stepper,
+        layouts: dict[str, Layout],
         good: _Snapshot,
     ):
         self.out, self.comm, self.case, self.layouts = out, comm, case, layouts
+        self.stepper = stepper
         self.good = good
         self.latest: tuple[Path, int, float] | None = None
 
     def write_good(self) -> tuple[Path, int, float] | None:
-        written = self.good.write(self.out, self.comm, self.case, self.layouts)
-        self.latest = written or self.latest
+        """Write ``good`` as ``out/checkpoint``, then the files derived from its state
+        (:meth:`Stepper.write_checkpoint_files`: ``wall_indices.csv``); return (the folder,
+        step, t), or if the checkpoint fails log why and return None (the previous checkpoint
+        stays). Collective."""
+        good, out, comm = self.good, self.out, self.comm
+        try:
+            folder = checkpoint.write(
+                out,
+                comm,
+                good.state,
+                self.layouts,
+                checkpoint.metadata(self.case, comm, good.step, good.t, good.dt, good.next_dt),
+            )
+        except checkpoint.CheckpointError as e:  # raised on every rank: said once
+            if comm.rank == 0:
+                log.error("fsi: no checkpoint of step %d: %s", good.step, e)
+            return None
+        try:  # the files derived from the checkpointed state: wall_indices.csv
+            self.stepper.write_checkpoint_files(out, comm, good.state)
+        except io.OutputError as e:  # raised on every rank; the checkpoint holds the values
+            if comm.rank == 0:
+                log.error("fsi: %s", e)
+        written = folder, good.step, good.t
+        self.latest = written
         return written
 
     def after(self, snapshot: _Snapshot, final: bool) -> None:

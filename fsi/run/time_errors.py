@@ -1,15 +1,19 @@
 """The steppers' side of adaptive time stepping (``time.step_control: adaptive``): the local
 time error of each step, measured on the fields that control the step size
-(:class:`TimeErrors`). The choice of the steps is fsi.numerics.timestepping's
-(:class:`~fsi.numerics.timestepping.AdaptiveSteps`, driven by fsi/run/simulation.py).
+(:class:`TimeErrors`, built for a case by :func:`build`). The choice of the steps is
+fsi.numerics.timestepping's (:class:`~fsi.numerics.timestepping.AdaptiveSteps`, driven by
+fsi/run/simulation.py).
 """
 
 from __future__ import annotations
 
+from mpi4py import MPI
+
 import numpy as np
 
+from fsi import config
 from fsi.numerics.timestepping import LocalError
-from fsi.run import checkpoint
+from fsi.run.state_arrays import Layout
 
 COLUMN = "time_error"
 """The metrics column of a step's error estimate (empty while there is none)."""
@@ -29,7 +33,7 @@ class TimeErrors:
     def __init__(
         self,
         comm,
-        fields: dict[str, tuple[object, checkpoint.Layout]],
+        fields: dict[str, tuple[object, Layout]],
         t0: float,
         floors: dict[str, float] | None = None,
     ):
@@ -42,6 +46,7 @@ class TimeErrors:
 
     @property
     def columns(self) -> list[str]:
+        """The metrics column :data:`COLUMN`, or none without controlled fields."""
         return [COLUMN] if self.fields else []
 
     def _accept(self, t: float) -> None:
@@ -61,7 +66,8 @@ class TimeErrors:
         known = [e for e in estimates if e is not None]
         return {COLUMN: max(known) if known else ""}
 
-    def layouts(self) -> dict[str, checkpoint.Layout]:
+    def layouts(self) -> dict[str, Layout]:
+        """The checkpoint layout of each field's recorded levels (:meth:`state`)."""
         return {f"time_error.{name}.values": layout for name, (_, layout) in self.fields.items()}
 
     def state(self) -> dict[str, np.ndarray]:
@@ -84,3 +90,34 @@ class TimeErrors:
                     {"values": np.zeros((0, 0)), "times": np.zeros(0), "scale": np.array(0.0)}
                 )
                 error.accept(self.fields[name][0].x.array, t)
+
+
+FIELD_LAYOUTS = {"fluid": "fluid.u_n", "structure": "solid.eta"}
+"""The checkpoint layout of each controlled field's values (those of its history's)."""
+
+
+def build(case: config.Case, comm: MPI.Comm, fields: dict) -> TimeErrors:
+    """The :class:`TimeErrors` of a stepper.
+
+    Args:
+        case: the run's case; with ``time.step_control: adaptive`` the fields are controlled,
+            their floors ``time.adaptive.velocity_scale`` (m/s) and ``displacement_scale`` (m).
+        comm: the run's communicator.
+        fields: ``fluid`` and/or ``structure`` → (the Function, the stepper's layouts).
+
+    Returns:
+        The TimeErrors of ``fields`` (their values at t = 0 the first level) when adaptive, else
+        of none.
+    """
+    adaptive = case.time.step_control == "adaptive"
+    settings = case.time.adaptive
+    return TimeErrors(
+        comm,
+        {
+            name: (f, layouts[FIELD_LAYOUTS[name]])
+            for name, (f, layouts) in fields.items()
+            if adaptive
+        },
+        0.0,
+        {"fluid": settings.velocity_scale, "structure": settings.displacement_scale},
+    )
