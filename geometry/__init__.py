@@ -1,5 +1,5 @@
 """gmsh builders of the project's geometries and the tags they share with the solvers."""
 
-from geometry.tags import Boundary, Region
+from fsi.geometry.tags import Boundary, Region
 
 __all__ = ["Boundary", "Region"]

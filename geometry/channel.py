@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import Protocol
 
-from geometry.tags import Boundary, Region, add_physical_groups
+from fsi.geometry.tags import Boundary, Region, add_physical_groups
 
 # The tags this builder writes (mesh.json reports these).
 REGIONS = (Region.FLUID,)

@@ -22,7 +22,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from geometry.tags import Boundary, Region, add_physical_groups
+from fsi.geometry.tags import Boundary, Region, add_physical_groups
 
 # The tags this builder writes (mesh.json reports these).
 REGIONS = (Region.FLUID, Region.WALL, Region.CAP, Region.LIPID)

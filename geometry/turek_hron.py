@@ -20,7 +20,7 @@ import math
 from collections.abc import Sequence
 from typing import Protocol
 
-from geometry.tags import Boundary, Region, add_physical_groups
+from fsi.geometry.tags import Boundary, Region, add_physical_groups
 
 # The tags this builder writes (mesh.json reports these).
 REGIONS = (Region.FLUID, Region.FLAG)

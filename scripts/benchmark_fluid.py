@@ -48,10 +48,10 @@ sys.path[:0] = [str(Path(__file__).resolve().parent), str(Path(__file__).resolve
 from benchmarking import wall  # noqa: E402
 
 from fsi import compat, config  # noqa: E402
+from fsi.geometry.tags import Region  # noqa: E402
 from fsi.numerics.timestepping import steps  # noqa: E402
 from fsi.physics import fluid, mesh  # noqa: E402
 from fsi.run import steppers  # noqa: E402
-from geometry.tags import Region  # noqa: E402
 
 CASE = Path(__file__).resolve().parents[1] / "configs" / "stenosis_fixed_newtonian.yaml"
 RHEOLOGY = {"newtonian": "{model: newtonian}", "carreau": "{model: carreau}"}

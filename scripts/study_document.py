@@ -271,8 +271,8 @@ def field_figures(runs: dict, figures: Path) -> list[tuple[str, Path]]:
 def largest_at(run: report.Run, field: str, t: float) -> tuple[float, float, str]:
     """Where the cell field's largest |value| is at time t: the cell's centroid (reference
     coordinates, m) and its region."""
+    from fsi.geometry.tags import Region
     from fsi.output import plot
-    from geometry.tags import Region
 
     values = plot.read_field(run.path, field, t, warp=0.0)
     regions = plot.read_field(run.path, "region", t, warp=0.0)

@@ -23,11 +23,11 @@ import pytest
 
 from fsi import cli, compat, config
 from fsi.config.run_size import count_steps
+from fsi.geometry.tags import Region
 from fsi.numerics.timestepping import steps
 from fsi.output import report
 from fsi.physics import fluid_boundaries, mesh
 from fsi.run import errors, simulation, steppers
-from geometry.tags import Region
 
 CHANNEL = "configs/channel_poiseuille.yaml"
 L, H = 0.02, 0.007  # the channel (configs/channel_poiseuille.yaml)

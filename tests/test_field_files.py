@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from fsi import cli
+from fsi.geometry.tags import Region
 from fsi.output import io
-from geometry.tags import Region
 
 CASE = "configs/stenosis_moving_newtonian.yaml"
 

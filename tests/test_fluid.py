@@ -16,10 +16,10 @@ import ufl
 
 from fsi import compat, config
 from fsi.config import reader
+from fsi.geometry.tags import Boundary, Region
 from fsi.numerics import newton
 from fsi.output import metrics
 from fsi.physics import fluid, fluid_boundaries, fluid_residual, mesh, rheology
-from geometry.tags import Boundary, Region
 
 WALL, INLET, OUTLET = Boundary.RIGID_WALL, Boundary.INLET, Boundary.OUTLET
 

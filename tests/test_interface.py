@@ -7,8 +7,8 @@ import pytest
 
 from fsi import compat, config
 from fsi.coupled import interface
+from fsi.geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 from fsi.physics import mesh
-from geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 
 
 @pytest.fixture(scope="module")

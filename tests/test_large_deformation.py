@@ -14,9 +14,9 @@ import pytest
 from mesh_checks import global_max, mesh_motion_settings
 
 from fsi import cli, config
+from fsi.geometry.tags import Boundary, Region
 from fsi.physics import mesh
 from fsi.physics.mesh_motion import MeshMotion, MeshQualityError
-from geometry.tags import Boundary, Region
 
 ROOT = Path(__file__).parents[1]
 FSI2 = config.load(ROOT / "configs/turek_hron_fsi2.yaml")

@@ -1,6 +1,8 @@
 """The tagged stenosis mesh: tags, sizes, areas, conformity, measures, 1 rank = 2 ranks."""
 
 import json
+import subprocess
+import sys
 
 from mpi4py import MPI
 
@@ -11,11 +13,11 @@ from mesh_checks import boundary_vertices
 
 from fsi import cli, config
 from fsi.config import reader
+from fsi.geometry import stenosis
+from fsi.geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 from fsi.physics import mesh
-from geometry import stenosis
-from geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 
-STUDY_COARSE_TRIANGLES = 3272  # MODEL.md §1
+STUDY_COARSE_TRIANGLES = 3272  # docs/model.md §1
 STENOSIS_REGIONS = (Region.FLUID, Region.WALL, Region.CAP, Region.LIPID)
 STENOSIS_BOUNDARIES = (
     Boundary.INLET,
@@ -151,3 +153,17 @@ def test_fsi_mesh_writes_xdmf_and_json(shared_tmp, coarse):
     assert set(np.unique(np.concatenate(MPI.COMM_WORLD.allgather(facet_tags.values)))) == {
         int(b) for b in STENOSIS_BOUNDARIES
     }
+
+
+def test_geometry_is_installed_under_the_project_name(tmp_path):
+    """The geometry/ folder is the package fsi.geometry; no top-level ``geometry`` is installed
+    (a name any other project may also use). Run outside the checkout, whose folder would
+    otherwise be on the path."""
+    probe = (
+        "import fsi.geometry.stenosis\n"
+        "try:\n    import geometry\nexcept ImportError:\n    print('absent')"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", probe], cwd=tmp_path, capture_output=True, text=True, check=True
+    )
+    assert result.stdout.strip() == "absent"

@@ -13,10 +13,10 @@ import pytest
 from mesh_checks import global_max, mesh_motion_settings
 
 from fsi import compat, config
+from fsi.geometry.tags import Boundary, Region
 from fsi.numerics.timestepping import bdf_weights
 from fsi.physics import mesh
 from fsi.physics.mesh_motion import AleMesh, MeshMotion, MeshQualityError
-from geometry.tags import Boundary, Region
 
 CASE = config.from_dict({})
 G = CASE.geometry
@@ -131,7 +131,7 @@ def test_boundary_data_from_the_solid_through_a_p2_interface_map(fluid):
     import dolfinx.fem
 
     from fsi.coupled.interface import InterfaceMap
-    from geometry.tags import STRUCTURE_REGIONS
+    from fsi.geometry.tags import STRUCTURE_REGIONS
 
     solid = mesh.restrict(mesh.build(CASE), *STRUCTURE_REGIONS)
     V_s = compat.function_space(solid.mesh, "Lagrange", 2, (2,))

@@ -30,12 +30,12 @@ import ufl
 
 from fsi import compat, config
 from fsi.config.solver_settings import SolverSettings
+from fsi.geometry.tags import Region
 from fsi.numerics.newton import Forcing, Newton
 from fsi.numerics.timestepping import steps
 from fsi.physics import fluid, mesh, solid
 from fsi.physics.fluid_boundaries import inlet_pressure
 from fsi.run.steppers import CoupledStepper, fluid_boundaries
-from geometry.tags import Region
 
 CASE = "configs/stenosis_moving_carreau.yaml"
 SHORT = ["time.end=0.001", "time.schedule=[{until: 0.001, dt: 0.00025}]"]  # 4 steps

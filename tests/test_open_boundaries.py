@@ -19,11 +19,11 @@ from test_fluid import carreau_flow_rate_1d, channel
 
 from fsi import config
 from fsi.config import reader
+from fsi.geometry.tags import Boundary
 from fsi.numerics.timestepping import steps
 from fsi.output import metrics
 from fsi.physics import fluid, fluid_boundaries, rheology
 from fsi.run import steppers
-from geometry.tags import Boundary
 
 STUDY = {
     "newtonian": "configs/stenosis_fixed_newtonian.yaml",

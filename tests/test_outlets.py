@@ -22,10 +22,10 @@ import pytest
 import ufl
 
 from fsi import cli, config
+from fsi.geometry.tags import Boundary, Region
 from fsi.numerics.timestepping import bdf_weights
 from fsi.output import metrics
 from fsi.physics import fluid, fluid_boundaries, mesh, outlets
-from geometry.tags import Boundary, Region
 
 INLET, OUTLET, WALL = Boundary.INLET, Boundary.OUTLET, Boundary.RIGID_WALL
 CHANNEL = "configs/channel_poiseuille.yaml"

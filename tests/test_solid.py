@@ -25,11 +25,11 @@ import ufl
 
 from fsi import compat, config
 from fsi.config import Material, SolverSettings, reader
+from fsi.geometry import turek_hron
+from fsi.geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 from fsi.numerics.timestepping import NewmarkFamily, steps
 from fsi.physics import materials, mesh, solid, solid_residual
 from fsi.run import steppers
-from geometry import turek_hron
-from geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 
 TIGHT = SolverSettings(rtol=1e-13, atol=1e-15, max_iterations=30)
 # The small-amplitude modal tests (|η| ~ 1e-5 m): the residual's round-off floor is ~2e-11 on

@@ -12,9 +12,9 @@ from mesh_checks import boundary_vertices
 
 from fsi import cli, config
 from fsi.config import reader
+from fsi.geometry import turek_hron
+from fsi.geometry.tags import Boundary, Region
 from fsi.physics import mesh
-from geometry import turek_hron
-from geometry.tags import Boundary, Region
 
 CONFIGS = [f"configs/turek_hron_{name}.yaml" for name in
            ("cfd1", "cfd2", "cfd3", "csm1", "csm2", "csm3", "fsi1", "fsi3")]  # fmt: skip

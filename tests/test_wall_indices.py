@@ -24,10 +24,10 @@ import pytest
 from scipy.spatial import cKDTree
 
 from fsi import cli, config
+from fsi.geometry.tags import Boundary
 from fsi.numerics.timestepping import steps
 from fsi.output import io, metrics, wall_outputs
 from fsi.run import errors, simulation, steppers
-from geometry.tags import Boundary
 
 CHANNEL = "configs/channel_poiseuille.yaml"
 L, H = 0.02, 0.007  # the channel (configs/channel_poiseuille.yaml)

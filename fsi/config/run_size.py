@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import math
 
-from geometry import stenosis as stenosis_geometry
-from geometry import turek_hron as turek_hron_geometry
+from fsi.geometry import stenosis as stenosis_geometry
+from fsi.geometry import turek_hron as turek_hron_geometry
 
 
 def format_count(n: float) -> str:

@@ -20,8 +20,8 @@ from fsi.config.petsc_options import check_petsc_options
 from fsi.config.reader import ConfigError
 from fsi.config.run_size import BYTES_PER_CELL, count_steps, estimated_cells, format_count
 from fsi.config.time_section import Time
+from fsi.geometry import stenosis as stenosis_geometry
 from fsi.numerics.timestepping import steps
-from geometry import stenosis as stenosis_geometry
 
 
 def validate(case: Case) -> None:

@@ -37,11 +37,11 @@ import dolfinx.fem
 import numpy as np
 
 from fsi.coupled.interface import InterfaceMap
+from fsi.geometry.tags import Boundary
 from fsi.numerics.newton import Forcing, SolveFailed, SolveResult
 from fsi.physics.fluid import FluidSolver
 from fsi.physics.mesh_motion import MeshMotion
 from fsi.physics.solid import SolidSolver
-from geometry.tags import Boundary
 
 
 class _Adapter:

@@ -16,9 +16,9 @@ from fsi import config
 from fsi.coupled import coupling
 from fsi.coupled.adapters import FluidInterface, SolidInterface
 from fsi.coupled.interface import InterfaceMap
+from fsi.geometry.tags import Boundary, Region
 from fsi.physics import fluid, fluid_boundaries, mesh, solid
 from fsi.physics.mesh_motion import MeshMotion
-from geometry.tags import Boundary, Region
 
 
 @dataclass

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import math
 
+from fsi.geometry.tags import Region
 from fsi.physics import solid
-from geometry.tags import Region
 
 COLUMNS = [
     "step",

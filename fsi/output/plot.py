@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from fsi.geometry.tags import Region
 from fsi.output.units import UNITS, choose_unit
-from geometry.tags import Region
 
 FILES = {"fluid": "fields", "structure": "solid"}
 """The field files' stems per domain."""

@@ -15,11 +15,11 @@ from mpi4py import MPI
 import numpy as np
 
 from fsi import config
+from fsi.geometry.tags import Boundary
 from fsi.output import io, metrics
 from fsi.output.columns import FLOW_COLUMNS, PRESSURE_COLUMNS, WALL_COLUMNS, heartbeat
 from fsi.physics import fluid, mesh
 from fsi.physics.fluid_boundaries import walls
-from geometry.tags import Boundary
 
 log = logging.getLogger("fsi")
 

@@ -24,8 +24,8 @@ import ufl
 
 from fsi import compat, config
 from fsi.config import boundary_data
+from fsi.geometry.tags import Boundary
 from fsi.physics import outlets
-from geometry.tags import Boundary
 
 TractionFunction = Callable[
     [ufl.core.expr.Expr, ufl.core.expr.Expr, dolfinx.fem.Constant], ufl.core.expr.Expr

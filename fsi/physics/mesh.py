@@ -24,8 +24,8 @@ import ufl
 
 from fsi import compat
 from fsi.config import Case, ChannelGeometry, StenosisGeometry, TurekHronGeometry
-from geometry import channel, stenosis, turek_hron
-from geometry.tags import Boundary, Region
+from fsi.geometry import channel, stenosis, turek_hron
+from fsi.geometry.tags import Boundary, Region
 
 log = logging.getLogger(__name__)
 

@@ -41,11 +41,11 @@ import numpy as np
 import ufl
 
 from fsi import compat, config
+from fsi.geometry.stenosis import distance_to_segments
+from fsi.geometry.tags import Boundary
 from fsi.numerics.newton import petsc_options
 from fsi.numerics.timestepping import BdfHistory
 from fsi.physics.mesh import TaggedMesh, owned_facet_dofs
-from geometry.stenosis import distance_to_segments
-from geometry.tags import Boundary
 
 PREFIX = "mesh_"
 

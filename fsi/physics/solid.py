@@ -37,13 +37,13 @@ import ufl
 
 from fsi import compat
 from fsi.config import Case, Material, SolverSettings, StenosisGeometry
+from fsi.geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 from fsi.numerics.newton import Newton, SolveResult, petsc_options
 from fsi.numerics.timestepping import NewmarkFamily, structural_scheme
 from fsi.physics import mesh as fsi_mesh
 from fsi.physics.mesh import TaggedMesh
 from fsi.physics.solid_residual import SolidResidual, material_fields
 from fsi.physics.solid_stress import StressFields
-from geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 
 log = logging.getLogger(__name__)
 

@@ -33,9 +33,9 @@ import ufl
 
 from fsi import compat
 from fsi.config import Material
+from fsi.geometry.tags import Boundary, Region
 from fsi.physics.materials import HyperelasticLaw, KelvinVoigt, lame, make_law
 from fsi.physics.mesh import TaggedMesh
-from geometry.tags import Boundary, Region
 
 if TYPE_CHECKING:
     from fsi.physics.solid import SolidSolver

@@ -21,6 +21,8 @@ import numpy as np
 
 from fsi import config
 from fsi.coupled import coupling, partitioned
+from fsi.geometry import turek_hron
+from fsi.geometry.tags import Boundary, Region
 from fsi.numerics import newton
 from fsi.numerics.timestepping import Step
 from fsi.output import metrics
@@ -39,8 +41,6 @@ from fsi.run.state_arrays import (
     structure_layouts,
     wall_index_layouts,
 )
-from geometry import turek_hron
-from geometry.tags import Boundary, Region
 
 # --------------------------------------------------------------------------------------------
 # What a stepper is
