@@ -19,7 +19,7 @@ mm) that ``metrics.csv`` holds:
 Also the run's wall time, steps, mean time per step, mesh level, dt, ranks and the load average
 (the machine may be shared: timings are noisy). The report is also written to ``DIR/benchmark.txt``.
 
-Reference values: ../shared/reference/turek_hron.md (Turek & Hron 2006 and the Featflow pages),
+Reference values: docs/turek-hron.md (Turek & Hron 2006 and the Featflow pages),
 hard-coded below; FSI2's are not in that file and come from the literature (see REFERENCES). FSI2
 and FSI3 have two sets (the refined Featflow values, the default, and the 2006 paper;
 ``--reference paper``). CFD3's drag has one period per shedding cycle, like the lift (its two
@@ -65,7 +65,7 @@ from fsi.output.oscillation import (  # noqa: E402
     relative_difference,
 )
 
-# ../shared/reference/turek_hron.md, "Reference values": forces in N/m, displacements in mm.
+# docs/turek-hron.md, "Reference values": forces in N/m, displacements in mm.
 REFERENCES: dict[str, dict[str, dict[str, str]]] = {
     "csm1": {"": {"ux_A": "-7.187", "uy_A": "-66.10"}},
     "csm2": {"": {"ux_A": "-0.469", "uy_A": "-16.97"}},
@@ -74,7 +74,7 @@ REFERENCES: dict[str, dict[str, dict[str, str]]] = {
     "cfd2": {"": {"drag": "136.7", "lift": "10.53"}},
     "cfd3": {"": {"drag": "439.45 ± 5.6183 [4.3956]", "lift": "-11.893 ± 437.81 [4.3956]"}},
     "fsi1": {"": {"ux_A": "0.0227", "uy_A": "0.8209", "drag": "14.295", "lift": "0.7638"}},
-    # FSI2 is not in ../shared/reference/turek_hron.md: the refined Featflow values (Turek et
+    # FSI2 is not in docs/turek-hron.md: the refined Featflow values (Turek et
     # al., "Numerical benchmarking of fluid-structure interaction: a comparison of different
     # discretization and solution approaches", 2010, finest level; NOT yet checked against the
     # source) and the 2006 paper's table (checked against the copy in pyfsi/coconut's Turek
@@ -115,7 +115,7 @@ REFERENCE_NAMES = {
 }
 PERIODIC = {"csm3", "cfd3", "fsi2", "fsi3"}
 
-# solids4foam's acceptance tolerances (../shared/reference/turek_hron.md, last paragraph of
+# solids4foam's acceptance tolerances (docs/turek-hron.md, last paragraph of
 # "Reference values"); None: no tolerance quoted. A steady value uses the ``mean`` entry.
 TOLERANCES = {
     "drag": Tolerance(mean=0.02, amplitude=0.15, frequency=0.03),
@@ -259,7 +259,7 @@ def format_report(
     source = (
         "the literature: Turek & Hron 2006, Turek et al. 2010"
         if case_name == "fsi2"
-        else "../shared/reference/turek_hron.md"
+        else "docs/turek-hron.md"
     )
     out = [
         f"Turek–Hron {case_name.upper()} — {run}",

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Reproduce the study (../shared/MODEL.md §4, §6): its four configurations on the coarse and
+"""Reproduce the study (docs/model.md §4, §6): its four configurations on the coarse and
 the fine mesh, the whole heartbeat, with the resolved schedule of the shipped configs, plus the
 study's printed schedule (5 ms to 0.4 s, 10 ms to 0.8 s) on the coarse mesh; then write
 docs/study.md and its figures from the runs.

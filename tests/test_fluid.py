@@ -772,7 +772,7 @@ def test_non_finite_data_is_reported_and_leaves_no_nan():
 
 
 def test_study_conditions_on_the_stenosis_give_the_rigid_column_velocity():
-    """MODEL.md §2's estimate: after the pulse the blood moves as a rigid column, mean inlet
+    """docs/model.md §2's estimate: after the pulse the blood moves as a rigid column, mean inlet
     velocity = ∫h dt / (ρ ∫ H / h(x) dx), h(x) the open lumen height (0.1172 m/s; the printed
     coefficient would give 6× less). Five BDF2 steps through the 5 ms pulse on the coarse mesh
     with the study's conditions (pulse inlet, σn = 0 outlet with β = 1, no-slip, interface at

@@ -27,7 +27,7 @@ def law_of(model: str, **parameters) -> rheology.ViscosityLaw:
 
 def test_defaults_build_the_right_laws():
     assert law_of("newtonian") == config.Newtonian(0.0035)
-    # The study's Carreau parameters (MODEL.md §2).
+    # The study's Carreau parameters (docs/model.md §2).
     assert law_of("carreau") == config.Carreau(0.0456, 0.0032, 10.03, 0.344)
     assert law_of("carreau_yasuda") == config.CarreauYasuda(0.056, 0.00345, 1.902, 0.22, 1.25)
     assert law_of("cross") == config.Cross(0.0364, 0.0035, 0.38, 1.45)
