@@ -753,7 +753,7 @@ def test_one_rank_equals_all_ranks(stenosis):
 
 
 # --------------------------------------------------------------------------------------------
-# Turek–Hron CSM benchmarks (../shared/reference/turek_hron.md)
+# Turek–Hron CSM benchmarks (docs/turek-hron.md)
 
 
 def _flag_case(name: str, *overrides: str):

@@ -1,4 +1,4 @@
-"""Turek–Hron FSI through ``fsi run`` (../shared/reference/turek_hron.md): the elastic flag
+"""Turek–Hron FSI through ``fsi run`` (docs/turek-hron.md): the elastic flag
 behind the cylinder, coupled partitioned (Dirichlet–Neumann, Aitken) on the coarse mesh."""
 
 from mpi4py import MPI
