@@ -195,8 +195,8 @@ class FluidSolver:
             return dolfinx.fem.Constant(mesh, PETSc.ScalarType(value))
 
         self.t = constant(0.0)  # the time of the step being solved, for g(x, n, t) and f(x, t)
-        self._a = [constant(0.0) for _ in range(3)]  # BDF weights
-        self._rho = constant(fluid.density)
+        self.bdf_weights = [constant(0.0) for _ in range(3)]
+        self.rho = constant(fluid.density)
 
         self._check_tags()
         residual = FluidResidual(self, body_force)
@@ -262,7 +262,7 @@ class FluidSolver:
         value before the step and the result says why; nothing non-finite is left behind."""
         weights = self.time_weights(dt)
         self._dt = dt
-        for c, a in zip(self._a, weights):
+        for c, a in zip(self.bdf_weights, weights):
             c.value = a
         self.t.value = t
         for update in self._updates:

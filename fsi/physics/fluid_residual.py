@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 from petsc4py import PETSc
 
@@ -27,6 +27,7 @@ import ufl
 from fsi import config
 from fsi.physics import outlets, rheology
 from fsi.physics.fluid_boundaries import (
+    BoundaryCondition,
     Inflow,
     NoSlip,
     Outflow,
@@ -39,9 +40,6 @@ from fsi.physics.fluid_boundaries import (
     inlet_pressure,
     parabolic_profile,
 )
-
-if TYPE_CHECKING:
-    from fsi.physics.fluid import FluidSolver
 
 BodyForce = Callable[[ufl.core.expr.Expr, dolfinx.fem.Constant], ufl.core.expr.Expr]
 """``f(x, t)``: a UFL vector (N/m³) of the spatial coordinate and the time."""
@@ -172,24 +170,50 @@ class _Contribution:
 # The residual
 
 
+class FluidUnknowns(Protocol):
+    """What the residual reads from its solver (fsi.physics.fluid.FluidSolver): the mesh, its
+    facet tags and communicator, the fluid's settings, time scheme, viscosity law and boundary
+    conditions, the mixed space W with its velocity space V, the unknown U = (u, p), u^n and
+    u^{n−1}, the boundary and ALE mesh velocities, and the constants t, ρ and the BDF weights."""
+
+    mesh: dolfinx.mesh.Mesh
+    facet_tags: dolfinx.mesh.MeshTags
+    comm: Any
+    config: config.Fluid
+    scheme: str
+    law: rheology.ViscosityLaw
+    boundaries: Sequence[BoundaryCondition]
+    W: dolfinx.fem.FunctionSpace
+    V: dolfinx.fem.FunctionSpace
+    U: dolfinx.fem.Function
+    u_n: dolfinx.fem.Function
+    u_nm1: dolfinx.fem.Function
+    boundary_velocity: dolfinx.fem.Function
+    ale: Any
+    t: dolfinx.fem.Constant
+    rho: dolfinx.fem.Constant
+    bdf_weights: Sequence[dolfinx.fem.Constant]
+
+
 class FluidResidual:
-    """The residual F((u, p); (v, q)) of a :class:`FluidSolver`, the module docstring's weak
-    form as a sum of named terms (:meth:`_residual`), and what the boundary conditions add:
-    Dirichlet conditions (:attr:`bcs`), time-dependent boundary data (:attr:`updates`, each
-    called with the time of a step before it is solved) and lumped outlets (:attr:`lumped`).
+    """The residual F((u, p); (v, q)) of a fluid solver (:class:`FluidUnknowns`), the module
+    docstring's weak form as a sum of named terms (:meth:`_residual`), and what the boundary
+    conditions add: Dirichlet conditions (:attr:`bcs`), time-dependent boundary data
+    (:attr:`updates`, each called with the time of a step before it is solved) and lumped outlets
+    (:attr:`lumped`).
 
     It uses the solver's spaces, functions and constants (the unknown U, u^n, u^{n−1}, the
     boundary and mesh velocities, the BDF weights a_k, ρ and t), and is not kept after the
     solver has taken :attr:`form` and the three lists."""
 
-    def __init__(self, solver: FluidSolver, body_force: BodyForce | None):
+    def __init__(self, solver: FluidUnknowns, body_force: BodyForce | None):
         s = solver
         self.mesh, self.facet_tags, self.comm = s.mesh, s.facet_tags, s.comm
         self.config, self.scheme, self.law = s.config, s.scheme, s.law
         self.boundaries = s.boundaries
         self.W, self.V, self.U, self.u_n, self.u_nm1 = s.W, s.V, s.U, s.u_n, s.u_nm1
         self.boundary_velocity, self.ale = s.boundary_velocity, s.ale
-        self.t, self._a, self._rho = s.t, s._a, s._rho  # the solver's constants
+        self.t, self._a, self._rho = s.t, s.bdf_weights, s.rho  # the solver's constants
         self.bcs: list = []
         self.updates: list[Callable[[float], None]] = []
         self.lumped: list[LumpedOutlet] = []

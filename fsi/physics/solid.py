@@ -310,7 +310,7 @@ class SolidSolver:
         self.degree = degree
         self.V = compat.function_space(mesh, "Lagrange", degree, (mesh.geometry.dim,))
         self.t = 0.0  # time of the committed state n
-        self._dt = dolfinx.fem.Constant(mesh, PETSc.ScalarType(1.0))
+        self.dt = dolfinx.fem.Constant(mesh, PETSc.ScalarType(1.0))
 
         def function(name: str) -> dolfinx.fem.Function:
             f = dolfinx.fem.Function(self.V)
@@ -377,7 +377,7 @@ class SolidSolver:
         On failure (Newton not converged, a non-finite value, an inverted element or a linear
         solver error) η is put back to its value before the call and ``converged`` is False.
         """
-        self._dt.value = dt
+        self.dt.value = dt
         if self.bcs_data.pressure is not None:
             self.residual.pressure.value = self.bcs_data.pressure(t)
             self.residual.pressure_n.value = self.bcs_data.pressure(self.t)

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 from petsc4py import PETSc
 
@@ -36,9 +36,6 @@ from fsi.config import Material
 from fsi.geometry.tags import Boundary, Region
 from fsi.physics.materials import HyperelasticLaw, KelvinVoigt, lame, make_law
 from fsi.physics.mesh import TaggedMesh
-
-if TYPE_CHECKING:
-    from fsi.physics.solid import SolidSolver
 
 # --------------------------------------------------------------------------------------------
 # Per-region laws and material fields
@@ -136,12 +133,33 @@ def material_fields(domain: TaggedMesh, materials: Mapping[Region, Material]) ->
 # The residual, term by term
 
 
+class SolidUnknowns(Protocol):
+    """What the residual reads from its solver (fsi.physics.solid.SolidSolver): the tagged
+    mesh and boundary data, the time scheme, the space V with η, η_n, v_n, a_n and the
+    interface tractions (now and at t_n), the step dt, and the material (ρ, law, viscosity)."""
+
+    domain: TaggedMesh
+    bcs_data: Any
+    scheme: Any
+    V: dolfinx.fem.FunctionSpace
+    eta: dolfinx.fem.Function
+    eta_n: dolfinx.fem.Function
+    v_n: dolfinx.fem.Function
+    a_n: dolfinx.fem.Function
+    traction: dolfinx.fem.Function
+    traction_n: dolfinx.fem.Function
+    dt: dolfinx.fem.Constant
+    rho: Any
+    law: Any
+    viscous: Any
+
+
 class SolidResidual:
-    """The balance of momentum of a :class:`SolidSolver` (the module docstring's weak form) as
-    a sum of named terms: :attr:`form`, the residual at n+1−αf, and :attr:`jacobian`, its
-    derivative in η; :meth:`initial_acceleration_forms`, the same balance at the committed
-    state n. A term whose data is absent (no source, no follower pressure, no support, no
-    inertia in the quasi-static scheme, no viscous stress when every τ is 0) is not built.
+    """The balance of momentum of a solid solver (:class:`SolidUnknowns`; the module docstring's
+    weak form) as a sum of named terms: :attr:`form`, the residual at n+1−αf, and :attr:`jacobian`,
+    its derivative in η; :meth:`initial_acceleration_forms`, the same balance at the committed state
+    n. A term whose data is absent (no source, no follower pressure, no support, no inertia in the
+    quasi-static scheme, no viscous stress when every τ is 0) is not built.
 
     It reads the solver's functions (η, η_n, η̇_n, η̈_n, the tractions), materials (ρ, the law,
     the viscous stress), time step ``dt`` and boundary data, and owns what the terms add: the
@@ -152,7 +170,7 @@ class SolidResidual:
     without one).
     """
 
-    def __init__(self, solver: SolidSolver, quadrature_degree: int):
+    def __init__(self, solver: SolidUnknowns, quadrature_degree: int):
         self.solver = solver
         mesh, bcs = solver.domain.mesh, solver.bcs_data
         metadata = {"quadrature_degree": quadrature_degree}
@@ -231,7 +249,7 @@ class SolidResidual:
         af = scheme.alpha_f
         S_alpha = scheme.at(s.law.second_piola(F_new), s.law.second_piola(F_old), af)
         # η̇ at n+1-αf, with η̇_{n+1} the scheme's function of the unknown η_{n+1}.
-        v_alpha = scheme.at(scheme.velocity(s.eta, s.eta_n, s.v_n, s.a_n, s._dt), s.v_n, af)
+        v_alpha = scheme.at(scheme.velocity(s.eta, s.eta_n, s.v_n, s.a_n, s.dt), s.v_n, af)
         if s.viscous is not None:
             # The rate pulled back with the mid-step F̄: Ė = (E_{n+1} − E_n)/dt exactly when
             # η̇_{n+1-αf} = (η_{n+1} − η_n)/dt (trapezoidal, quasi-static): see the docstring.
@@ -247,7 +265,7 @@ class SolidResidual:
     def _inertia(self, deta):
         """``∫ ρ a_{n+1-αm}·δη dx``."""
         s, scheme = self.solver, self.solver.scheme
-        a_new = scheme.acceleration(s.eta, s.eta_n, s.v_n, s.a_n, s._dt)
+        a_new = scheme.acceleration(s.eta, s.eta_n, s.v_n, s.a_n, s.dt)
         return s.rho * ufl.inner(scheme.at(a_new, s.a_n, scheme.alpha_m), deta) * self.dx
 
     def _body_force(self, deta):

@@ -5,7 +5,7 @@ per region and where they are attained (the study's stress measures; docs/model.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 from mpi4py import MPI
 
@@ -17,11 +17,20 @@ import ufl
 from fsi import compat
 from fsi.physics.materials import HyperelasticLaw, cauchy, cauchy_zz
 
-if TYPE_CHECKING:
-    from fsi.physics.solid import SolidSolver
-
 # --------------------------------------------------------------------------------------------
 # Stresses
+
+
+class SolidDisplacement(Protocol):
+    """What the stresses read from the solver (fsi.physics.solid.SolidSolver): the tagged
+    mesh, the displacement η and its degree, the regions and each cell's region."""
+
+    domain: Any
+    degree: int
+    eta: dolfinx.fem.Function
+    comm: Any
+    regions: Any
+    cell_region: Any
 
 
 @dataclass(frozen=True)
@@ -48,7 +57,7 @@ class StressFields:
     :meth:`region_maxima`; and ``region``, the cell's region tag (geometry/tags.py ``Region``).
     """
 
-    def __init__(self, solver: SolidSolver, law: HyperelasticLaw):
+    def __init__(self, solver: SolidDisplacement, law: HyperelasticLaw):
         self.solver = solver
         mesh = solver.domain.mesh
         degree = max(solver.degree - 1, 0)
