@@ -112,3 +112,45 @@ def energies(solver: SolidSolver) -> tuple[float, float]:
         for form in _energy_forms[solver]
     )
     return kinetic, stored
+
+
+# --------------------------------------------------------------------------------------------
+# Initial conditions, boundary data and interface vectors
+
+
+def set_initial_conditions(solver: SolidSolver, eta0=None, v0=None) -> None:
+    """Initial displacement and velocity of the structure (callables of x (3, n) → (2, n)); the
+    initial acceleration is then made consistent with the loads
+    (``SolidSolver.initialize_acceleration``)."""
+    for f, value in ((solver.eta_n, eta0), (solver.v_n, v0)):
+        if value is not None:
+            f.interpolate(value)
+            f.x.scatter_forward()
+    solver.eta.x.array[:] = solver.eta_n.x.array
+    if solver.scheme.dynamic:
+        solver.initialize_acceleration()
+
+
+def first_piola(law, F):
+    """``P = F Σ(F)`` of a hyperelastic law."""
+    return F * law.second_piola(F)
+
+
+def set_boundary_displacement(mm, values: np.ndarray) -> None:
+    """Set the mesh motion's boundary data g on its moving boundary from an interface vector:
+    values (n, gdim) at the owned moving dofs ``mm.interface_dofs``."""
+    values = np.asarray(values, dtype=float).reshape(len(mm.interface_dofs), mm.gdim)
+    mm.g.x.array.reshape(-1, mm.gdim)[mm.interface_dofs] = values
+    mm.g.x.scatter_forward()
+
+
+def boundary_vector(mm, f=None) -> np.ndarray:
+    """The interface vector (values at ``mm.interface_dofs``) of ``f`` (default: the mesh
+    displacement d)."""
+    f = mm.d if f is None else f
+    return f.x.array.reshape(-1, mm.gdim)[mm.interface_dofs].copy()
+
+
+def src_vector(imap, f) -> np.ndarray:
+    """The interface vector of a function on an interface map's source space."""
+    return f.x.array.reshape(-1, imap.bs)[imap.src_dofs].copy()

@@ -10,6 +10,7 @@ from petsc4py import PETSc
 import dolfinx.fem
 import numpy as np
 import pytest
+import support_physics
 from mesh_checks import global_max, mesh_motion_settings
 
 from fsi import compat, config
@@ -96,7 +97,7 @@ def test_bump_moves_interface_nodes_exactly_and_keeps_the_other_boundaries(fluid
     ale = AleMesh(fluid.mesh)  # the one object that moves the mesh
     assert mm.fixed == (Boundary.INLET, Boundary.OUTLET, Boundary.RIGID_WALL)
     values = bump(A)(mm.interface_points.T).T  # an interface vector, as the coupler sets it
-    mm.set_boundary_displacement(values)
+    support_physics.set_boundary_displacement(mm, values)
     mm.solve()
     mm.check_quality()
     ale.move(mm.d)  # the coupler's order: set, solve, check quality, move
@@ -104,7 +105,7 @@ def test_bump_moves_interface_nodes_exactly_and_keeps_the_other_boundaries(fluid
     x, X = fluid.mesh.geometry.x, mm.reference
     cap = boundary_nodes(fluid, Boundary.INTERFACE)
     # The boundary values are copied into d, not solved for: exactly the values set.
-    assert np.array_equal(mm.boundary_vector(), values)
+    assert np.array_equal(support_physics.boundary_vector(mm), values)
     # And the mesh is at X + d there, to the coordinates' last bits, not bit for bit: `values` are
     # the bump at the P1 dofs' coordinates, which the BLAS computes from the geometry's nodes
     # (OpenBLAS leaves them a last bit apart: 4e-19 m in 2 cm).
@@ -141,11 +142,11 @@ def test_boundary_data_from_the_solid_through_a_p2_interface_map(fluid):
     )
     eta, on_fluid = dolfinx.fem.Function(V_s), dolfinx.fem.Function(V_f)
     eta.interpolate(bump(3e-4))
-    imap.set_dst(on_fluid, imap.transfer(imap.src_vector(eta)))
+    imap.set_dst(on_fluid, imap.transfer(support_physics.src_vector(imap, eta)))
 
     mm = MeshMotion(fluid)
     mm.set_boundary_function(on_fluid)
-    from_function = mm.boundary_vector(mm.g)
+    from_function = support_physics.boundary_vector(mm, mm.g)
     expected = bump(3e-4)(mm.interface_points.T).T
     # P2 → P1 is evaluation at the vertices, where the P2 function has its nodal values: exact
     # to round-off (1e-15 m is 3e-12 of the 0.3 mm amplitude).
@@ -162,7 +163,7 @@ def test_stiffening_keeps_cells_from_inverting(fluid, stiffening, expected):
 
     def min_ratio(tagged, kind):
         mm = MeshMotion(tagged, mesh_motion_settings(stiffening=kind, stiffening_exponent=1.0))
-        mm.set_boundary_displacement(f(mm.interface_points.T).T)
+        support_physics.set_boundary_displacement(mm, f(mm.interface_points.T).T)
         mm.solve()
         return mm.min_jacobian_ratio()[0]
 
@@ -180,13 +181,13 @@ def test_stiffening_keeps_cells_from_inverting(fluid, stiffening, expected):
 def test_quality_guard(fluid):
     mm = MeshMotion(fluid)
     # Small: 0.1 mm, cells barely change.
-    mm.set_boundary_displacement(bump(1e-4)(mm.interface_points.T).T)
+    support_physics.set_boundary_displacement(mm, bump(1e-4)(mm.interface_points.T).T)
     mm.solve()
     assert mm.check_quality() == pytest.approx(0.9572, abs=1e-4)
 
     # 4 mm through a 3.5 mm gap: the plaque passes the opposite wall, cells must invert.
     reference = fluid.mesh.geometry.x.copy()
-    mm.set_boundary_displacement(bump(4e-3)(mm.interface_points.T).T)
+    support_physics.set_boundary_displacement(mm, bump(4e-3)(mm.interface_points.T).T)
     mm.solve()
     with pytest.raises(MeshQualityError) as info:
         mm.check_quality()
@@ -199,7 +200,7 @@ def test_quality_guard(fluid):
 
     # Not inverted but below a strict threshold: 1 mm unstiffened gives min J/J_ref = 0.436.
     strict = MeshMotion(fluid, mesh_motion_settings(stiffening="none", min_jacobian_ratio=0.5))
-    strict.set_boundary_displacement(bump(1e-3)(strict.interface_points.T).T)
+    support_physics.set_boundary_displacement(strict, bump(1e-3)(strict.interface_points.T).T)
     strict.solve()
     with pytest.raises(MeshQualityError, match="collapsed") as info:
         strict.check_quality()
@@ -214,12 +215,12 @@ def test_mesh_velocity_of_a_linear_motion(fluid, method):
     mm = MeshMotion(fluid, mesh_motion_settings(method=method))
     ale = AleMesh(fluid.mesh)
     values = f(mm.interface_points.T).T
-    mm.set_boundary_displacement(values)
+    support_physics.set_boundary_displacement(mm, values)
     extension = mm.solve().x.array.copy()
 
     times = [0.3, 0.5, 0.6]  # dt = 0.2, then 0.1
     for i, t in enumerate(times):
-        mm.set_boundary_displacement(t * values)
+        support_physics.set_boundary_displacement(mm, t * values)
         ale.move(mm.solve())
         if i == 1:
             ale.set_velocity(bdf_weights(1, 0.2))
@@ -245,7 +246,7 @@ def test_solve_reuses_the_matrix_and_its_factorisation(fluid):
     assert mm._ksp.getPC().getType() == "lu"
     values = bump(1e-4)(mm.interface_points.T).T
     for i in range(1, 21):
-        mm.set_boundary_displacement(i * values)
+        support_physics.set_boundary_displacement(mm, i * values)
         mm.solve()
         if i == 1:
             first = mm.d.x.array.copy()
@@ -275,7 +276,7 @@ def test_iterative_solver_from_the_config(fluid):
     ):
         mm = MeshMotion(fluid, mesh_motion_settings(**options))
         values = bump(2e-4)(mm.interface_points.T).T if values is None else values
-        mm.set_boundary_displacement(values)
+        support_physics.set_boundary_displacement(mm, values)
         results.append(mm.solve().x.array.copy())
         assert mm._ksp.getType() == ("cg" if options else "preonly")
     # CG stops at rtol 1e-12 on the preconditioned residual: ~1e-9 in d is ample.
@@ -290,7 +291,7 @@ def test_ale_mesh_moves_resets_and_restores(fluid):
     mm = MeshMotion(fluid)
     ale = AleMesh(fluid.mesh)
     reference = fluid.mesh.geometry.x.copy()
-    mm.set_boundary_displacement(bump(3e-4)(mm.interface_points.T).T)
+    support_physics.set_boundary_displacement(mm, bump(3e-4)(mm.interface_points.T).T)
     ale.move(mm.solve())
     ale.advance()
     state = ale.save()
@@ -299,7 +300,7 @@ def test_ale_mesh_moves_resets_and_restores(fluid):
     ale.move(dolfinx.fem.Function(ale.space))
     assert np.array_equal(fluid.mesh.geometry.x, reference)
 
-    mm.set_boundary_displacement(bump(-3e-4)(mm.interface_points.T).T)
+    support_physics.set_boundary_displacement(mm, bump(-3e-4)(mm.interface_points.T).T)
     ale.move(mm.solve())
     ale.advance()
     ale.restore(*state)

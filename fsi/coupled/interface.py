@@ -72,10 +72,6 @@ class InterfaceMap:
         """The destination interface vector carrying the source interface vector's values."""
         return self.gather(src_values)[self._pick]
 
-    def src_vector(self, f: dolfinx.fem.Function) -> np.ndarray:
-        """Interface vector of a source-space function."""
-        return f.x.array.reshape(-1, self.bs)[self.src_dofs].copy()
-
     def set_dst(self, f: dolfinx.fem.Function, values: np.ndarray) -> None:
         """Write a destination interface vector into a destination-space function."""
         f.x.array.reshape(-1, self.bs)[self.dst_dofs] = values

@@ -63,11 +63,6 @@ class HyperelasticLaw(Protocol):
         ...
 
 
-def first_piola(law: HyperelasticLaw, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
-    """``P = F Σ(F)``."""
-    return F * law.second_piola(F)
-
-
 def cauchy(law: HyperelasticLaw, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
     """In-plane Cauchy stress on the current configuration, ``σ = J⁻¹ P Fᵀ = J⁻¹ F Σ Fᵀ``."""
     return F * law.second_piola(F) * F.T / ufl.det(F)

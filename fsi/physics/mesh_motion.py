@@ -141,14 +141,14 @@ def biharmonic_operator(V: dolfinx.fem.FunctionSpace, k) -> PETSc.Mat:
 
 class MeshMotion:
     """The harmonic, elastic or biharmonic extension of a boundary displacement into the fluid
-    mesh: boundary data (:meth:`set_boundary_displacement`, :meth:`set_boundary_function`) →
+    mesh: boundary data (:meth:`set_boundary_function`) →
     :meth:`solve` → d, and the quality of X + d (:meth:`check_quality`). It never moves the
     mesh (:class:`AleMesh` does), and keeps no time levels.
 
     Args:
         tagged: the fluid (sub)mesh with its facet tags, in its reference configuration.
         settings: method, stiffening, quality threshold and PETSc options (prefix ``mesh_``).
-        moving: boundaries whose displacement is given (:meth:`set_boundary_displacement`).
+        moving: boundaries whose displacement is given (:attr:`g` at :attr:`interface_dofs`).
         fixed: boundaries held at d = 0; ``None`` = every other tagged boundary of the mesh.
             Boundaries in neither set are free (zero flux / zero traction). A dof on both a
             moving and a fixed boundary takes the moving value (the interface must conform).
@@ -316,14 +316,6 @@ class MeshMotion:
 
     # ---- boundary data
 
-    def set_boundary_displacement(self, values: np.ndarray) -> None:
-        """Set d on the moving boundary from an interface vector: values (n, gdim) at the owned
-        moving dofs :attr:`interface_dofs` (the order of
-        :class:`fsi.coupled.interface.InterfaceMap`)."""
-        values = np.asarray(values, dtype=float).reshape(len(self.interface_dofs), self.gdim)
-        self.g.x.array.reshape(-1, self.gdim)[self.interface_dofs] = values
-        self.g.x.scatter_forward()
-
     def set_boundary_function(self, f: dolfinx.fem.Function | Callable) -> None:
         """Set d on the moving boundary to ``f`` (a Function on this mesh, or x ↦ values as for
         ``Function.interpolate``), interpolated into P1."""
@@ -339,11 +331,6 @@ class MeshMotion:
         """Reference coordinates (n, gdim) of the owned moving-boundary dofs, in the order of an
         interface vector."""
         return self.dof_points[self.interface_dofs]
-
-    def boundary_vector(self, f: dolfinx.fem.Function | None = None) -> np.ndarray:
-        """The interface vector (values at :attr:`interface_dofs`) of ``f`` (default: d)."""
-        f = self.d if f is None else f
-        return f.x.array.reshape(-1, self.gdim)[self.interface_dofs].copy()
 
     # ---- solve
 

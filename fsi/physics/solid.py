@@ -446,19 +446,6 @@ class SolidSolver:
         if guess is not None:
             self.eta.x.array[:] = guess
 
-    def set_initial_conditions(
-        self, eta0: Callable | None = None, v0: Callable | None = None
-    ) -> None:
-        """Initial displacement and velocity (callables of x (3, n) → (2, n)); the initial
-        acceleration is then made consistent with the loads: :meth:`initialize_acceleration`."""
-        for f, value in ((self.eta_n, eta0), (self.v_n, v0)):
-            if value is not None:
-                f.interpolate(value)
-                f.x.scatter_forward()
-        self.eta.x.array[:] = self.eta_n.x.array
-        if self.scheme.dynamic:
-            self.initialize_acceleration()
-
     def initialize_acceleration(self) -> None:
         """Solve ``M a_n = f_ext(t_n) − f_int(η_n, η̇_n)`` (a_n = 0 on constrained dofs; f_int
         with the viscous stress and the support's force), so that the committed state satisfies
