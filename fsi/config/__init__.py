@@ -18,8 +18,12 @@ from fsi.config.domain import (
     TurekHronGeometry,
 )
 from fsi.config.fluid_section import (
+    FLOW_RATE_INLETS,
     Fluid,
     Inlet,
+    InletFlowRate,
+    InletFlowRateFile,
+    InletFlowRateTable,
     InletPressure,
     InletPressureFile,
     InletPressureTable,
@@ -89,6 +93,10 @@ __all__ = [
     "InletPressureTable",
     "InletPressureFile",
     "ParabolicInflow",
+    "InletFlowRate",
+    "InletFlowRateTable",
+    "InletFlowRateFile",
+    "FLOW_RATE_INLETS",
     "Outlet",
     "TractionFreeOutlet",
     "ResistanceOutlet",

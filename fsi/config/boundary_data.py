@@ -9,6 +9,7 @@ before it runs) into a function of time that returns a finite float or raises
 from __future__ import annotations
 
 import math
+import stat
 import typing
 from pathlib import Path
 
@@ -173,21 +174,43 @@ def _nesting(error: Exception) -> str:
     return str(error)
 
 
+def table_function(
+    rows: typing.Sequence[typing.Sequence[float]], period: float = 0.0
+) -> typing.Callable[[float], float]:
+    """The function of t of the rows [t, y] (t increasing): linear between rows; with
+    ``period`` T > 0 of t mod T, else constant beyond the first and last row."""
+    import numpy as np
+
+    times, values = np.array(rows, dtype=float).T
+    if period > 0:
+        return lambda t: float(np.interp(t % period, times, values))
+    return lambda t: float(np.interp(t, times, values))
+
+
+def periodic(function: typing.Callable[[float], float], period: float):
+    """``function`` of t mod ``period`` (s), or ``function`` itself for period 0."""
+    return (lambda t: function(t % period)) if period > 0 else function
+
+
 class WaveformError(ValueError):
     """A waveform CSV file cannot be used: the message names the file and, for bad content, the
     line (``waveforms/x.csv: line 7: 'abc' is not a number``)."""
 
 
-def read_waveform(path: str | Path) -> tuple[tuple[float, float], ...]:
-    """The rows (t (s), P (Pa)) of the CSV file ``path``.
+def read_waveform(path: str | Path, quantity: str = "P") -> tuple[tuple[float, float], ...]:
+    """The rows (t (s), P (Pa)) of the CSV file ``path``; ``quantity`` names the second column
+    in the messages (``Q`` for a flow rate, m²/s).
 
     Guaranteed on return: at least 2 rows, every value a finite float, t strictly increasing.
-    The file: UTF-8 text (a byte-order mark allowed) of at most :data:`MAX_FILE_BYTES`; one row
-    ``t, P`` per line, comma-separated; blank lines and lines starting with ``#`` are skipped;
-    the first other line may be a header (no cell of it a number: ``t,P``). Raises
+    The file: a regular file of UTF-8 text (a byte-order mark allowed) of at most
+    :data:`MAX_FILE_BYTES`; one row ``t, P`` per line, comma-separated; blank lines and lines
+    starting with ``#`` are skipped; the first other line may be a header (no cell of it a
+    number: ``t,P``). Raises
     :class:`WaveformError` naming the file (and the line) otherwise, ``OSError`` if the file
     cannot be read.
     """
+    if not stat.S_ISREG(Path(path).stat().st_mode):  # a FIFO would block, a device not end
+        raise WaveformError(f"{path}: not a regular file")
     with Path(path).open("rb") as f:
         raw = f.read(MAX_FILE_BYTES + 1)  # bounded, as a case file
     if len(raw) > MAX_FILE_BYTES:
@@ -211,22 +234,23 @@ def read_waveform(path: str | Path) -> tuple[tuple[float, float], ...]:
             continue  # the header
         where = f"{path}: line {number}"
         if len(cells) != 2:
-            raise WaveformError(f"{where}: expected 2 columns t, P, got {len(cells)}")
+            raise WaveformError(f"{where}: expected 2 columns t, {quantity}, got {len(cells)}")
         for cell, value in zip(cells, values):
             if value is None:
                 raise WaveformError(f"{where}: {shorten(repr(cell), 40)} is not a number")
-        t, pressure = values
-        for name, value in (("t", t), ("P", pressure)):
-            if not math.isfinite(value):
-                raise WaveformError(f"{where}: {name} = {value} is not a finite number")
+        t, y = values
+        for name, number in (("t", t), (quantity, y)):
+            if not math.isfinite(number):
+                raise WaveformError(f"{where}: {name} = {number} is not a finite number")
         if rows and t <= rows[-1][0]:
             raise WaveformError(
                 f"{where}: t = {t:g} is not after the previous row's t = {rows[-1][0]:g}"
             )
-        rows.append((t, pressure))
+        rows.append((t, y))
     if len(rows) < 2:
         raise WaveformError(
-            f"{path}: {len(rows)} row{'s' if len(rows) != 1 else ''} of t, P; at least 2 are needed"
+            f"{path}: {len(rows)} row{'s' if len(rows) != 1 else ''} of t, {quantity}; at least 2 "
+            "are needed"
         )
     return tuple(rows)
 

@@ -31,8 +31,8 @@ class Case:
 
 
 def heartbeat_period(case: Case) -> float:
-    """The inlet's period T (s) when it repeats (a ``pressure_table`` or ``pressure_file``
-    inlet with ``period`` > 0), else 0."""
+    """The inlet's period T (s) when it repeats (a ``pressure_table``, ``pressure_file`` or
+    flow-rate inlet with ``period`` > 0), else 0."""
     return float(getattr(case.fluid.inlet, "period", 0.0))
 
 

@@ -1,6 +1,7 @@
 """A case file to a :class:`Case` and back: :func:`load` reads, builds and validates one
-(:func:`from_dict` from data already read, with a ``pressure_file`` inlet's rows read from its
-CSV file), :func:`to_dict`, :func:`to_yaml` and :func:`dump` write the resolved configuration.
+(:func:`from_dict` from data already read, with a ``pressure_file`` or ``flow_rate_file``
+inlet's rows read from its CSV file), :func:`to_dict`, :func:`to_yaml` and :func:`dump` write
+the resolved configuration.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import yaml
 
 from fsi.config.boundary_data import WaveformError, read_waveform
 from fsi.config.case import Case
-from fsi.config.fluid_section import InletPressureFile, InletPressureTable
+from fsi.config.fluid_section import WAVEFORM_FILES
 from fsi.config.reader import ConfigError, apply_overrides, build, read_case_file
 from fsi.config.validation import validate
 
@@ -53,33 +54,34 @@ def from_dict(data: dict, source: str = "<dict>", overridden: set[str] | None = 
 
 
 def _read_inlet_file(case: Case, source: str, overridden: set[str]) -> Case:
-    """``case`` with a ``pressure_file`` inlet's rows read into its ``table`` (other inlets
-    unchanged). ``file`` is relative to the folder of ``source`` (the case file), or to the
-    current directory when ``--set`` gave it (or ``source`` is not a file: ``<dict>``); the
-    path kept in the case is the one opened."""
+    """``case`` with a ``pressure_file`` or ``flow_rate_file`` inlet's rows read into its
+    ``table`` (other inlets unchanged). ``file`` is relative to the folder of ``source`` (the
+    case file), or to the current directory when ``--set`` gave it (or ``source`` is not a
+    file: ``<dict>``); the path kept in the case is the one opened."""
     inlet = case.fluid.inlet
-    if not isinstance(inlet, InletPressureFile):
+    if not isinstance(inlet, WAVEFORM_FILES):
         return case
     if inlet.table:
         raise ConfigError(
             "",
             "fluid.inlet.table",
-            reason="not a key of kind 'pressure_file' "
-            "(its rows come from fluid.inlet.file; use kind 'pressure_table' to "
-            "give them inline)",
+            reason=f"not a key of kind '{inlet.kind}' "
+            "(its rows come from fluid.inlet.file; use kind "
+            f"'{inlet.as_table().kind}' to give them inline)",
         )
     if not inlet.file:
         raise ConfigError(
             "",
             "fluid.inlet.file",
-            "the name of a CSV file of rows t, P (relative to the case file's folder)",
+            f"the name of a CSV file of rows t, {inlet.quantity} (relative to the case file's "
+            "folder)",
         )
     from_command_line = bool({"fluid", "fluid.inlet", "fluid.inlet.file"} & overridden)
     path = Path(inlet.file)
     if not path.is_absolute() and not from_command_line and source not in ("<dict>", "--set"):
         path = Path(source).parent / path
     try:
-        rows = read_waveform(path)
+        rows = read_waveform(path, inlet.quantity)
     except OSError as e:
         raise ConfigError(
             "", "fluid.inlet.file", reason=f"cannot read {path} ({e.strerror or type(e).__name__})"
@@ -92,8 +94,9 @@ def _read_inlet_file(case: Case, source: str, overridden: set[str]) -> Case:
 
 def to_dict(case: Case) -> dict:
     """The resolved configuration as plain YAML-ready data (tuples as lists); a
-    ``pressure_file`` inlet as the ``pressure_table`` of its rows and period, so that
-    :func:`load` of the data needs no CSV file and gives the same P(t)."""
+    ``pressure_file`` (``flow_rate_file``) inlet as the ``pressure_table``
+    (``flow_rate_table``) of its rows and other keys, so that :func:`load` of the data needs no
+    CSV file and gives the same P(t) (Q(t))."""
 
     def plain(v: Any) -> Any:
         if isinstance(v, dict):
@@ -104,10 +107,8 @@ def to_dict(case: Case) -> dict:
 
     data = plain(dataclasses.asdict(case))
     inlet = case.fluid.inlet
-    if isinstance(inlet, InletPressureFile):  # self-contained: the rows, not the file
-        data["fluid"]["inlet"] = plain(
-            dataclasses.asdict(InletPressureTable(table=inlet.table, period=inlet.period))
-        )
+    if isinstance(inlet, WAVEFORM_FILES):  # self-contained: the rows, not the file
+        data["fluid"]["inlet"] = plain(dataclasses.asdict(inlet.as_table()))
     return data
 
 

@@ -7,7 +7,7 @@ subsections are :mod:`fsi.config.rheology_section`'s and :mod:`fsi.config.outlet
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 from fsi.config.boundary_data import FORMULA_NAMES, time_function
 from fsi.config.outlet_section import Outlet, TractionFreeOutlet
@@ -32,12 +32,8 @@ def _is_time_formula(text: str) -> bool:
     return True
 
 
-@dataclass(frozen=True)
-class InletPressure:
-    """Inlet normal traction σ n = −P(t) n (P pushes blood in) with P (Pa) a formula in t."""
-
-    kind: Literal["pressure"] = "pressure"
-    formula: str = checked(
+def _formula() -> Any:
+    return checked(
         "0",
         _is_time_formula,
         "an expression in t (numbers, + - * / ** %,"
@@ -45,11 +41,25 @@ class InletPressure:
     )
 
 
+@dataclass(frozen=True)
+class InletPressure:
+    """Inlet normal traction σ n = −P(t) n (P pushes blood in) with P (Pa) a formula in t."""
+
+    kind: Literal["pressure"] = "pressure"
+    formula: str = _formula()
+
+
 def _is_time_table(rows: tuple) -> bool:
     return (
         len(rows) >= 1
         and all(len(r) == 2 for r in rows)
         and all(b[0] > a[0] for a, b in zip(rows, rows[1:]))
+    )
+
+
+def _table(value: str) -> Any:
+    return checked(
+        ((0.0, 0.0),), _is_time_table, f"a non-empty list of [t, {value}] pairs with increasing t"
     )
 
 
@@ -64,9 +74,7 @@ class InletPressureTable:
     rows must cover [0, T] (checked by :func:`fsi.config.validate`)."""
 
     kind: Literal["pressure_table"] = "pressure_table"
-    table: tuple[tuple[float, ...], ...] = checked(
-        ((0.0, 0.0),), _is_time_table, "a non-empty list of [t, P] pairs with increasing t"
-    )
+    table: tuple[tuple[float, ...], ...] = _table("P")
     period: float = _period()
 
 
@@ -83,6 +91,12 @@ class InletPressureFile:
     period: float = _period()
     table: tuple[tuple[float, ...], ...] = ()  # filled by from_dict, not a YAML key
 
+    quantity: ClassVar[str] = "P"  # the CSV's second column
+
+    def as_table(self) -> InletPressureTable:
+        """The inline table of the rows read (:func:`fsi.config.to_dict` writes it)."""
+        return InletPressureTable(table=self.table, period=self.period)
+
 
 @dataclass(frozen=True)
 class ParabolicInflow:
@@ -95,7 +109,77 @@ class ParabolicInflow:
     ramp_time: float = non_negative(2.0, " (s)")
 
 
-Inlet = InletPulse | InletPressure | InletPressureTable | InletPressureFile | ParabolicInflow
+FlowProfile = Literal["parabolic", "womersley"]
+"""A flow-rate inlet's velocity profile across the inlet."""
+
+
+@dataclass(frozen=True)
+class InletFlowRate:
+    """Velocity inflow of volume flow rate Q(t) (m²/s per unit depth, positive into the domain),
+    a formula in t, along the inward normal: ``profile`` ``parabolic`` u = Q 6 s (H − s)/H³ (s
+    the distance along the inlet of width H) or ``womersley`` (the plane Womersley profile of
+    each harmonic; needs ``period``); Q ramped by (1 − cos(π t / ramp_time))/2 for
+    t < ramp_time. With ``period`` T > 0, Q(t) = Q(t mod T)."""
+
+    kind: Literal["flow_rate"] = "flow_rate"
+    formula: str = _formula()
+    period: float = _period()
+    profile: FlowProfile = "parabolic"
+    ramp_time: float = non_negative(0.0, " (s)")
+
+
+@dataclass(frozen=True)
+class InletFlowRateTable:
+    """A :class:`InletFlowRate` whose Q(t) comes from rows [t (s), Q (m²/s)], interpolated as
+    :class:`InletPressureTable`'s P(t)."""
+
+    kind: Literal["flow_rate_table"] = "flow_rate_table"
+    table: tuple[tuple[float, ...], ...] = _table("Q")
+    period: float = _period()
+    profile: FlowProfile = "parabolic"
+    ramp_time: float = non_negative(0.0, " (s)")
+
+
+@dataclass(frozen=True)
+class InletFlowRateFile:
+    """A :class:`InletFlowRateTable` whose rows t, Q come from the CSV file ``file``, read as
+    :class:`InletPressureFile`'s; written to config.yaml as a ``flow_rate_table``."""
+
+    kind: Literal["flow_rate_file"] = "flow_rate_file"
+    file: str = ""
+    period: float = _period()
+    profile: FlowProfile = "parabolic"
+    ramp_time: float = non_negative(0.0, " (s)")
+    table: tuple[tuple[float, ...], ...] = ()  # filled by from_dict, not a YAML key
+
+    quantity: ClassVar[str] = "Q"  # the CSV's second column
+
+    def as_table(self) -> InletFlowRateTable:
+        """The inline table of the rows read (:func:`fsi.config.to_dict` writes it)."""
+        return InletFlowRateTable(
+            table=self.table, period=self.period, profile=self.profile, ramp_time=self.ramp_time
+        )
+
+
+Inlet = (
+    InletPulse
+    | InletPressure
+    | InletPressureTable
+    | InletPressureFile
+    | ParabolicInflow
+    | InletFlowRate
+    | InletFlowRateTable
+    | InletFlowRateFile
+)
+
+FLOW_RATE_INLETS = (InletFlowRate, InletFlowRateTable, InletFlowRateFile)
+"""The inlets that prescribe the flow rate Q(t) (velocity inlets, as :class:`ParabolicInflow`)."""
+
+WAVEFORM_FILES = (InletPressureFile, InletFlowRateFile)
+"""The inlets whose rows are read from a CSV file (:func:`fsi.config.from_dict`)."""
+
+TABLE_INLETS = (InletPressureTable, InletPressureFile, InletFlowRateTable, InletFlowRateFile)
+"""The inlets defined by rows [t, value] (a file's read when loaded)."""
 
 
 @dataclass(frozen=True)

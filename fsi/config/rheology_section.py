@@ -182,3 +182,14 @@ class Casson:
 
 
 Rheology = Newtonian | Carreau | CarreauYasuda | Cross | PowerLaw | Casson
+
+
+def womersley_viscosity(law: Rheology) -> float | None:
+    """The constant viscosity (Pa s) of a Womersley inflow profile (docs/boundary-conditions.md):
+    the Newtonian μ, or μ∞ (``mu_inf``) of Carreau, Carreau–Yasuda and Cross, the viscosity of
+    the sheared, pulsating flow; None for the power law and Casson (no such constant)."""
+    if isinstance(law, Newtonian):
+        return law.viscosity
+    if isinstance(law, PlateauLaw):
+        return law.mu_inf
+    return None

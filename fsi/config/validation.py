@@ -7,21 +7,25 @@ from __future__ import annotations
 
 import math
 
-from fsi.config.boundary_data import FormulaError, time_function
+from fsi.config.boundary_data import FormulaError, periodic, time_function
 from fsi.config.case import Case, heartbeat_period, run_time
 from fsi.config.domain import StenosisGeometry, TurekHronGeometry
 from fsi.config.fluid_section import (
+    FLOW_RATE_INLETS,
+    TABLE_INLETS,
+    WAVEFORM_FILES,
+    InletFlowRate,
     InletPressure,
-    InletPressureFile,
-    InletPressureTable,
     ParabolicInflow,
 )
 from fsi.config.petsc_options import check_petsc_options
 from fsi.config.reader import ConfigError
+from fsi.config.rheology_section import womersley_viscosity
 from fsi.config.run_size import BYTES_PER_CELL, count_steps, estimated_cells, format_count
 from fsi.config.time_section import Time
 from fsi.geometry import stenosis as stenosis_geometry
 from fsi.numerics.timestepping import steps
+from fsi.physics.inflow_profiles import sample_times
 
 
 def validate(case: Case) -> None:
@@ -139,7 +143,7 @@ def _validate_structure_load(case: Case) -> None:
                 case.structure.interface_load,
             )
         if case.structure.interface_load == "inlet_pressure" and isinstance(
-            case.fluid.inlet, ParabolicInflow
+            case.fluid.inlet, (ParabolicInflow, *FLOW_RATE_INLETS)
         ):
             raise ConfigError(
                 "",
@@ -265,8 +269,9 @@ def _validate_cycles(time: Time, period: float) -> None:
             "",
             "time.cycles",
             reason=(
-                f"{n} heartbeats need a periodic inlet (a pressure_table or pressure_file "
-                "fluid.inlet with period > 0); this inlet does not repeat: use time.end instead"
+                f"{n} heartbeats need a periodic inlet (a pressure_table, pressure_file, "
+                "flow_rate, flow_rate_table or flow_rate_file fluid.inlet with period > 0); "
+                "this inlet does not repeat: use time.end instead"
             ),
         )
     if n >= 1 and period > 0:
@@ -318,32 +323,70 @@ def _validate_solvers(case: Case) -> None:
 
 
 def _validate_inlet(case: Case) -> None:
-    """Evaluate an inlet formula at t = 0 and at every step time of the schedule: one that
-    fails (division by zero, log(0), overflow, ...) is refused now, not mid-run."""
+    """A periodic table covers its period; a flow-rate inlet's profile can be built; an inlet
+    formula is evaluated at t = 0, at every step time of the schedule and (Womersley) at the
+    samples of its harmonics: one that fails (division by zero, log(0), overflow, ...) is
+    refused now, not mid-run."""
     inlet = case.fluid.inlet
-    if isinstance(inlet, (InletPressureTable, InletPressureFile)):
+    if isinstance(inlet, TABLE_INLETS):
         _validate_period(inlet)
-    if not isinstance(inlet, InletPressure):
-        return  # the pulse is closed-form; a table holds finite numbers and interpolates
-    pressure = time_function(inlet.formula)
+    if isinstance(inlet, FLOW_RATE_INLETS):
+        _validate_profile(case)
+    if isinstance(inlet, InletPressure):
+        _validate_formula(time_function(inlet.formula), [step.t for step in steps(case.time)])
+    elif isinstance(inlet, InletFlowRate):
+        samples = sample_times(inlet.period) if inlet.profile == "womersley" else []
+        _validate_formula(
+            periodic(time_function(inlet.formula), inlet.period),
+            [*(step.t for step in steps(case.time)), *samples],
+        )
+
+
+def _validate_formula(law, times) -> None:
+    """Refuse ``fluid.inlet.formula`` unless ``law`` (its function of t) evaluates at t = 0
+    and at ``times`` (s)."""
     try:
-        pressure(0.0)
-        for step in steps(case.time):
-            pressure(step.t)
+        law(0.0)
+        for t in times:
+            law(t)
     except FormulaError as e:
         raise ConfigError(
             "", "fluid.inlet.formula", reason=f"evaluation fails at t = {e.t:.6g} s ({e.reason})"
         ) from None
 
 
-def _validate_period(inlet: InletPressureTable | InletPressureFile) -> None:
-    """A periodic table must cover one period: first t <= 0 and last t >= period."""
+def _validate_profile(case: Case) -> None:
+    """A ``womersley`` profile needs a period and a constant viscosity
+    (:func:`fsi.config.rheology_section.womersley_viscosity`)."""
+    inlet = case.fluid.inlet
+    if inlet.profile != "womersley":
+        return
+    if not inlet.period > 0:
+        raise ConfigError(
+            "",
+            "fluid.inlet.profile",
+            reason="'womersley' needs fluid.inlet.period > 0 (s): the profile is built from "
+            "the harmonics of one period of Q(t); give the period or use 'parabolic'",
+        )
+    if womersley_viscosity(case.fluid.rheology) is None:
+        raise ConfigError(
+            "",
+            "fluid.inlet.profile",
+            reason="'womersley' needs a constant viscosity (newtonian, or mu_inf of carreau, "
+            f"carreau_yasuda, cross), not fluid.rheology.model "
+            f"'{case.fluid.rheology.model}': use 'parabolic'",
+        )
+
+
+def _validate_period(inlet) -> None:
+    """A periodic table (:data:`~fsi.config.fluid_section.TABLE_INLETS`) must cover one period:
+    first t <= 0 and last t >= period."""
     period = inlet.period
     first, last = inlet.table[0][0], inlet.table[-1][0]
     if period > 0 and not (first <= 0 <= period <= last):
         rows = (
             f"the rows of {inlet.file}"
-            if isinstance(inlet, InletPressureFile)
+            if isinstance(inlet, WAVEFORM_FILES)
             else "fluid.inlet.table"
         )
         raise ConfigError(

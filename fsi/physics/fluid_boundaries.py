@@ -25,7 +25,7 @@ import ufl
 from fsi import compat, config
 from fsi.config import boundary_data
 from fsi.geometry.tags import Boundary
-from fsi.physics import outlets
+from fsi.physics import inflow_profiles, outlets
 
 TractionFunction = Callable[
     [ufl.core.expr.Expr, ufl.core.expr.Expr, dolfinx.fem.Constant], ufl.core.expr.Expr
@@ -169,12 +169,21 @@ def inlet_pressure(spec: config.Inlet) -> Callable[[float], float]:
                 f"fluid.inlet ({spec.kind}) has no rows (a pressure_file inlet "
                 "is read by config.load or config.from_dict)"
             )
-        times, values = np.array(spec.table, dtype=float).T
-        period = spec.period
-        if period > 0:
-            return lambda t: float(np.interp(t % period, times, values))
-        return lambda t: float(np.interp(t, times, values))
+        return boundary_data.table_function(spec.table, spec.period)
     raise TypeError(f"{type(spec).__name__} is not a traction inlet")
+
+
+def inlet_flow_rate(spec: config.Inlet) -> Callable[[float], float]:
+    """Q(t) (m²/s per unit depth, into the domain) of a flow-rate inlet, before its ramp: a
+    formula in t or a table (inline or from a CSV file, linear between rows), of t mod T with a
+    period T > 0 (a table is constant beyond its ends without one)."""
+    if isinstance(spec, config.InletFlowRate):
+        return boundary_data.periodic(boundary_data.time_function(spec.formula), spec.period)
+    if isinstance(spec, (config.InletFlowRateTable, config.InletFlowRateFile)):
+        if not spec.table:
+            raise ValueError(f"fluid.inlet ({spec.kind}) has no rows (read by config.load)")
+        return boundary_data.table_function(spec.table, spec.period)
+    raise TypeError(f"{type(spec).__name__} is not a flow-rate inlet")
 
 
 def inflow_ramp(t: float, ramp_time: float) -> float:
@@ -183,7 +192,7 @@ def inflow_ramp(t: float, ramp_time: float) -> float:
 
 
 # --------------------------------------------------------------------------------------------
-# The geometry of straight open boundaries (normal flow, the parabolic inflow profile)
+# The geometry of straight open boundaries (normal flow, the velocity inlets' profiles)
 
 
 def boundary_points(mesh, facet_tags, tags: Sequence[int], comm: MPI.Comm) -> np.ndarray:
@@ -195,30 +204,50 @@ def boundary_points(mesh, facet_tags, tags: Sequence[int], comm: MPI.Comm) -> np
     return np.concatenate(comm.allgather(mesh.geometry.x[nodes, :2]))
 
 
-def parabolic_profile(points: np.ndarray, mesh, comm: MPI.Comm, mean_velocity: float):
-    """The interpolation function of 1.5 Ū 4 s (H − s)/H² (−n) on the straight inlet whose
-    vertices are ``points`` (:func:`boundary_points`): H its width, s the distance along it,
-    n its outward normal (towards the inside of ``mesh``: the side of its centroid).
-    Collective (the centroid)."""
-    # The inlet's end points: the pair of its vertices farthest apart.
-    ends = points[
-        [np.argmin(points @ d) for d in ((1, 0), (0, 1))]
-        + [np.argmax(points @ d) for d in ((1, 0), (0, 1))]
-    ]
-    i, j = np.unravel_index(np.argmax(np.linalg.norm(ends[:, None] - ends[None], axis=2)), (4, 4))
-    start, tangent = ends[i], ends[j] - ends[i]
-    width = np.linalg.norm(tangent)
-    tangent = tangent / width
-    normal = np.array([tangent[1], -tangent[0]])
-    centre = comm.allreduce(mesh.geometry.x[:, :2].sum(axis=0))
-    centre /= comm.allreduce(len(mesh.geometry.x))
-    if normal @ (centre - start) < 0:
-        normal = -normal  # inward
-    peak = 1.5 * mean_velocity
+@dataclass(frozen=True)
+class InletFrame:
+    """A straight inlet: its end ``start``, unit ``tangent`` and ``width`` H (m) along it, and
+    its inward unit ``normal`` (towards the inside of the mesh)."""
+
+    start: np.ndarray
+    tangent: np.ndarray
+    width: float
+    normal: np.ndarray
+
+    @classmethod
+    def of(cls, points: np.ndarray, mesh, comm: MPI.Comm) -> InletFrame:
+        """The frame of the straight inlet whose vertices are ``points``
+        (:func:`boundary_points`); inward: the side of the centroid of ``mesh``. Collective."""
+        # The inlet's end points: the pair of its vertices farthest apart.
+        ends = points[
+            [np.argmin(points @ d) for d in ((1, 0), (0, 1))]
+            + [np.argmax(points @ d) for d in ((1, 0), (0, 1))]
+        ]
+        i, j = np.unravel_index(
+            np.argmax(np.linalg.norm(ends[:, None] - ends[None], axis=2)), (4, 4)
+        )
+        start, tangent = ends[i], ends[j] - ends[i]
+        width = np.linalg.norm(tangent)
+        tangent = tangent / width
+        normal = np.array([tangent[1], -tangent[0]])
+        centre = comm.allreduce(mesh.geometry.x[:, :2].sum(axis=0))
+        centre /= comm.allreduce(len(mesh.geometry.x))
+        if normal @ (centre - start) < 0:
+            normal = -normal  # inward
+        return cls(start, tangent, width, normal)
+
+    def distance(self, x: np.ndarray) -> np.ndarray:
+        """s (m), the distance along the inlet from ``start`` of the points ``x`` (one per row,
+        their first two columns (x, y)), clipped to [0, H]."""
+        return np.clip((x[:, :2] - self.start) @ self.tangent, 0, self.width)
+
+
+def parabolic_profile(frame: InletFrame, mean_velocity: float):
+    """The interpolation function of :func:`~fsi.physics.inflow_profiles.parabola` of mean
+    velocity Ū (m/s) times the inward normal on the inlet ``frame``."""
 
     def profile(xx):
-        s = np.clip((xx[:2].T - start) @ tangent, 0, width)
-        values = peak * 4 * s * (width - s) / width**2
-        return np.outer(normal, values)
+        values = inflow_profiles.parabola(frame.distance(xx.T), frame.width, mean_velocity)
+        return np.outer(frame.normal, values)
 
     return profile

@@ -25,10 +25,12 @@ import numpy as np
 import ufl
 
 from fsi import config
+from fsi.config.rheology_section import womersley_viscosity
 from fsi.physics import outlets, rheology
 from fsi.physics.fluid_boundaries import (
     BoundaryCondition,
     Inflow,
+    InletFrame,
     NoSlip,
     Outflow,
     Slip,
@@ -37,9 +39,11 @@ from fsi.physics.fluid_boundaries import (
     boundary_points,
     facets_of,
     inflow_ramp,
+    inlet_flow_rate,
     inlet_pressure,
     parabolic_profile,
 )
+from fsi.physics.inflow_profiles import FlowRateProfile
 
 BodyForce = Callable[[ufl.core.expr.Expr, dolfinx.fem.Constant], ufl.core.expr.Expr]
 """``f(x, t)``: a UFL vector (N/m³) of the spatial coordinate and the time."""
@@ -320,11 +324,11 @@ class FluidResidual:
         )
 
     def _inflow(self, bc: Inflow, s: _WeakForm) -> _Contribution:
-        """A parabolic velocity inlet (Dirichlet), or a traction inlet: σ n = −P(t) n as an
-        open boundary (:meth:`_open_boundary`), its inflow energy term, and u·t = 0 with
+        """A velocity inlet (Dirichlet: parabolic, flow rate), or a traction inlet: σ n = −P(t) n
+        as an open boundary (:meth:`_open_boundary`), its inflow energy term, and u·t = 0 with
         ``normal_flow`` (first, so that walls and the interface win at the corners)."""
-        if isinstance(bc.spec, config.ParabolicInflow):
-            return _Contribution(dirichlet=[(_PRESCRIBED, self._parabolic_inflow(bc))])
+        if isinstance(bc.spec, (config.ParabolicInflow, *config.FLOW_RATE_INLETS)):
+            return _Contribution(dirichlet=[(_PRESCRIBED, self._velocity_inflow(bc))])
         pressure = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(0.0))
         law = inlet_pressure(bc.spec)
         self.updates.append(lambda t, c=pressure, law=law: c.value.fill(law(t)))
@@ -457,19 +461,58 @@ class FluidResidual:
         zero = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(0.0))
         return dolfinx.fem.dirichletbc(zero, dofs, component)
 
-    def _parabolic_inflow(self, bc: Inflow):
-        """u = ramp(t) 1.5 Ū 4 s (H − s)/H² (−n) on a straight inlet of width H."""
-        spec: config.ParabolicInflow = bc.spec
+    def _velocity_inflow(self, bc: Inflow):
+        """u = ramp(t) g(s, t) (−n) on a straight inlet of width H (s along it, n its outward
+        normal): ``parabolic_velocity`` g = 1.5 Ū 4 s (H − s)/H², or a flow-rate inlet's
+        :class:`~fsi.physics.inflow_profiles.FlowRateProfile`; the ramp (1 − cos(π t/T_r))/2
+        for t < T_r (none when steady)."""
+        spec = bc.spec
         points = boundary_points(self.mesh, self.facet_tags, bc.tags, self.comm)
-        shape = dolfinx.fem.Function(self.V)
-        shape.interpolate(parabolic_profile(points, self.mesh, self.comm, spec.mean_velocity))
+        frame = InletFrame.of(points, self.mesh, self.comm)
         inflow = dolfinx.fem.Function(self.V, name="inflow")
+        if isinstance(spec, config.ParabolicInflow):
+            values = self._parabolic_values(spec, frame)
+        else:
+            values = self._flow_rate_values(spec, frame, bc.tags, inflow)
 
         ramped = self.scheme != "steady" and spec.ramp_time > 0
 
         def update(t: float) -> None:  # no reference to self: no cycle for the GC to break
             factor = inflow_ramp(t, spec.ramp_time) if ramped else 1.0
-            inflow.x.array[:] = factor * shape.x.array
+            inflow.x.array[:] = factor * values(t)
 
         self.updates.append(update)
         return self._dirichlet(inflow, bc.tags)
+
+    def _parabolic_values(self, spec: config.ParabolicInflow, frame: InletFrame) -> Callable:
+        """The function of t giving the ``parabolic_velocity`` array (constant: the parabola
+        times −n interpolated into V)."""
+        shape = dolfinx.fem.Function(self.V)
+        shape.interpolate(parabolic_profile(frame, spec.mean_velocity))
+        return lambda t: shape.x.array
+
+    def _flow_rate_values(self, spec, frame: InletFrame, tags, inflow) -> Callable:
+        """The function of t giving a flow-rate inlet's velocity array (``inflow``'s layout):
+        the :class:`FlowRateProfile` speed times −n at the inlet's nodes, 0 elsewhere."""
+        nodes = dolfinx.fem.locate_dofs_topological(
+            self.V, self.mesh.topology.dim - 1, facets_of(self.facet_tags, tags)
+        )
+        s = frame.distance(self.V.tabulate_dof_coordinates()[nodes])
+        womersley = spec.profile == "womersley"
+        speed = FlowRateProfile(
+            inlet_flow_rate(spec),
+            s,
+            frame.width,
+            spec.period,
+            self.config.density,
+            womersley_viscosity(self.config.rheology) if womersley else None,
+        )
+        array = np.zeros_like(inflow.x.array)
+        block = array.reshape(-1, self.V.dofmap.index_map_bs)
+        normal = frame.normal
+
+        def values(t: float) -> np.ndarray:
+            block[nodes] = np.outer(speed(t), normal)
+            return array
+
+        return values
