@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from fsi import cli, config
-from fsi.config import boundary_data
+from fsi.config import boundary_data, reader
 from fsi.geometry.tags import Boundary, Region
 from fsi.output import io, metrics
 from fsi.physics import fluid, fluid_boundaries, inflow_profiles, mesh
@@ -216,3 +216,106 @@ def test_a_sinusoidal_flow_rate_gives_the_womersley_flow():
     inflow = -metrics.flow_rate(solver.u, solver.facet_tags, [Boundary.INLET])
     print(f"Womersley: inlet flow rate error {abs(inflow - Q0 * math.sin(omega * t)) / Q0:.2e} Q0")
     assert inflow == pytest.approx(Q0 * math.sin(omega * t), abs=1e-4 * Q0)
+
+
+# --------------------------------------------------------------------------------------------
+# Refused inputs: exit 2, one line naming the case file and the key, before any computation
+
+BAD_FILES = [  # (CSV bytes, or None for no file, or "dir" for a folder; message after "case.yaml: ")
+    (None, "fluid.inlet.file: cannot read {dir}/q.csv (No such file or directory)"),
+    ("dir", "fluid.inlet.file: {dir}/q.csv: not a regular file"),
+    (b"", "fluid.inlet.file: {dir}/q.csv: 0 rows of t, Q; at least 2 are needed"),
+    (b"t,Q\n0,1\n", "fluid.inlet.file: {dir}/q.csv: 1 row of t, Q; at least 2 are needed"),
+    (b"0,0\n0.1,abc\n", "fluid.inlet.file: {dir}/q.csv: line 2: 'abc' is not a number"),
+    (
+        b"0,0\n0.2,1\n0.1,2\n",
+        "fluid.inlet.file: {dir}/q.csv: line 3: t = 0.1 is not after the previous row's t = 0.2",
+    ),
+    (b"0,0\n0.1,nan\n", "fluid.inlet.file: {dir}/q.csv: line 2: Q = nan is not a finite number"),
+    (b"0,0\n0.1,1,2\n", "fluid.inlet.file: {dir}/q.csv: line 2: expected 2 columns t, Q, got 3"),
+    (b"0,0\n0.5,\xff\n", "fluid.inlet.file: {dir}/q.csv: not UTF-8 text (byte 0xff at offset 8)"),
+    (b"#" * (1 << 20) + b"\n", "fluid.inlet.file: {dir}/q.csv: larger than 1048576 bytes"),
+]
+
+
+@pytest.mark.parametrize("text,message", BAD_FILES)
+def test_a_bad_flow_rate_file_exits_2_naming_the_file_and_key(shared_tmp, capsys, text, message):
+    if text == "dir":
+        if MPI.COMM_WORLD.rank == 0:
+            (shared_tmp / "q.csv").mkdir()
+        MPI.COMM_WORLD.barrier()
+    elif text is not None:
+        write(shared_tmp / "q.csv", text)
+    case = shared_tmp / "case.yaml"
+    write(case, "fluid:\n  inlet: {kind: flow_rate_file, file: q.csv}\n")
+    assert cli.main(["check", str(case)]) == 2
+    err = capsys.readouterr().err
+    if MPI.COMM_WORLD.rank == 0:
+        assert err.startswith(f"fsi: error: {case}: " + message.format(dir=shared_tmp)), err
+        assert err.count("\n") == 1 and "Traceback" not in err
+
+
+BAD_INLETS = [  # (fluid.inlet, other keys, the key named, words of the message)
+    ("{kind: flow_rate, formula: '1', profile: plug}", "", "fluid.inlet.profile", "'womersley'"),
+    ("{kind: flow_rate, formula: '1', profile: womersley}", "", "fluid.inlet.profile", "period"),
+    (
+        "{kind: flow_rate_table, table: [[0, 1], [1, 2]], profile: womersley}",
+        "",
+        "fluid.inlet.profile",
+        "period > 0",
+    ),
+    (
+        "{kind: flow_rate, formula: '1', period: 1, profile: womersley}",
+        "  rheology: {model: power_law}\n",
+        "fluid.inlet.profile",
+        "'power_law'",
+    ),
+    (
+        "{kind: flow_rate, formula: '1', period: 1, profile: womersley}",
+        "  rheology: {model: casson}\n",
+        "fluid.inlet.profile",
+        "'casson'",
+    ),
+    ("{kind: flow_rate, formula: '1/(t - 0.4)'}", "", "fluid.inlet.formula", "division by zero"),
+    (
+        "{kind: flow_rate, formula: 'log(t - 0.1)', period: 0.2, profile: womersley}",
+        "",
+        "fluid.inlet.formula",
+        "evaluation fails at t = 0",  # a sample of the harmonics, not a step time
+    ),
+    ("{kind: flow_rate, formula: 'x'}", "", "fluid.inlet.formula", "unknown name 'x'"),
+    ("{kind: flow_rate, ramp_time: -1}", "", "fluid.inlet.ramp_time", ">= 0"),
+    (
+        "{kind: flow_rate_table, table: [[0, 1], [0.5, 2]], period: 0.8}",
+        "",
+        "fluid.inlet.period",
+        "fluid.inlet.table cover t in [0, 0.5] s",
+    ),
+    ("{kind: flow_rate_table, table: [[0, 1], [0, 2]]}", "", "fluid.inlet.table", "[t, Q] pairs"),
+    (
+        "{kind: flow_rate_file, file: q.csv, table: [[0, 1]]}",
+        "",
+        "fluid.inlet.table",
+        "not a key of kind 'flow_rate_file' (its rows come from fluid.inlet.file; use kind "
+        "'flow_rate_table'",
+    ),
+    ("{kind: flow_rate_file}", "", "fluid.inlet.file", "CSV file of rows t, Q"),
+    ("{kind: flow_rate, formula: '1'}", "time: {cycles: 2}\n", "time.cycles", "flow_rate_file"),
+    (
+        "{kind: flow_rate, formula: '1'}",
+        "structure: {interface_load: inlet_pressure}\n",
+        "structure.interface_load",
+        "velocity inlet",
+    ),
+]
+
+
+@pytest.mark.parametrize("inlet,more,key,words", BAD_INLETS)
+def test_a_bad_flow_rate_inlet_is_refused_naming_the_key(inlet, more, key, words):
+    fluid_keys = more if more.startswith("  ") else ""
+    other = "" if fluid_keys else more
+    text = f"fluid:\n  inlet: {inlet}\n{fluid_keys}{other}"
+    with pytest.raises(config.ConfigError) as error:
+        config.from_dict(reader.parse_yaml(text), "case.yaml")
+    assert error.value.key == key and words in str(error.value), str(error.value)
+    assert str(error.value).startswith(f"case.yaml: {key}: ")
