@@ -122,8 +122,8 @@ def test_a_periodic_table_runs_heartbeats_and_is_interpolated(shared_tmp):
 
 
 def test_the_csv_file_gives_the_tables_run_and_is_written_as_the_table(shared_tmp):
-    """The same rows from a CSV file: the same metrics bit for bit; config.yaml holds them as
-    a flow_rate_table (with the period, profile and ramp)."""
+    """The same rows from a CSV file: the same metrics (bit for bit on one rank); config.yaml
+    holds them as a flow_rate_table (with the period, profile and ramp)."""
     write(shared_tmp / "q.csv", "t,Q\n" + "".join(f"{t!r},{q!r}\n" for t, q in ROWS))
     keys = f"period: {PERIOD}, ramp_time: 0.002"
     inlets = {
@@ -135,9 +135,11 @@ def test_the_csv_file_gives_the_tables_run_and_is_written_as_the_table(shared_tm
         for name, inlet in inlets.items()
     }
     for a, b in zip(found["file"], found["table"], strict=True):
-        assert {k: v for k, v in a.items() if k != "wall_time_s"} == {
-            k: v for k, v in b.items() if k != "wall_time_s"
-        }
+        for column in set(a) - {"wall_time_s"}:
+            if MPI.COMM_WORLD.size == 1:
+                assert a[column] == b[column], column
+            else:  # MUMPS's parallel LU does not add in the same order every run
+                assert a[column] == pytest.approx(b[column], rel=1e-12, abs=1e-14), column
     written = config.load(shared_tmp / "file" / "config.yaml").fluid.inlet
     assert written == config.InletFlowRateTable(table=ROWS, period=PERIOD, ramp_time=0.002)
 
@@ -221,7 +223,7 @@ def test_a_sinusoidal_flow_rate_gives_the_womersley_flow():
 # --------------------------------------------------------------------------------------------
 # Refused inputs: exit 2, one line naming the case file and the key, before any computation
 
-BAD_FILES = [  # (CSV bytes, or None for no file, or "dir" for a folder; message after "case.yaml: ")
+BAD_FILES = [  # (CSV bytes, None: no file, "dir": a folder; the message after "case.yaml: ")
     (None, "fluid.inlet.file: cannot read {dir}/q.csv (No such file or directory)"),
     ("dir", "fluid.inlet.file: {dir}/q.csv: not a regular file"),
     (b"", "fluid.inlet.file: {dir}/q.csv: 0 rows of t, Q; at least 2 are needed"),
