@@ -1,6 +1,7 @@
 """The physics on one mesh: the tagged gmsh mesh (:mod:`.mesh`); the fluid (:mod:`.fluid`, the
 solver; :mod:`.fluid_residual`, its weak form; :mod:`.fluid_boundaries`, its boundary conditions;
-its viscosity laws :mod:`.rheology` and outlet models :mod:`.outlets`); the structure
+its viscosity laws :mod:`.rheology`, outlet models :mod:`.outlets` and inflow profiles
+:mod:`.inflow_profiles`); the structure
 (:mod:`.solid`, the solver; :mod:`.solid_residual`, its weak form; :mod:`.solid_stress`, its
 stresses; its laws :mod:`.materials`) and the ALE mesh motion (:mod:`.mesh_motion`).
 """
