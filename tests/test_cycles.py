@@ -293,9 +293,9 @@ def test_a_step_across_a_heartbeat_counts_its_parts_for_each(shared_tmp):
 CYCLE_ERRORS = [
     (
         ["time.cycles=2"],
-        "--set: time.cycles: 2 heartbeats need a periodic inlet (a "
-        "pressure_table or pressure_file fluid.inlet with period > 0); this inlet does not "
-        "repeat: use time.end instead",
+        "--set: time.cycles: 2 heartbeats need a periodic inlet (a pressure_table, "
+        "pressure_file, flow_rate, flow_rate_table or flow_rate_file fluid.inlet with "
+        "period > 0); this inlet does not repeat: use time.end instead",
     ),
     (
         ["PULSE", "time.cycles=3", "time.end=0.005", "time.schedule=[{until: 0.004, dt: 0.001}]"],
