@@ -1,17 +1,10 @@
 """The stenosed artery of docs/model.md §1: lumen, vessel wall, lipid pool, fibrous cap.
 
-Coordinates: the lumen is ``0 <= x <= length``, ``0 <= y <= height``. A plaque side ("bottom" or
-"top") carries a vessel-wall layer of ``wall_thickness`` outside the lumen and a plaque centred at
-``x = length / 2``. Heights are measured from the wall into the lumen, ``s`` below:
-
-* plaque (fibrous cap) surface ``s = A/2 (1 - cos(2π (x - x0) / l))`` on ``[x0, x0 + l]``,
-  ``l = stenosis_length``, ``A = stenosis_degree * height / number of plaque sides``;
-* lipid pool surface ``s = a/2 (1 - cos(2π (x - x1) / l_lip))`` on ``[x1, x1 + l_lip]``,
-  ``l_lip = lipid_length``, ``a = A - cap_thickness``, centred like the plaque.
-
-The cap is thinnest, ``cap_thickness``, at the apex as long as the lipid pool is short enough;
-:func:`min_cap_thickness` checks that. A side without plaque is the healthy, rigid wall Γw2 and
-carries no structure.
+The lumen is ``0 <= x <= length``, ``0 <= y <= height``. A plaque side ("bottom" or "top")
+carries a vessel-wall layer of ``wall_thickness`` outside the lumen and a cosine-shaped plaque
+centred at ``x = length / 2`` (:func:`plaque_profile`): a lipid pool (:func:`lipid_profile`)
+under a fibrous cap. A side without plaque is the healthy, rigid wall Γw2 and carries no
+structure.
 """
 
 from __future__ import annotations
@@ -65,14 +58,21 @@ def _cosine_bump(x: np.ndarray, amplitude: float, centre: float, length: float) 
 
 
 def plaque_profile(p: StenosisParameters, x: np.ndarray) -> np.ndarray:
-    """Height of the fibrous-cap surface (the lumen boundary) above the wall at ``x``."""
+    """Height of the fibrous-cap surface (the lumen boundary) above the wall at ``x``.
+
+    ``s = A/2 (1 - cos(2π (x - x0) / l))`` on ``[x0, x0 + l]`` (0 elsewhere), centred at
+    ``length / 2``, with ``l = stenosis_length`` and ``A`` = :func:`plaque_height`
+    ``= stenosis_degree * height / number of plaque sides``.
+    """
     return _cosine_bump(
         np.asarray(x, dtype=float), plaque_height(p), p.length / 2, p.stenosis_length
     )
 
 
 def lipid_profile(p: StenosisParameters, x: np.ndarray) -> np.ndarray:
-    """Height of the lipid-pool surface above the wall at ``x``."""
+    """Height of the lipid-pool surface above the wall at ``x``: the plaque's cosine bump
+    (:func:`plaque_profile`) with length ``lipid_length`` and amplitude ``A - cap_thickness``.
+    """
     a = plaque_height(p) - p.cap_thickness
     return _cosine_bump(np.asarray(x, dtype=float), a, p.length / 2, p.lipid_length)
 
@@ -114,7 +114,8 @@ def distance_to_segments(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np
 def min_cap_thickness(p: StenosisParameters, samples: int = 801) -> float:
     """Smallest distance from the lipid-pool surface to the lumen (the thinnest fibrous cap).
 
-    Sampled densely (an odd count, so the apex is a sample); accurate to about 1e-8 m.
+    It is ``cap_thickness``, at the apex, as long as the lipid pool is short enough. Sampled
+    densely (an odd count, so the apex is a sample); accurate to about 1e-8 m.
     """
     xc = p.length / 2
     x_lipid = np.linspace(xc - p.lipid_length / 2, xc + p.lipid_length / 2, samples)

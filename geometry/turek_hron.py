@@ -1,17 +1,10 @@
 """The Turek–Hron FSI benchmark geometry (Turek & Hron 2006).
 
 A channel ``[0, length] × [0, height]`` holds a rigid cylinder (centre ``(cx, cy)``, radius
-``r``) with an elastic flag attached behind it: the flag is the part of the strip
-``|y − cy| <= t/2`` (``t = flag_thickness``) outside the cylinder and left of the tip
-``x = cx + r + flag_length``. Its left end is the cylinder arc between the joint points
-``(x_j, cy ± t/2)``, ``x_j = cx + sqrt(r² − t²/4)``. Point A ``(tip, cy)`` is a gmsh point, so a
-mesh vertex on every level.
-
-Tags (geometry/tags.py): regions ``fluid`` (channel minus cylinder minus flag) and ``flag``;
-boundaries ``inlet`` (x = 0), ``outlet`` (x = length), ``rigid_wall`` (y = 0 and y = height),
-``obstacle`` (the cylinder arc wetted by the fluid), ``interface`` (the flag's wetted top,
-tip and bottom) and ``clamped`` (the flag–cylinder joint arc). Fluid and flag share the
-interface curves, so their meshes are conforming.
+``r``) with an elastic flag attached behind it: the part of the strip ``|y − cy| <= t/2``
+(``t = flag_thickness``) outside the cylinder and left of the tip (:func:`tip_x`), clamped on
+the cylinder arc between the joints ``(cx + sqrt(r² − t²/4), cy ± t/2)``. Point A
+(:func:`point_a`) is a gmsh point, so a mesh vertex on every level.
 """
 
 from __future__ import annotations
@@ -84,9 +77,13 @@ default of :func:`build` (fsi.config's cell-count estimate uses it too)."""
 def build(p: TurekHronParameters, size: float, local_size: float, grading: float = GRADING) -> None:
     """Add the benchmark to the current gmsh model (built-in kernel) with physical groups.
 
-    The element size (m) is ``local_size`` on the cylinder and the flag and grows linearly with
-    the distance ``d`` from them, ``h(d) = min(size, local_size + grading·d)``, up to ``size``
-    (a gmsh Distance + Threshold background field). Meshing is left to the caller.
+    Regions ``fluid`` and ``flag``; boundaries ``inlet`` (x = 0), ``outlet`` (x = length),
+    ``rigid_wall`` (y = 0 and y = height), ``obstacle`` (the cylinder arc wetted by the fluid),
+    ``interface`` (the flag's wetted top, tip and bottom, shared by both regions, so their meshes
+    are conforming) and ``clamped`` (the flag–cylinder joint arc). The element size (m) is
+    ``local_size`` on the cylinder and the flag and grows linearly with the distance ``d`` from
+    them, ``h(d) = min(size, local_size + grading·d)``, up to ``size`` (a gmsh Distance + Threshold
+    background field). Meshing is left to the caller.
     """
     import gmsh
 

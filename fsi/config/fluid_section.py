@@ -185,21 +185,17 @@ TABLE_INLETS = (InletPressureTable, InletPressureFile, InletFlowRateTable, Inlet
 @dataclass(frozen=True)
 class Fluid:
     """Blood (docs/model.md §2) and its open boundaries (docs/boundary-conditions.md compares the
-    options; the defaults are the verified choice of the study's cases).
+    options; the defaults are the verified choice of the study's cases; docs/configuration.md).
 
-    ``open_boundary`` is the form of the inlet/outlet traction conditions: ``do_nothing``
-    μ ∇u n − p n = −P n (Heywood, Rannacher & Turek 1996), exact for fully developed flow;
-    ``stress`` σ n = −P n (σ the Cauchy stress), whose tangential part forbids fully developed
-    flow. ``normal_flow``: the velocity on a traction inlet is normal to it (u·t = 0, strongly;
-    the "normal flow" pressure inlet of commercial CFD codes) and only the normal traction is
-    prescribed there, so the inlet keeps its static pressure P. ``inflow_stabilization`` β ≥ 0
-    adds −β/2 ρ min(u·n, 0) u to a traction inlet's σ n: at an inlet, where all the flow is
-    inflow, that lowers the pressure by β ρ (u·n)²/2, i.e. it makes the static-pressure inlet
-    nearly a total-pressure one (0, the default, keeps the study's static pressure).
-    ``supg``: streamline-upwind/Petrov–Galerkin stabilization of the momentum equation
-    (Brooks & Hughes 1982; τ of Tezduyar & Osawa 2000), consistent: it adds a multiple of the
-    strong residual, so an exact discrete solution (Poiseuille flow) is unchanged; for flows
-    whose cell Reynolds number at the inlet is too high for the Galerkin form."""
+    ``open_boundary``: the form of the inlet/outlet traction conditions, ``do_nothing``
+    μ ∇u n − p n = −P n (Heywood, Rannacher & Turek 1996; exact for fully developed flow) or
+    ``stress`` σ n = −P n (its tangential part forbids fully developed flow). ``normal_flow``:
+    u·t = 0 (strongly) on a traction inlet, whose normal traction alone is prescribed, so it keeps
+    its static pressure P. ``inflow_stabilization`` β ≥ 0 adds −β/2 ρ min(u·n, 0) u to a traction
+    inlet's σ n, lowering its pressure by β ρ (u·n)²/2 (towards a total-pressure inlet).
+    ``supg``: consistent streamline-upwind/Petrov–Galerkin stabilization of the momentum equation
+    (Tezduyar & Osawa's τ), for an inlet cell Reynolds number too high for the Galerkin form.
+    """
 
     density: float = positive(1060.0, " (kg/m^3)")
     rheology: Rheology = field(default_factory=Newtonian)

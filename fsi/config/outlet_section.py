@@ -1,27 +1,9 @@
 """The ``fluid.outlet`` section: the outlet's condition (``kind`` picks one of :data:`Outlet`),
-one frozen dataclass per condition with its parameters and their checks; the lumped (0D) ones
-also compute the pressure P they impose from the outlet's flow rate Q (fsi.physics.outlets
-hands them to the fluid, which applies σ n = −P n in the ``open_boundary`` form).
-
-In 2D every quantity is per unit depth: Q = ∫_outlet u·n ds (m²/s, positive out of the
-domain), resistances R in Pa s/m², a compliance C in m²/Pa (docs/boundary-conditions.md):
-
-- resistance: P = P_ref + R Q;
-- three-element Windkessel (RCR; Westerhof et al. 2009):
-
-      C dP_c/dt = Q − (P_c − P_ref)/R_d,    P = P_c + R_p Q,    P_c(0) = P_0.
-
-The ODE is discretised with the fluid's own time weights
-(:func:`fsi.numerics.timestepping.bdf_weights`: backward Euler, variable-step BDF2; all zero when
-steady), dP_c/dt ≈ a₀ P_c^{n+1} + a₁ P_c^n + a₂ P_c^{n−1}, and solved with the step's own
-(implicit) Q:
-
-    P_c^{n+1} = (Q + P_ref/R_d − C (a₁ P_c^n + a₂ P_c^{n−1})) / (C a₀ + 1/R_d),
-
-so each step's outlet pressure is affine in the step's flow rate, P = P₀' + R' Q with
-R' = R_p + R_d/(1 + R_d C a₀) > 0 (:meth:`WindkesselOutlet.pressure_law`); steady (a = 0), P_c
-is at its steady value P_ref + R_d Q. A model's state (the Windkessel's P_c^n, P_c^{n−1}) is a
-plain array the fluid solver keeps, saves and checkpoints.
+one frozen dataclass per condition with its parameters and their checks. The lumped (0D) ones
+also give the pressure P they impose from the outlet's flow rate Q (fsi.physics.outlets hands
+them to the fluid, which applies σ n = −P n in the ``open_boundary`` form). In 2D every quantity
+is per unit depth: Q = ∫_outlet u·n ds (m²/s, positive out of the domain), resistances R in
+Pa s/m², a compliance C in m²/Pa (docs/boundary-conditions.md).
 """
 
 from __future__ import annotations
@@ -75,9 +57,17 @@ class ResistanceOutlet:
 
 @dataclass(frozen=True)
 class WindkesselOutlet:
-    """The three-element Windkessel (RCR) of the module docstring: ``proximal_resistance`` R_p
-    and ``distal_resistance`` R_d (Pa s/m²), ``compliance`` C (m²/Pa), ``initial_pressure`` P_0
-    and ``reference_pressure`` P_ref (Pa). State: [P_c^n, P_c^{n−1}] (Pa)."""
+    """The three-element Windkessel (RCR; Westerhof et al. 2009)::
+
+        C dP_c/dt = Q − (P_c − P_ref)/R_d,    P = P_c + R_p Q,    P_c(0) = P_0,
+
+    discretised with the fluid's time weights (:func:`fsi.numerics.timestepping.bdf_weights`; all
+    zero when steady, then P_c = P_ref + R_d Q) and solved with the step's own (implicit) Q
+    (:meth:`capacitor_pressure`), so the step's P is affine in Q (:meth:`pressure_law`).
+    ``proximal_resistance`` R_p and ``distal_resistance`` R_d (Pa s/m²), ``compliance`` C (m²/Pa),
+    ``initial_pressure`` P_0 and ``reference_pressure`` P_ref (Pa). State: [P_c^n, P_c^{n−1}] (Pa),
+    a plain array the fluid solver keeps, saves and checkpoints.
+    """
 
     kind: Literal["windkessel"] = field(default="windkessel", kw_only=True)
     proximal_resistance: float = non_negative(0.0, " (Pa s/m^2)")

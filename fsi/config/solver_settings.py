@@ -12,10 +12,8 @@ from fsi.config.reader import at_least, checked, open_interval, positive
 
 MAX_QUADRATURE_DEGREE = 20
 """The highest quadrature degree a case may set. The shipped cases use 4 (exact for the P2 SVK
-residual); a triangle rule of degree q has about (q/2 + 1)² points, which the form compiler
-unrolls into the generated C and assembly visits in every cell, so cost grows as q² (UFL's own
-choice of 22 for the Carreau Jacobian assembled 5× slower than 4) and degree 100000
-never finishes compiling (issue #14). 20 leaves room for convergence studies."""
+residual); a triangle rule of degree q has about (q/2 + 1)² points, unrolled into the generated
+C and visited in every cell, so cost grows as q². 20 leaves room for convergence studies."""
 
 
 def quadrature(default: int) -> Any:

@@ -50,29 +50,17 @@ MAX_CYCLES = 1000
 class Time:
     """The step schedule; the default is the study's: 5 ms to 0.4 s, then 10 ms to 0.8 s.
 
-    ``scheme``: the fluid's time scheme. ``steady`` drops ∂u/∂t and the mesh velocity: every
-    step solves the steady equations with the boundary data at its time (a continuation through
-    an inflow ramp); with a ``quasi_static`` structure a coupled step is a steady FSI solve.
-
-    ``step_control``: ``schedule`` steps exactly as ``schedule`` says; ``adaptive`` chooses every
-    step from a local error estimate (``adaptive``: :class:`AdaptiveStepping`), each segment's
-    ``dt`` then the largest step allowed before its ``until``; the steps end on every segment's
-    ``until``, on ``output.report_times`` and on ``end``.
-
-    ``retries``: how often a step whose solve fails is taken again as two steps of half its
-    size, from the state before it (each half may be halved again while retries remain: up to
-    2^retries substeps); the metrics row is the scheduled step's. 0: a failed step ends the run.
-
-    ``max_steps``: validation refuses a schedule of more steps to ``end``
-    (:func:`fsi.config.run_size.count_steps`), so a mistyped ``dt`` fails at once instead of
-    running for ever.
-
-    ``cycles``: N >= 1 runs N heartbeats of the inlet's ``period`` T (``fluid.inlet.period``),
-    to t = N T. ``schedule`` is then one heartbeat's: its steps from 0 to T are repeated in
-    every heartbeat (:meth:`run_schedule`), and ``end`` must be T (one heartbeat, as a case
-    file for one beat has it) or N T (the whole run); :func:`fsi.config.validate` refuses
-    anything else, and N > 1 without a period. 0 (the default): ``end`` and ``schedule`` as
-    written.
+    ``scheme``: the fluid's time scheme; ``steady`` drops ∂u/∂t and the mesh velocity (each step a
+    steady solve with the boundary data at its time). ``step_control``: ``schedule`` steps as
+    ``schedule`` says; ``adaptive`` chooses each step from a local error estimate
+    (:class:`AdaptiveStepping`), at most its segment's ``dt``, ending on every ``until``, on
+    ``output.report_times`` and on ``end``. ``retries``: how often a failed step is retaken from the
+    state before it as two halves (up to 2^retries substeps; 0: a failed step ends the run).
+    ``max_steps``: the most steps to ``end`` validation accepts
+    (:func:`fsi.config.run_size.count_steps`), so a mistyped ``dt`` fails at once. ``cycles``:
+    N >= 1 runs N heartbeats of ``fluid.inlet.period`` T, to t = N T, repeating one heartbeat's
+    ``schedule`` (:meth:`run_schedule`); ``end`` must then be T or N T. 0: ``end`` and ``schedule``
+    as written. docs/configuration.md has the details.
     """
 
     end: float = positive(0.8, " (s)")

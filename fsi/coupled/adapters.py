@@ -1,32 +1,11 @@
 """The fluid and the structure as the coupler's interface solvers
-(:class:`fsi.coupled.coupling.InterfaceSolver`), through their solvers' public methods.
+(:class:`fsi.coupled.coupling.InterfaceSolver`), through their solvers' public methods
+(docs/model.md, Coupling).
 
-Both adapters have the same small interface: ``begin_step(t, dt)``, ``save_state``,
-``restore_state`` (back to the start of the step, the last iterate kept as Newton's initial
-guess with ``warm_start``), ``solve(x)`` (one coupling iteration's solve, on flat interface
-vectors: owned interface dofs of the solid's displacement space) and ``advance``, and the
-counters ``solves`` and ``newton_iterations`` of the current step and ``last``, the last
-solve's :class:`fsi.numerics.newton.SolveResult`.
-
-Per coupling iteration the fluid side maps the interface displacement x (m) to the force of
-the blood on the structure (N/m) (docs/model.md, Coupling):
-
-1. η_Γ: x is transferred to the fluid's P2 interface nodes (:class:`InterfaceMap`);
-2. mesh motion: the P1 vertex values of η_Γ are the Dirichlet data of the extension ``d``
-   (:class:`fsi.physics.mesh_motion.MeshMotion`, which judges X + d and raises before the mesh
-   moves); the fluid's mesh moves to x = X + d;
-3. kinematic condition: u = w on Γw1, with ``w = Σ_k a_k d^{n+1−k}`` the fluid scheme's BDF
-   derivative of the mesh displacement, interpolated into P2: the moving wall is material for the
-   discrete fluid, ``(u − w)·n = 0``;
-4. the fluid step (Newton) on the moved mesh; after a step's first solve, Newton stops once it
-   has reduced its initial residual by ``forcing``, never looser than where the first solve
-   stopped (:class:`fsi.numerics.newton.Forcing`);
-5. the output: the residual-based nodal forces ``f_i = −R_i`` of the fluid
-   (:meth:`fsi.physics.fluid.FluidSolver.interface_force`), the force of the fluid on the
-   structure, transferred to the solid's interface dofs.
-
-The solid side adds those nodal forces to its load at t_{n+1} and returns its interface
-displacement.
+:class:`FluidInterface` maps the interface displacement (m) to the fluid's nodal forces on the
+structure (N/m) through the mesh motion, :class:`SolidInterface` those forces at t_{n+1} to its
+interface displacement; both on flat interface vectors (the owned interface dofs of the solid's
+displacement space).
 """
 
 from __future__ import annotations
@@ -45,8 +24,11 @@ from fsi.physics.solid import SolidSolver
 
 
 class _Adapter:
-    """What both sides share: the step's time, the checkpoint, the counters and the order of a
-    solve (:meth:`_solve` the subclass's step, :meth:`_output` its interface output)."""
+    """What both sides share: ``begin_step``, ``save_state``, ``restore_state``, ``solve``,
+    ``advance`` (:meth:`_solve` the subclass's step, :meth:`_output` its interface output), and the
+    counters ``solves`` and ``newton_iterations`` of the current step and ``last``, the last
+    solve's :class:`fsi.numerics.newton.SolveResult`.
+    """
 
     def __init__(self, solver, warm_start: bool):
         self.solver, self.warm_start = solver, warm_start
@@ -100,7 +82,7 @@ class _Adapter:
 
 class FluidInterface(_Adapter):
     """The fluid with its mesh motion: interface displacement (m) → the fluid's nodal forces on
-    the structure (N/m), both solid interface vectors (see the module docstring).
+    the structure (N/m), both solid interface vectors (:meth:`move_mesh`, step, :meth:`forces`).
 
     Args:
         fluid_solver: the fluid, on the moving mesh.
@@ -108,7 +90,8 @@ class FluidInterface(_Adapter):
         to_fluid, to_solid: the interface maps solid → fluid and fluid → solid.
         interface: the fluid's boundaries that meet the structure.
         warm_start: start each solve from the last iterate.
-        forcing: the later solves' Newton forcing (0: every solve to the fluid's tolerance).
+        forcing: the Newton forcing of a step's later solves, never looser than where its first
+            stopped (:class:`fsi.numerics.newton.Forcing`; 0: every solve to the fluid's tolerance).
 
     Raises (collectively) :class:`fsi.physics.mesh_motion.MeshQualityError` when the extension
     would collapse a cell, and :class:`fsi.numerics.newton.SolveFailed` when the fluid step fails.
@@ -133,8 +116,10 @@ class FluidInterface(_Adapter):
         self.mesh_quality = 1.0  # min J/J_ref of the last mesh motion
 
     def move_mesh(self, x: np.ndarray) -> None:
-        """η_Γ ← x; d = extension of η_Γ's vertex values (quality-checked); mesh to X + d;
-        boundary velocity u_Γ = w = Σ_k a_k d^{n+1−k}, which the step then uses."""
+        """η_Γ ← x (on the fluid's P2 interface nodes); d = extension of η_Γ's vertex values
+        (quality-checked before the mesh moves); mesh to X + d; boundary velocity u_Γ = w =
+        Σ_k a_k d^{n+1−k}, which the step then uses: the moving wall is material, ``(u − w)·n = 0``.
+        """
         fluid = self.solver
         self.to_fluid.set_dst(self.eta, self.to_fluid.transfer(np.asarray(x).reshape(-1, 2)))
         self.motion.set_boundary_function(self.eta)

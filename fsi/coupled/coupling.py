@@ -1,25 +1,11 @@
 """Dirichlet–Neumann coupling: interface accelerations as pure objects, and the per-step loop.
 
-The coupled problem of one time step is the fixed point ``x = H(x)`` of the interface
-displacement ``x``: the fluid takes ``x`` (mesh and wall velocity) and returns the interface
-traction, the solid takes that traction and returns the displacement ``x̃ = H(x)``. The residual
-is ``r = x̃ − x``.
-
-An *acceleration* chooses the next input from the current pair ``(x_k, x̃_k)``:
-
-* :class:`ConstantRelaxation` ``x_{k+1} = x_k + ω r_k``;
-* :class:`Aitken` (Δ² dynamic relaxation, Küttler & Wall 2008)
-  ``ω_k = −ω_{k−1} r_{k−1}·(r_k − r_{k−1}) / |r_k − r_{k−1}|²``, capped ``|ω| <= ω_max`` and
-  carried over from the last iteration of the previous step;
-* :class:`IQNILS` (interface quasi-Newton with an inverse-Jacobian least-squares approximation,
-  Degroote, Bathe & Vierendeels 2009) ``x_{k+1} = x̃_k + W c`` with
-  ``c = argmin |V c + r_k|``, ``V``/``W`` the differences of successive residuals/outputs of this
-  step and of the last ``q`` steps, filtered by a QR decomposition.
-
-Interface vectors are numpy arrays of the values each rank owns: every inner product and norm is
-MPI-global (``comm.allreduce``), so all ranks take the same decisions and the iterates do not
-depend on the number of ranks. :func:`couple_step` runs the Dirichlet–Neumann iterations of one
-step against solvers that follow the small :class:`InterfaceSolver` protocol.
+A step's coupled problem is the fixed point ``x = H(x)`` of the interface displacement ``x``:
+the fluid takes ``x`` and returns the interface traction, the solid takes that traction and
+returns ``x̃ = H(x)``. :func:`couple_step` iterates from a :class:`Predictor` with an
+:class:`Acceleration` (:class:`ConstantRelaxation`, :class:`Aitken`, :class:`IQNILS`) against
+two :class:`InterfaceSolver`. Inner products are MPI-global, so the iterates do not depend on
+the number of ranks.
 """
 
 from __future__ import annotations
@@ -216,19 +202,17 @@ class Aitken:
 class IQNILS:
     """Interface quasi-Newton, inverse Jacobian from a least-squares model (IQN-ILS).
 
-    Degroote, Bathe & Vierendeels 2009 (Comput. Struct. 87:793–801). With the residual
-    ``r_k = x̃_k − x_k``, the columns ``V = [Δr]`` and ``W = [Δx̃]`` hold the differences of
-    successive residuals and outputs, this step's newest first, then those of the last
-    ``reuse`` converged steps (newest step first). The update
+    Degroote, Bathe & Vierendeels 2009 (Comput. Struct. 87:793–801). With ``r_k = x̃_k − x_k``,
+    the columns ``V = [Δr]`` and ``W = [Δx̃]`` hold the differences of successive residuals and
+    outputs, this step's newest first, then those of the last ``reuse`` converged steps. The update
 
         x_{k+1} = x̃_k + W c,   c = argmin_c |V c + r_k|,
 
-    uses the secant model ``Δr ≈ V c → Δx̃ ≈ W c`` to cancel the residual; ``c`` comes from the
-    filtered QR decomposition :func:`filtered_qr` (``R c = −Qᵀ r_k``), which drops the columns
-    that are (nearly) linearly dependent on newer ones. Without any column (the first iteration
-    of the first step, or every step's first one with ``reuse = 0``) the update is the
-    relaxation ``x_{k+1} = x_k + ω r_k``. On a linear map ``H(x) = A x + b`` of dimension n the
-    columns span the Krylov space of GMRES: at most n + 1 updates reach the fixed point.
+    takes ``c`` from :func:`filtered_qr` (``R c = −Qᵀ r_k``), which drops the columns that are
+    (nearly) dependent on newer ones. Without any column (the first iteration of the first step,
+    or of every step with ``reuse = 0``) it is the relaxation ``x_{k+1} = x_k + ω r_k``. On a
+    linear map of dimension n the columns span GMRES's Krylov space: at most n + 1 updates reach
+    the fixed point.
     """
 
     def __init__(self, comm: MPI.Comm, omega: float, reuse: int = 0, threshold: float = 1e-8):

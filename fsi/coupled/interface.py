@@ -1,14 +1,9 @@
 """Transfer of interface data between the fluid and the solid function spaces (Γw1).
 
-Fluid and solid meshes are submeshes of one gmsh mesh, so their interface dofs stand at the same
-points (up to round-off in the dof coordinates). An :class:`InterfaceMap` pairs the interface dofs
-of a *source* space with those of a *destination* space by position, on any number of ranks:
-an interface facet's fluid and solid cells may live on different ranks, so the (small) source
-interface data are gathered on every rank and each rank picks what its destination dofs need.
-
-The *interface vector* of a space is the array of its owned interface dof values, shape
-(n_owned, block size); the coupling accelerations work on such arrays with MPI-global inner
-products, so each interface dof counts exactly once.
+:class:`InterfaceMap` pairs the interface dofs of a source and a destination space by position
+(both meshes are submeshes of one gmsh mesh). An *interface vector* is the array of a space's
+owned interface dof values, shape (n_owned, block size), so each interface dof counts exactly
+once in the MPI-global inner products of the coupling accelerations (:func:`norm`).
 """
 
 from __future__ import annotations
@@ -24,6 +19,10 @@ from fsi.physics.mesh import owned_facet_dofs
 
 class InterfaceMap:
     """Pairs the owned interface dofs of ``V_src`` and ``V_dst`` (same block size) by position.
+
+    An interface facet's fluid and solid cells may live on different ranks, so the (small) source
+    interface data are gathered on every rank (:meth:`gather`) and each rank picks what its
+    destination dofs need.
 
     Args:
         V_src, V_dst: the two spaces, e.g. the solid displacement and the fluid velocity.

@@ -1,26 +1,11 @@
 """Newton solves for the fluid and the solid: dolfinx's NewtonSolver with its PETSc options scoped
 to one solver (:func:`petsc_options`), failures returned rather than raised (:class:`Newton`),
-and an optionally reused Jacobian (modified Newton, :class:`NewtonCallbacks`).
-
-Newton's iteration for ``F(x) = 0`` is ``x_{k+1} = x_k − J̃⁻¹ F(x_k)``. With reuse ``none``
-``J̃ = J(x_k)``. With ``step`` (``run``) ``J̃`` is the Jacobian assembled last in the step (also
-in an earlier step), its LU factorisation kept, for as long as it contracts the residual: it is
-assembled anew at ``x_k`` when
-
-    |F(x_k)| > max_rate · |F(x_{k−1})|,
-
-when there is none yet, and (``step``) at the first iteration of every time step. The answer
-does not change: the solver's own test decides convergence, and a reused-Jacobian solve that
-fails is repeated from the same guess with a fresh Jacobian at every iteration. With ``step`` a
-restart from a checkpoint repeats the run's arithmetic; with ``run`` only from the checkpoints
-after which the kept Jacobian is dropped (:meth:`NewtonCallbacks.forget`, fsi/run/simulation.py).
-
-A failed solve replaces the NewtonSolver by a new one: the solver carries the reference of its
-relative test (|δx_1|) from one solve to the next, and a failed solve can leave it infinite.
-
-A *forced* solve (:class:`Forcing`, inexact Newton) also stops once
-|F(x_k)| <= max(atol, min(ceiling, η |F(x_0)|)): the coupling's fluid solves after a step's
-first (fsi/coupled/partitioned.py), which start near the answer.
+an optional inexact stop (:class:`Forcing`) and an optionally reused Jacobian (modified Newton,
+:class:`NewtonCallbacks`): ``x_{k+1} = x_k − J̃⁻¹ F(x_k)`` with ``J̃`` (and its LU factorisation)
+kept from the last assembly within the step (reuse ``step``) or the run (``run``), assembled
+anew when there is none, at a step's first iteration (``step``) and when
+``|F(x_k)| > max_rate · |F(x_{k−1})|``. The solver's own test still decides convergence, and a
+failed reused-Jacobian solve is repeated with a fresh Jacobian at every iteration.
 """
 
 from __future__ import annotations
@@ -47,7 +32,9 @@ Reuse = Literal["none", "step", "run"]
 class Forcing:
     """Stop a solve once |F(x_k)| <= max(atol, min(ceiling, eta · |F(x_0)|)), as well as on the
     solver's own test: ``eta`` in (0, 1) is the factor by which the solve reduces the residual it
-    started from, ``ceiling`` (in F's units) the loosest residual accepted."""
+    started from, ``ceiling`` (in F's units) the loosest residual accepted. For the coupling's
+    fluid solves after a step's first (fsi/coupled/partitioned.py), which start near the answer.
+    """
 
     eta: float
     ceiling: float
@@ -116,7 +103,9 @@ class NewtonCallbacks:
 
     def forget(self) -> None:
         """Drop the kept Jacobian: the next Jacobian call assembles (and the solve factorises)
-        anew, as a solver built at this point would."""
+        anew, as a solver built at this point would. With reuse ``run``, a restart repeats the run's
+        arithmetic only from checkpoints after this call (fsi/run/simulation.py).
+        """
         self._have_jacobian = False
 
     def _contracting(self) -> bool:
@@ -134,10 +123,11 @@ class NewtonCallbacks:
         renew: Callable[[], object] | None = None,
     ) -> tuple[int, bool]:
         """``newton.solve(u)``; with reuse, if that fails, again from the same initial guess with
-        a fresh Jacobian at every iteration, on the solver ``renew()`` returns (a new one: see
-        the module docstring). ``step`` identifies the time step (anything that changes when
+        a fresh Jacobian at every iteration, on the new solver ``renew()`` returns (see
+        :meth:`Newton._renew`). ``step`` identifies the time step (anything that changes when
         the solver advances): with reuse ``step`` a new value means a fresh Jacobian. Returns
-        (iterations of both attempts, converged)."""
+        (iterations of both attempts, converged).
+        """
         self._norms = []
         if self.reuse == "none":
             return newton.solve(u)
@@ -247,7 +237,9 @@ class Newton:
         return solver
 
     def _renew(self) -> dolfinx.nls.petsc.NewtonSolver:
-        """Replace the solver after a failed solve (the module docstring says why)."""
+        """Replace the solver after a failed solve: a NewtonSolver carries the reference of its
+        relative test (|δx_1|) from one solve to the next, and a failed solve can leave it infinite.
+        """
         self.solver = self._new_solver()
         self.callbacks.attach(self.solver)
         return self.solver

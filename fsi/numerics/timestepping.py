@@ -1,15 +1,9 @@
 """Time schemes, kept apart from the physics.
 
-* :func:`steps` walks the configured step schedule (the study's 5 ms / 10 ms, or a resolved one).
-* :func:`bdf_weights` gives the variable-step backward-difference weights used by the fluid:
-  ``∂u/∂t (t_{n+1}) ≈ Σ_k w_k u^{n+1-k}``.
-* :class:`BdfHistory` keeps a field's accepted levels u^n, u^{n−1} and forms that sum (the
-  fluid's velocity, the ALE mesh displacement).
-* :func:`extrapolation_weights` extrapolates a field from its past levels (the interface
-  predictor, the local error estimate).
-* :class:`LocalError` estimates a step's local time error from its distance to the quadratic
-  extrapolation of the last three accepted levels, and :class:`StepSizeControl` turns that
-  estimate into the next step size (adaptive time stepping, ``time.step_control: adaptive``).
+The step schedule (:func:`steps`; adaptive: :class:`AdaptiveSteps`, :class:`LocalError`,
+:class:`StepSizeControl`), the fluid's variable-step backward differences (:func:`bdf_weights`,
+:class:`BdfHistory`), extrapolation from past levels (:func:`extrapolation_weights`) and the
+structure's generalized-α / Newmark family (:class:`NewmarkFamily`).
 """
 
 from __future__ import annotations
@@ -142,24 +136,16 @@ class LocalError:
     """The local time error of a second-order step of one field, by Milne's device.
 
     The step's result ``x`` at ``t`` and the quadratic extrapolation ``P(t)`` of the last three
-    accepted levels differ by ``C h³ x⁽³⁾`` to leading order, as the step's own local error
-    does (equal steps h: BDF2's error is ``−(2/9) h³ x⁽³⁾``, the extrapolation's ``−h³ x⁽³⁾``,
-    so the difference is 7/2 of BDF2's error; generalized-α is second order as well). The
-    estimate is that difference relative to the field's size::
+    accepted levels differ by ``C h³ x⁽³⁾`` to leading order, as the step's own local error does.
+    The estimate is that difference relative to the largest the field has been::
 
         e = ‖x − P(t)‖ / max(floor, max_k ‖x_k‖)
 
-    in the largest absolute entry over the owned entries (``owned``: how many of the local
-    array's first entries this rank owns; the maximum is reduced over ``comm``, so it does not
-    depend on how the entries are distributed), the maximum taken over the accepted levels and
-    ``x``: an error relative to the largest the field has been, so a decaying field is followed
-    to a fixed absolute accuracy, not an ever finer relative one. ``floor`` (the size the field
-    is expected to reach) keeps a field that starts from rest from being followed to a fixed
-    relative accuracy while it is still tiny, where the solvers' own tolerances dominate the
-    difference. e scales with h³ (:class:`StepSizeControl`, order 2).
-
-    Until three levels are accepted there is no estimate (:meth:`estimate` returns None): a
-    run's first two steps.
+    with ‖·‖ the largest absolute entry over the first ``owned`` local entries, reduced over
+    ``comm``. ``floor`` (the size the field is expected to reach) keeps a field starting from rest
+    from being followed to a fixed relative accuracy while it is tiny. e scales with h³
+    (:class:`StepSizeControl`, order 2). Until three levels are accepted (a run's first two steps)
+    :meth:`estimate` returns None.
     """
 
     LEVELS = 3
@@ -336,10 +322,9 @@ class NewmarkFamily:
         η_{n+1} = η_n + dt v_n + dt² ((1/2 − β) a_n + β a_{n+1})
         v_{n+1} = v_n + dt ((1 − γ) a_n + γ a_{n+1})
 
-    ``dynamic = False`` is the quasi-static scheme: no inertia, balance at ``t_{n+1}``, the
-    velocity a backward difference and the acceleration zero. The arithmetic below works on
-    numbers, numpy arrays and UFL expressions alike, so the solver builds its residual and
-    updates its vectors from the same formulas.
+    ``dynamic = False`` is quasi-static: no inertia, balance at ``t_{n+1}``, the velocity a
+    backward difference, the acceleration zero. The arithmetic works on numbers, numpy arrays and
+    UFL expressions alike.
     """
 
     alpha_m: float

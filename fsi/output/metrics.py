@@ -282,20 +282,12 @@ class WallIndices:
 
         TAWSS = (1/T) ∫ |τ| dt,   OSI = ½ (1 − |∫ τ dt| / ∫ |τ| dt),   RRT = T / |∫ τ dt|
 
-    (RRT = 1 / ((1 − 2 OSI) TAWSS); in 2D τ is a scalar with a sign, so |∫ τ dt| is the
-    magnitude of the time-averaged WSS vector). With ``interpolate`` (a time-dependent run) the
-    integrals are exact for τ linear over each step between its values at the step's ends (the
-    trapezoidal rule for ∫ τ dt; for ∫ |τ| dt also where τ changes sign within the step:
-    (τ_a² + τ_b²) / (2 (|τ_a| + |τ_b|)) per unit time): second order in the step sizes,
-    whatever they are (adaptive steps). The value at the window's current end is set by
-    :meth:`set_value` (the run's initial state, or the state a run restarts from) or left by
-    the last :meth:`add`; a step without one counts with its end value throughout. Without
-    ``interpolate`` (a steady run, whose steps are independent solutions) every step counts
-    with its end value (the rectangle rule). A constant τ gives TAWSS = |τ|, OSI = 0 and
-    RRT = 1/|τ| exactly, for any steps. Steps before ``start`` count for nothing, a step across
-    it for its part after it (τ interpolated to ``start``). The state (:meth:`state`) is the
-    two integrals per sample, the time of the last step and the window's length T so far; the
-    value at its end is the solution's, recomputed on a restart."""
+    (docs/hemodynamic-indices.md). With ``interpolate`` (a time-dependent run) the integrals are
+    exact for τ linear over each step (also where τ changes sign), second order in any steps; the
+    value at the window's end is :meth:`set_value`'s or the last :meth:`add`'s. Without it (a
+    steady run) each step counts with its end value. A step across ``start`` counts for its part
+    after it. The state (:meth:`state`): the two integrals per sample, the last step's time and T.
+    """
 
     def __init__(self, size: int, start: float = 0.0, time: float = 0.0, interpolate: bool = True):
         self.interpolate = interpolate

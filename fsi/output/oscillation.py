@@ -1,22 +1,9 @@
 """Mean, amplitude and frequency of a periodic time series (the Turek–Hron convention), and their
 comparison with reference values written "mean ± amplitude [frequency]".
 
-Over the last full period ``[t_c[-2], t_c[-1]]`` of a signal y(t),
-
-    mean = (max y + min y) / 2,   amplitude = (max y − min y) / 2,
-    frequency = 1 / (t_c[-1] − t_c[-2]),
-
-where the t_c are the signal's successive upward crossings of its mean level, interpolated
-linearly between samples (the convention of the Turek–Hron reference values, docs/model.md).
-Pure numpy: no MPI, no files; metrics tables come from :func:`fsi.output.io.read_metrics`.
-
-Accuracy for a signal sampled every dt (the tests check these bounds):
-
-- the sampled max/min miss the true extremes by at most max|y''| dt²/8 each, so the mean and the
-  amplitude are off by at most that much (second order, always towards a smaller amplitude);
-- a linearly interpolated crossing is off by at most max|y''| dt²/(8 |y'|) near it, so the
-  period is second-order accurate too (third order for a crossing at an inflection point, as
-  for a pure sine crossing its mean).
+Over the last full period ``[t_c[-2], t_c[-1]]``, t_c the upward crossings of the mean level
+(:func:`up_crossings`): ``mean = (max y + min y) / 2``, ``amplitude = (max y − min y) / 2``,
+``frequency = 1 / (t_c[-1] − t_c[-2])`` (docs/model.md). Pure numpy: no MPI, no files.
 """
 
 from __future__ import annotations
@@ -98,11 +85,12 @@ def analyse(
         start: ignore samples before this time (e.g. the inflow ramp); None: use all.
         window: number of final periods to analyse (1: the benchmark's definition).
 
-    The crossing level starts as the midrange of the last quarter of the record and is then
-    iterated to the midrange of the window itself (a growing transient before the periodic
-    regime does not bias it). Raises :class:`OscillationError` if fewer than
-    ``max(2, window)`` complete periods are present (two, so that ``period_change`` can tell
-    whether the signal is periodic)."""
+    The crossing level starts as the midrange of the last quarter of the record and is iterated
+    to the midrange of the window itself. All three results are second-order accurate in the
+    sampling step dt (the sampled extremes miss the true ones by at most max|y''| dt²/8). Raises
+    :class:`OscillationError` if fewer than ``max(2, window)`` complete periods are present (two,
+    so that ``period_change`` can tell whether the signal is periodic).
+    """
     t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
     if t.shape != y.shape or t.ndim != 1:
         raise ValueError(f"t and y must be 1D arrays of one length, got {t.shape}, {y.shape}")

@@ -1,17 +1,10 @@
 """``fsi plot``: a picture of one field of a run at one time, without ParaView.
 
-Reads the field files ``fsi run`` writes (dolfinx XDMF, one HDF5 file each, global arrays
-whatever the number of ranks): ``fields.xdmf`` (the fluid, on its reference mesh; coupled runs
-add ``mesh_displacement``) and ``solid.xdmf`` (the structure: its displacement ``eta``, the
-stresses and the cell's region tag ``region``), and the segments of restarted runs,
-``fields.restart<k>.xdmf`` and ``solid.restart<k>.xdmf``. Only what dolfinx 0.5 and 0.9 write is
-read: one mesh grid (``Topology`` and ``Geometry`` HDF5 data items) and, per field, a temporal
-collection of grids holding one ``Attribute`` (``Center`` ``Node`` or ``Cell``; 2D vectors are
-stored with 3 components).
-
-:func:`read_field` gives a field's mesh, values and time as arrays (:class:`Snapshot`);
-:func:`draw` draws one as filled contours with a colour bar in readable units, optionally with
-the fluid velocity's streamlines over it; :func:`field_snapshot` does both.
+Reads the XDMF/HDF5 field files ``fsi run`` writes (``fields.xdmf``: the fluid on its reference
+mesh, with ``mesh_displacement`` in coupled runs; ``solid.xdmf``: the structure, with its
+``region`` tags; and their restart segments ``<stem>.restart<k>.xdmf``). :func:`read_field` gives
+a field at one time (:class:`Snapshot`), :func:`draw` draws it as filled contours, optionally
+with the fluid's streamlines, and :func:`field_snapshot` does both.
 """
 
 from __future__ import annotations
@@ -144,7 +137,12 @@ def _data_item(xdmf: Path, element: ET.Element | None, what: str) -> tuple[Path,
 
 
 def _read_segment(xdmf: Path) -> _Segment:
-    """The mesh and the time series of one XDMF file as dolfinx writes them."""
+    """The mesh and the time series of one XDMF file as dolfinx 0.5 and 0.9 write them.
+
+    Reads one mesh grid (``Topology`` and ``Geometry`` HDF5 data items) and, per field, a temporal
+    collection of grids holding one ``Attribute`` (``Center`` ``Node`` or ``Cell``; 2D vectors are
+    stored with 3 components).
+    """
     try:
         domain = ET.parse(xdmf).getroot().find("Domain")
     except (ET.ParseError, OSError) as e:

@@ -43,8 +43,8 @@ def blas_library() -> str | None:
     """The BLAS library loaded into this process (the file the dynamic linker found for
     ``libblas.so.3``, read from /proc/self/maps): Debian's reference BLAS
     (``.../blas/libblas.so.3.*``) or an optimised one chosen by update-alternatives
-    (``.../openblas-serial/libblas.so.3``). MUMPS's factorisations run on it, 3.6x faster on
-    OpenBLAS at the fine level (docs/performance.md). None where it cannot be told."""
+    (``.../openblas-serial/libblas.so.3``). MUMPS's factorisations run on it (docs/performance.md
+    compares them). None where it cannot be told."""
     try:
         maps = Path("/proc/self/maps").read_text()
     except OSError:

@@ -2,15 +2,8 @@
 
     ρ (∂u/∂t|_X + ((u − w)·∇)u) − ∇·(2 μ(s(u)) D(u)) + ∇p = f,   ∇·u = 0   in Ωf(t)
 
-(docs/model.md, Fluid), with ``D(u) = sym ∇u``, ``s(u) = sqrt(2 D:D)`` (fsi/physics/rheology.py),
-``w`` the mesh velocity and ``f`` an optional body force. ``∂u/∂t|_X ≈ Σ_k a_k u^{n+1−k}`` acts on
-the nodal values, which move with the mesh; the weights ``a_k`` are
-:func:`fsi.numerics.timestepping.bdf_weights` (backward Euler, variable-step BDF2; all zero when
-steady). Everything is evaluated on Ωf(t_{n+1}) (non-conservative ALE form, which keeps a uniform
-flow uniform on any mesh motion), and the mesh velocity is the same BDF derivative of the mesh
-displacement, ``w = Σ_k a_k d^{n+1−k}``.
-
-:class:`FluidSolver` owns the unknowns, the time history, the moving mesh
+(docs/model.md, Fluid), ``D(u) = sym ∇u``, ``s(u) = sqrt(2 D:D)`` (fsi/physics/rheology.py), ``w``
+the mesh velocity. :class:`FluidSolver` owns the unknowns, the time history, the moving mesh
 (:class:`fsi.physics.mesh_motion.AleMesh`) and Newton; the residual is
 fsi/physics/fluid_residual.py, the boundary conditions fsi/physics/fluid_boundaries.py.
 """
@@ -113,9 +106,9 @@ def _subspace_map(W, i: int, V) -> np.ndarray:
     the element of ``W.sub(i)`` (what ``W.sub(i).collapse()`` gives), from the cell dofmaps.
 
     A blocked sub-element lists its dofs node by node (x0, y0, x1, y1, ...), as V unrolls its
-    blocks. −1 marks a ghost dof on no local cell: dolfinx 0.5.2's submeshes have such orphan
-    ghost vertices in parallel, and its ``collapse()`` then corrupts the heap (``malloc():
-    invalid size``, intermittently), hence this map. Copy owned values and scatter forward.
+    blocks. −1 marks a ghost dof on no local cell (dolfinx 0.5.2's submeshes have such orphan
+    ghosts in parallel, where its ``collapse()`` corrupts the heap, hence this map). Copy owned
+    values and scatter forward.
     """
     V_cells = compat.cell_dofs(V)
     W_cells = compat.cell_dofs(W.sub(i)).reshape(len(V_cells), -1)
@@ -140,13 +133,16 @@ def _copy_from_mixed(
 class FluidSolver:
     """Generalized Navier–Stokes on a (moving) fluid mesh; see the module docstring.
 
+    ``∂u/∂t|_X`` and ``w`` are BDF derivatives (:func:`fsi.numerics.timestepping.bdf_weights`) of
+    the nodal values of u and of the mesh displacement, all evaluated on Ωf(t_{n+1})
+    (non-conservative ALE form: a uniform flow stays uniform on any mesh motion).
+
     Args:
         mesh: the fluid mesh (e.g. ``fsi.physics.mesh.restrict(tagged, Region.FLUID).mesh``).
         facet_tags: its boundary tags (``.facet_tags`` of the same).
         fluid: the ``fluid`` section (density, rheology, quadrature, Newton and PETSc options).
         boundaries: which tags get which condition (e.g.
-            :func:`fsi.physics.fluid_boundaries.boundary_conditions`); tags without a condition
-            are traction-free (σ n = 0).
+            :func:`fsi.physics.fluid_boundaries.boundary_conditions`); others are traction-free.
         scheme: ``backward_euler``, ``bdf2`` (backward Euler on the first step) or ``steady``.
         body_force: optional f(x, t).
     """

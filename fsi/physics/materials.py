@@ -1,22 +1,10 @@
 """Hyperelastic material laws of the structure, as small frozen objects behind a Protocol.
 
-Every law is written for the 2D plane-strain setting of docs/model.md (Structure) in terms of
-the deformation gradient ``F = I + ∇η`` (2×2; the out-of-plane stretch is 1). The parameters may be
-numbers, :class:`dolfinx.fem.Constant` or DG0 fields (per-region values): the laws only build UFL.
-
-* :class:`StVenantKirchhoff` — ``W = λ/2 (tr E)² + μ E:E``, ``E = (FᵀF − I)/2``,
-  ``Σ = λ tr(E) I + 2μ E`` (the study's law);
-* :class:`NeoHookean` — compressible, ``W = μ/2 (I₁ − 2 − 2 ln J) + λ/2 (ln J)²`` with
-  ``I₁ = tr(FᵀF)`` (2D), ``Σ = μ (I − C⁻¹) + λ ln J C⁻¹``. In plane strain this is the usual
-  3D energy ``μ/2 (I₁³ᴰ − 3 − 2 ln J) + λ/2 (ln J)²`` since ``C₃₃ = 1``.
-
-Both linearise to Hooke's law with the same ``λ, μ``; :func:`lame` turns (E, ν) into them.
-
-* :class:`KelvinVoigt` — the viscous part of a Kelvin–Voigt solid, added to any of these:
-  ``S_v = λ_v tr(Ė) I + 2 μ_v Ė`` with the rate of the Green–Lagrange strain
-  ``Ė = sym(Fᵀ ∇η̇)``. With ``λ_v = τλ, μ_v = τμ`` (stiffness-proportional, one relaxation
-  time τ) the linearised damping operator is τ times the stiffness: every small-amplitude mode
-  of angular frequency ω has the damping ratio ζ = ωτ/2 (docs/wall-damping.md).
+Laws of the 2D plane-strain setting of docs/model.md (Structure), in ``F = I + ∇η`` (2×2; the
+out-of-plane stretch is 1): :class:`StVenantKirchhoff` (the study's law) and :class:`NeoHookean`,
+which linearise to Hooke's law with the same ``λ, μ`` (:func:`lame`), and the viscous
+:class:`KelvinVoigt` stress added to either. The parameters may be numbers,
+:class:`dolfinx.fem.Constant` or DG0 fields (per-region values): the laws only build UFL.
 """
 
 from __future__ import annotations
@@ -97,7 +85,9 @@ class StVenantKirchhoff:
 @dataclass(frozen=True)
 class NeoHookean:
     """Compressible neo-Hookean: ``W = μ/2 (tr C − 2 − 2 ln J) + λ/2 (ln J)²``,
-    ``Σ = μ (I − C⁻¹) + λ ln J C⁻¹``, ``C = FᵀF``, ``J = det F``."""
+    ``Σ = μ (I − C⁻¹) + λ ln J C⁻¹``, ``C = FᵀF``, ``J = det F``; in plane strain (``C₃₃ = 1``)
+    the usual 3D energy ``μ/2 (I₁³ᴰ − 3 − 2 ln J) + λ/2 (ln J)²``.
+    """
 
     lmbda: Parameter
     mu: Parameter
@@ -137,8 +127,9 @@ class KelvinVoigt:
     :meth:`stiffness_proportional` makes ``λ_v = τλ, μ_v = τμ``: linearised about the
     reference state the viscous force is τ K η̇ with K the elastic stiffness, so the modes of
     ``M η̈ + τ K η̇ + K η = 0`` are those of the elastic problem and a mode of angular
-    frequency ω decays as ``exp(−ζωt)`` with ``ζ = ωτ/2``. The stress power
-    ``S_v : Ė = λ_v (tr Ė)² + 2 μ_v Ė:Ė`` is ≥ 0 for ``μ_v ≥ 0, λ_v + μ_v ≥ 0`` (2D)."""
+    frequency ω decays as ``exp(−ζωt)`` with ``ζ = ωτ/2`` (docs/wall-damping.md). The stress
+    power ``S_v : Ė = λ_v (tr Ė)² + 2 μ_v Ė:Ė`` is ≥ 0 for ``μ_v ≥ 0, λ_v + μ_v ≥ 0`` (2D).
+    """
 
     lmbda: Parameter
     mu: Parameter

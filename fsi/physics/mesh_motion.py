@@ -1,29 +1,12 @@
-"""ALE mesh motion of the fluid domain (docs/model.md, Mesh motion): extend the interface
-displacement inward, and move the mesh.
-
-:class:`MeshMotion` is the extension operator (boundary data → the mesh displacement ``d``, with
-the quality guard; it never moves the mesh); :class:`AleMesh` owns the moving mesh (the one
-object that writes its coordinates, x = X + d(X)), the accepted displacements d^n, d^{n−1} and
-the mesh velocity ``w = Σ_k a_k d^{n+1−k}`` (the fluid's weights,
-:func:`fsi.numerics.timestepping.bdf_weights`).
-
-The mesh displacement ``d`` (vector P1, the geometry's degree) solves, on the reference fluid
-domain Ω̂f, one of
+"""ALE mesh motion of the fluid domain (docs/model.md, Mesh motion). :class:`MeshMotion` extends
+the interface displacement g into the fluid as ``d`` (vector P1) on the reference domain Ω̂f:
 
     harmonic:    −∇·(k ∇d) = 0,
     elastic:     −∇·(k σ(d)) = 0,   σ(d) = 2 ε(d) + λ' tr(ε(d)) I,   ε(d) = sym ∇d,
-    biharmonic:  Δ²d = 0, as the minimiser of ∫ k |∇∇d|² dx,
+    biharmonic:  Δ²d = 0, as the minimiser of ∫ k |∇∇d|² dx (:func:`biharmonic_operator`),
 
-with ``d = g`` on the moving boundaries (the interface Γw1: the structure's displacement),
-``d = 0`` on the fixed ones and zero flux elsewhere (the biharmonic: its natural conditions,
-∂²d/∂n² = 0 also where d is given). The stiffening ``k`` is constant per cell: 1,
-``(J_max/J)^e`` with ``J`` the reference cell area, or ``(δ_max/δ)^e`` with ``δ`` the distance of
-the cell's centroid to the moving boundary. The biharmonic is mixed, with the Hessian H = ∇∇d as
-auxiliary P1 field eliminated with the lumped mass matrix (:func:`biharmonic_operator`), which
-extends an affine motion exactly for any k.
-
-The operator lives on the reference configuration, so it is assembled (and factorised) once; a
-solve is one right-hand side ``b = −A₀ g`` and one back-substitution.
+with ``d = g`` on the moving boundaries and ``d = 0`` on the fixed ones; :class:`AleMesh` moves
+the mesh to x = X + d and keeps d^n, d^{n−1} and the mesh velocity ``w = Σ_k a_k d^{n+1−k}``.
 """
 
 from __future__ import annotations
@@ -250,7 +233,10 @@ class MeshMotion:
         self._bc_rows = (self._bc_local + start * bs).astype(PETSc.IntType)
 
     def _stiffness(self, tagged: TaggedMesh):
-        """The cell-wise stiffening k (a DG0 Function, or the Constant 1)."""
+        """The cell-wise stiffening k (a DG0 Function, or the Constant 1): ``none`` 1, ``jacobian``
+        ``(J_max/J)^e`` with ``J`` the reference cell area, ``distance`` ``(δ_max/δ)^e`` with ``δ``
+        the distance of the cell's centroid to the moving boundary.
+        """
         s = self.settings
         if s.stiffening == "none":
             return dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(1.0))

@@ -1,20 +1,12 @@
-"""The structure solver: total-Lagrangian hyperelastodynamics, its state and its boundary
-conditions (docs/model.md, Structure).
+"""The structure solver: total-Lagrangian hyperelastodynamics on Ω₀ (docs/model.md, Structure).
 
-On the reference configuration Ω₀ (wall + cap + lipid of the stenosis, or the Turek–Hron flag)
-find the displacement η with::
+    ρ η̈ − ∇·P = ρ b   in Ω₀,   F = I + ∇η,  P = F (Σ(F) + S_v)   (fsi/physics/materials.py)
+    η = 0 (or given) on ΓD,   P N = t₀ (Pa) + nodal forces (N/m) − p J F⁻ᵀ N on Γw1,
+    P N = −(k_s η·N + c_s η̇·N) N on ΓN (tissue support, :class:`Support`)
 
-    ρ η̈ − ∇·P = ρ b               in Ω₀,     F = I + ∇η,  P = F (Σ(F) + S_v)
-    η = 0 (or a given η)           on ΓD       (clamped; every wall dof in the fixed-wall mode)
-    P N = t₀ + nodal forces − p J F⁻ᵀ N  on the interface Γw1
-    P N = −(k_s η·N + c_s η̇·N) N   on ΓN       (tissue support; 0 and 0: traction-free)
-
-with per-region hyperelastic laws and Kelvin–Voigt stress S_v (fsi/physics/materials.py), the
-tissue's spring–dashpot support (k_s in Pa/m, c_s in Pa·s/m, per reference length;
-docs/wall-damping.md), a first Piola traction t₀ (Pa), the fluid's nodal forces (N/m) and an
-optional follower pressure p (Pa). Vector Lagrange elements (P2 by default), marched by the
-Newmark family of fsi/numerics/timestepping.py; the weak form is fsi/physics/solid_residual.py,
-the stresses fsi/physics/solid_stress.py. Newton's options prefix is ``solid_``.
+:class:`SolidSolver` owns η, its time state, its boundary conditions and Newton (options prefix
+``solid_``); the weak form is fsi/physics/solid_residual.py, the stresses
+fsi/physics/solid_stress.py.
 """
 
 from __future__ import annotations
@@ -280,13 +272,10 @@ class SolidSolver:
         scheme: the time scheme (newmark, generalized-α or quasi-static).
         degree: Lagrange degree of η (2: P1 locks in bending).
         quadrature_degree: of every integral (4 integrates the P2 SVK residual exactly).
-        solver: Newton tolerances and the PETSc options of the linear solves.
-        prefix: PETSc options prefix of the Newton's linear solver.
+        solver, prefix: Newton tolerances, PETSc options of the linear solves and their prefix.
 
-    Its parts: the materials as cell fields (:func:`material_fields`: ``regions``, ``rho``,
-    ``law``, ``viscous``), the :class:`DirichletConditions` (``dirichlet``), the interface dofs
-    and their loads, the :class:`SolidResidual` (``residual``), Newton (``newton``) and the
-    :class:`StressFields` (``stress``).
+    Parts: ``rho``, ``law``, ``viscous`` (:func:`material_fields`), ``dirichlet``
+    (:class:`DirichletConditions`), ``residual`` (:class:`SolidResidual`), ``newton``, ``stress``.
     """
 
     def __init__(

@@ -1,21 +1,17 @@
-"""The structure's residual: the balance of momentum in the Newmark family's energy-momentum form,
-term by term, and the materials of the regions as cell fields (docs/model.md, Structure).
+"""The structure's residual: the balance of momentum in the Newmark family's energy-momentum
+form, term by term, and the materials of the regions as cell fields (docs/model.md, Structure).
 
-On the reference configuration Ω₀, with ``F = I + ∇η`` and the per-region hyperelastic law Σ(F)
-(fsi/physics/materials.py) plus the Kelvin–Voigt stress ``S_v = τ (λ tr Ė I + 2μ Ė)``,
-``Ė = sym(Fᵀ ∇η̇)``::
+On Ω₀, with ``F = I + ∇η``, the per-region law Σ(F) (fsi/physics/materials.py) and the
+Kelvin–Voigt stress ``S_v = τ (λ tr Ė I + 2μ Ė)``, ``Ė = sym(Fᵀ ∇η̇)``::
 
     ∫ ρ a_{n+1-αm}·δη + F_{n+1-αf} Σ_{n+1-αf} : ∇δη dx
         + ∫ F_{n+1-αf} S_v(F̄, ∇η̇_{n+1-αf}) : ∇δη dx
         + ∫_ΓN (k_s η_{n+1-αf}·N + c_s η̇_{n+1-αf}·N)(δη·N) ds
       = ∫ ρ b·δη dx + ∫ f·δη dx + ∫_Γ t₀_{n+1-αf}·δη ds − ∫_Γ p_{n+1-αf} J F⁻ᵀ N·δη ds
 
-with ``Σ_{n+1-αf} = (1 − αf) Σ(F_{n+1}) + αf Σ(F_n)`` (Kuhl & Ramm's generalized energy-momentum
-method: for St. Venant–Kirchhoff and αf = 1/2 the discrete energy is conserved), η̇_{n+1} the
-scheme's velocity of the unknown η_{n+1} and the strain rate pulled back with the mid-step
-``F̄ = (F_{n+1} + F_n)/2``, so that a rigid motion makes no viscous stress and the viscous work
-of a step is ≥ 0. The interface's nodal forces are added to the assembled residual by the
-solver (fsi/physics/solid.py).
+with ``Σ_{n+1-αf} = (1 − αf) Σ(F_{n+1}) + αf Σ(F_n)`` (Kuhl & Ramm's energy-momentum method,
+energy-conserving for St. Venant–Kirchhoff and αf = 1/2) and ``F̄ = (F_{n+1} + F_n)/2``, so that
+a rigid motion makes no viscous stress and a step's viscous work is ≥ 0.
 """
 
 from __future__ import annotations

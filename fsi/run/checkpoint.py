@@ -1,27 +1,9 @@
-"""Checkpoints of ``fsi run``: the files. The state itself comes from the run's stepper
+"""Checkpoints of ``fsi run``: the files. The state comes from the run's stepper
 (:meth:`fsi.run.steppers.Stepper.state`) as named numpy arrays of its local dofs, with a
-:class:`fsi.run.state_arrays.Layout` for each distributed array; this module writes, finds,
-reads and redistributes them, and opens nothing else.
-
-``RUN_DIR/checkpoint/`` holds the latest complete checkpoint::
-
-    checkpoint.json   step, t, dt of the last step, number of ranks, case name, the
-                      configuration sections the arrays depend on (geometry, mesh, the
-                      structure's mode/load/degree), fsi and dolfinx versions, the rank files
-    rank0000.npz ...  one per MPI rank that wrote it: the rows of each distributed array that
-                      rank owned (``<array>``, shape (owned, block, ...)) and their keys
-                      (``keys.<layout>``: the reference coordinates of the dof's node, plus the
-                      component for a mixed space); rank 0's file also holds the global values
-                      (times, counters, Aitken's ω)
-
-Keys instead of local dof numbers because the mesh partition is not reproducible: SCOTCH gives
-another one in every run on several ranks. A restart reads every rank file and gives each local
-row (owned and ghost) the value stored under its key, so it may run on another number of ranks;
-a key without a stored value means another mesh, and stops the restart (:class:`CheckpointError`).
-
-A checkpoint is written into ``checkpoint.partial/`` and then renamed: the old one goes to
-``checkpoint.previous/`` for the moment of the swap, so a run killed at any point leaves one
-complete checkpoint (``checkpoint/``, else ``checkpoint.previous/``).
+:class:`fsi.run.state_arrays.Layout` for each distributed array; this module writes
+(:func:`write`), finds and reads (:func:`read`) and redistributes (:func:`localize`) them, and
+opens nothing else. ``RUN_DIR/checkpoint/`` holds the latest complete checkpoint:
+``checkpoint.json`` (:func:`metadata`) and one ``rank<k>.npz`` per rank that wrote it.
 """
 
 from __future__ import annotations
@@ -102,7 +84,10 @@ def metadata(
     next_dt: float | None = None,
 ) -> dict:
     """checkpoint.json's content for the state after step ``step`` (at time ``t``, of size
-    ``dt``; with adaptive steps ``next_dt`` is the size the next step tries)."""
+    ``dt``; with adaptive steps ``next_dt`` is the size the next step tries): also the number of
+    ranks, the case name, the configuration the arrays depend on (:func:`dependencies`), the fsi
+    and dolfinx versions and the rank files.
+    """
     return {
         "format": FORMAT,
         "step": int(step),
@@ -283,11 +268,17 @@ def _owned_rows(a: np.ndarray, layout: Layout) -> np.ndarray:
 def write(
     out: Path, comm: MPI.Comm, state: dict[str, np.ndarray], layouts: dict[str, Layout], meta: dict
 ) -> Path:
-    """Write ``out/checkpoint/`` atomically (see the module docstring): the owned rows of this
-    rank's distributed arrays (:func:`layout_of`) with their keys, the global arrays from rank
-    0, and ``meta`` as checkpoint.json. Refuses non-finite values. Collective; raises
-    :class:`CheckpointError` on every rank if any rank fails (the previous checkpoint stays,
-    the partial one is removed)."""
+    """Write ``out/checkpoint/`` atomically: the owned rows of this rank's distributed arrays
+    (:func:`layout_of`) with their keys, the global arrays from rank 0, and ``meta`` as
+    checkpoint.json. Refuses non-finite values. Collective; raises :class:`CheckpointError` on
+    every rank if any rank fails (the previous checkpoint stays, the partial one is removed).
+
+    A rank file holds each distributed array's owned rows (``<array>``, shape (owned, block, ...))
+    and their keys (``keys.<layout>``: the reference coordinates of the dof's node, plus the
+    component for a mixed space); rank 0's also the global values (times, counters, Aitken's ω).
+    They are written into ``checkpoint.partial/``, then swapped in, the old one kept as
+    ``checkpoint.previous/`` meanwhile: a run killed at any point leaves one complete checkpoint.
+    """
     final, partial = out / DIRECTORY, out / PARTIAL
     bad = [k for k, v in state.items() if v.dtype.kind == "f" and not np.isfinite(v).all()]
     message = f"{out}: not writing a checkpoint: non-finite {', '.join(bad)}" if bad else ""
@@ -521,12 +512,14 @@ def localize(
     current: dict[str, np.ndarray],
     comm: MPI.Comm,
 ) -> dict[str, np.ndarray]:
-    """The checkpoint's arrays on this rank's local dofs: every row of a distributed array takes
-    the value stored under its key, global arrays come from rank 0's file. Checked against
-    ``current`` (the fresh stepper's state): each of its arrays outside :data:`VARIABLE` must be
-    restored with its shape. Collective; raises :class:`CheckpointError` on every rank if the
-    keys do not match (another mesh), an array is missing or a distributed array's rows do not
-    match its keys."""
+    """The checkpoint's arrays on this rank's local dofs: every row (owned and ghost) of a
+    distributed array takes the value stored under its key, global arrays come from rank 0's file.
+    Keys, not local dof numbers, because the mesh partition differs from run to run (SCOTCH on
+    several ranks), so a restart may also use another number of ranks. Checked against ``current``
+    (the fresh stepper's state): each of its arrays outside :data:`VARIABLE` must be restored with
+    its shape. Collective; raises :class:`CheckpointError` on every rank if the keys do not match
+    (another mesh), an array is missing or a distributed array's rows do not match its keys.
+    """
     state: dict[str, np.ndarray] = {}
     indices, message = _match_keys(checkpoint, layouts, comm)
     if not message:

@@ -30,19 +30,16 @@ class RunOutputs:
     """The files of a run of ``stepper`` in ``out``, opened at once: the folder is made and an
     earlier run's files (:data:`fsi.output.io.RUN_FILES`) are deleted or, when ``restart``
     continues the run in ``out``, only the field segments after its step; ``config.yaml`` (the
-    resolved ``case``) is written, ``run.log`` is started (rank 0's log goes there until
-    :meth:`close`), ``metrics.csv`` is started with the rows up to the restart's step (copied
-    from its run folder if that is another one; :attr:`rows`), and a field file per entry of
-    ``stepper.field_files()`` (after a restart from step k a new segment,
-    ``fields.restart<k>.xdmf``, :func:`fsi.output.io.field_segment`) stores its mesh, in the
-    reference configuration (load a restart's state, which may move the fluid mesh, after).
+    resolved ``case``) is written, ``run.log`` started (rank 0's log until :meth:`close`),
+    ``metrics.csv`` started with the rows up to the restart's step (:attr:`rows`; a ``cycle``
+    column with a periodic inlet), and a field file per ``stepper.field_files()`` entry (a new
+    segment after a restart, :func:`fsi.output.io.field_segment`) stores its reference mesh
+    (so load a restart's state, which may move the fluid mesh, afterwards).
 
-    Then :meth:`write_step` per step and, once every step is done, :meth:`write_summary`. With a
-    periodic inlet (T = :func:`fsi.config.heartbeat_period` > 0) metrics.csv has a ``cycle``
-    column after ``dt``, each row's heartbeat. Every write is agreed by all ranks
-    (:func:`fsi.output.io.collectively`): a failure to open raises :class:`OutputFailed`, one
-    to write :class:`fsi.output.io.OutputError`, on every rank. A context manager (closed on
-    leaving). Collective."""
+    Then :meth:`write_step` per step and :meth:`write_summary` at the end. Every write is agreed by
+    all ranks (:func:`fsi.output.io.collectively`): a failure to open raises :class:`OutputFailed`,
+    one to write :class:`fsi.output.io.OutputError`, on every rank. A context manager. Collective.
+    """
 
     def __init__(
         self,

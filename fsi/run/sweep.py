@@ -1,18 +1,10 @@
 """``fsi sweep``: a case run for every combination of the values of one or more keys (the
-Cartesian product of the ``--vary`` lists), one run folder each, then one table and plots of
-each run's headline outputs.
+Cartesian product of the ``--vary`` lists), one run folder each under ``--out``, then one table
+and plots of each run's headline outputs.
 
-Each run's folder under ``--out`` is named from its varied keys and values in ``--vary`` order,
-``key=value`` joined by commas (``geometry.stenosis_degree=0.5,geometry.cap_thickness=0.0005``);
-the value as typed, with every run of characters other than letters, digits and ``. _ + -``
-replaced by one ``_`` (``[bottom, top]`` → ``bottom_top``). The same command gives the same
-folders, so a sweep resumes (:func:`folder_state`): a finished run of the same configuration is
-skipped, a stopped one continued from its checkpoint, anything else started afresh.
-
-The table (``sweep.csv``, ``sweep.md``) has one row per run: the varied values, the
-:data:`HEADLINES` (from the run's ``summary.json`` and ``metrics.csv``; empty where a case has
-no such quantity) and the run's status. ``sweep_<quantity>.png`` plots a headline against each
-varied key (one panel per key, one line per combination of the other keys' values).
+:func:`plan` makes and validates the combinations, :func:`execute` runs them (a finished run
+is skipped, a stopped one resumed: :func:`folder_state`), :func:`write_results` writes the table
+(``sweep.csv``, ``sweep.md``) of the :data:`HEADLINES` and the plots (:func:`write_plots`).
 """
 
 from __future__ import annotations
@@ -235,8 +227,10 @@ def _culprit(choice: Sequence[tuple[str, str]], key: str) -> str:
 
 
 def folder_name(choice: Sequence[tuple[str, str]]) -> str:
-    """``key=value,key=value`` with every run of characters other than letters, digits and
-    ``. _ + -`` in keys and values replaced by ``_`` (none at either end of a value)."""
+    """``key=value,key=value`` in ``--vary`` order, the values as typed, with every run of
+    characters other than letters, digits and ``. _ + -`` in keys and values replaced by ``_``
+    (none at either end of a value: ``[bottom, top]`` → ``bottom_top``).
+    """
 
     def clean(text: str) -> str:
         return re.sub(r"[^A-Za-z0-9._+-]+", "_", text).strip("_") or "_"
