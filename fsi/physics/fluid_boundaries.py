@@ -251,3 +251,39 @@ def parabolic_profile(frame: InletFrame, mean_velocity: float):
         return np.outer(frame.normal, values)
 
     return profile
+
+
+def parabolic_values(V: dolfinx.fem.FunctionSpace, spec: config.ParabolicInflow, frame: InletFrame):
+    """The function of t giving the ``parabolic_velocity`` inlet's array in V's layout
+    (constant: the parabola times −n, interpolated into V)."""
+    shape = dolfinx.fem.Function(V)
+    shape.interpolate(parabolic_profile(frame, spec.mean_velocity))
+    return lambda t: shape.x.array
+
+
+def flow_rate_values(
+    V: dolfinx.fem.FunctionSpace,
+    nodes: np.ndarray,
+    spec: config.Inlet,
+    frame: InletFrame,
+    density: float,
+    viscosity: float | None,
+):
+    """The function of t giving a flow-rate inlet's velocity array in V's layout: the
+    :class:`~fsi.physics.inflow_profiles.FlowRateProfile` speed (m/s) times −n at the inlet's
+    ``nodes``, 0 elsewhere; ``density`` (kg/m³) and ``viscosity`` (Pa s) shape a
+    ``womersley`` profile (None for ``parabolic``)."""
+    s = frame.distance(V.tabulate_dof_coordinates()[nodes])
+    speed = inflow_profiles.FlowRateProfile(
+        inlet_flow_rate(spec), s, frame.width, spec.period, density, viscosity
+    )
+    index_map, bs = V.dofmap.index_map, V.dofmap.index_map_bs
+    array = np.zeros((index_map.size_local + index_map.num_ghosts) * bs)
+    block = array.reshape(-1, bs)
+    normal = frame.normal
+
+    def values(t: float) -> np.ndarray:
+        block[nodes] = np.outer(speed(t), normal)
+        return array
+
+    return values

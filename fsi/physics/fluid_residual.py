@@ -38,12 +38,11 @@ from fsi.physics.fluid_boundaries import (
     Velocity,
     boundary_points,
     facets_of,
+    flow_rate_values,
     inflow_ramp,
-    inlet_flow_rate,
     inlet_pressure,
-    parabolic_profile,
+    parabolic_values,
 )
-from fsi.physics.inflow_profiles import FlowRateProfile
 
 BodyForce = Callable[[ufl.core.expr.Expr, dolfinx.fem.Constant], ufl.core.expr.Expr]
 """``f(x, t)``: a UFL vector (N/m³) of the spatial coordinate and the time."""
@@ -471,9 +470,14 @@ class FluidResidual:
         frame = InletFrame.of(points, self.mesh, self.comm)
         inflow = dolfinx.fem.Function(self.V, name="inflow")
         if isinstance(spec, config.ParabolicInflow):
-            values = self._parabolic_values(spec, frame)
+            values = parabolic_values(self.V, spec, frame)
         else:
-            values = self._flow_rate_values(spec, frame, bc.tags, inflow)
+            nodes = dolfinx.fem.locate_dofs_topological(
+                self.V, self.mesh.topology.dim - 1, facets_of(self.facet_tags, bc.tags)
+            )
+            womersley = spec.profile == "womersley"
+            viscosity = womersley_viscosity(self.config.rheology) if womersley else None
+            values = flow_rate_values(self.V, nodes, spec, frame, self.config.density, viscosity)
 
         ramped = self.scheme != "steady" and spec.ramp_time > 0
 
@@ -483,36 +487,3 @@ class FluidResidual:
 
         self.updates.append(update)
         return self._dirichlet(inflow, bc.tags)
-
-    def _parabolic_values(self, spec: config.ParabolicInflow, frame: InletFrame) -> Callable:
-        """The function of t giving the ``parabolic_velocity`` array (constant: the parabola
-        times −n interpolated into V)."""
-        shape = dolfinx.fem.Function(self.V)
-        shape.interpolate(parabolic_profile(frame, spec.mean_velocity))
-        return lambda t: shape.x.array
-
-    def _flow_rate_values(self, spec, frame: InletFrame, tags, inflow) -> Callable:
-        """The function of t giving a flow-rate inlet's velocity array (``inflow``'s layout):
-        the :class:`FlowRateProfile` speed times −n at the inlet's nodes, 0 elsewhere."""
-        nodes = dolfinx.fem.locate_dofs_topological(
-            self.V, self.mesh.topology.dim - 1, facets_of(self.facet_tags, tags)
-        )
-        s = frame.distance(self.V.tabulate_dof_coordinates()[nodes])
-        womersley = spec.profile == "womersley"
-        speed = FlowRateProfile(
-            inlet_flow_rate(spec),
-            s,
-            frame.width,
-            spec.period,
-            self.config.density,
-            womersley_viscosity(self.config.rheology) if womersley else None,
-        )
-        array = np.zeros_like(inflow.x.array)
-        block = array.reshape(-1, self.V.dofmap.index_map_bs)
-        normal = frame.normal
-
-        def values(t: float) -> np.ndarray:
-            block[nodes] = np.outer(speed(t), normal)
-            return array
-
-        return values
