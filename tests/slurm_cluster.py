@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import pwd
+import re
 import shutil
 import signal
 import socket
@@ -68,6 +69,12 @@ PartitionName=debug Nodes={host} Default=YES MaxTime=INFINITE State=UP
 """
 
 
+def slurm_version() -> tuple[int, ...]:
+    """Slurm's version (``slurmd -V``: ``slurm 24.11.5`` → (24, 11, 5))."""
+    done = subprocess.run(["slurmd", "-V"], capture_output=True, text=True, check=False)
+    return tuple(int(part) for part in re.findall(r"\d+", done.stdout)[:3])
+
+
 class Cluster:
     """The running cluster: ``env`` (the environment with its ``SLURM_CONF``) and the daemons.
     :meth:`start` and :meth:`stop`; :meth:`wait` for a job to leave the queue."""
@@ -101,6 +108,8 @@ class Cluster:
         self._until(lambda: (self.folder / "munge.socket").exists(), "munged's socket")
         conf = self.folder / "slurm.conf"
         conf.write_text(slurm_conf(self.folder, max(2, os.cpu_count() or 1)))
+        if slurm_version() >= (23, 11):  # slurmd needs no cgroups (a chroot has none mounted)
+            (self.folder / "cgroup.conf").write_text("CgroupPlugin=disabled\n")
         self._daemon("slurmctld", "-D", "-f", str(conf))
         self._daemon("slurmd", "-D", "-f", str(conf))
         self._until(self._idle, "the node to be idle in sinfo")

@@ -7,6 +7,7 @@ import os
 import shlex
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 from mpi4py import MPI
@@ -15,6 +16,7 @@ import pytest
 from slurm_cluster import Cluster, ClusterError
 
 from fsi import cli
+from fsi.output import io
 from fsi.run import slurm
 
 STENOSIS = "configs/stenosis_moving_newtonian.yaml"
@@ -35,6 +37,12 @@ def rank0(text: str) -> str:
     return MPI.COMM_WORLD.bcast(text, root=0)
 
 
+def steps(run) -> int:
+    """The lines of ``run``'s metrics.csv past its header (0: none yet)."""
+    path = run / "metrics.csv"
+    return max(len(path.read_text().splitlines()) - 1, 0) if path.is_file() else 0
+
+
 def read_table(out) -> list[dict[str, str]]:
     with (out / "sweep.csv").open(newline="") as f:
         return list(csv.DictReader(f))
@@ -50,12 +58,30 @@ def test_the_batch_script_quotes_every_word(shared_tmp, capsys):
     out = shared_tmp / "a sweep's folder"
     options = ["--vary", "fluid.rheology.viscosity=0.0035,0.004", "--set", "name=it's a $test"]
     slurm_options = ["--slurm-option", "time=00:10:00", "--slurm-option", "exclusive"]
-    assert sweep_main(CHANNEL, "--out", out, *options, "--scheduler", "slurm", "-n",
-                      "--ranks-per-run", "2", *slurm_options) == 0  # fmt: skip
+    assert (
+        sweep_main(
+            CHANNEL,
+            "--out",
+            out,
+            *options,
+            "--scheduler",
+            "slurm",
+            "-n",
+            "--ranks-per-run",
+            "2",
+            *slurm_options,
+        )
+        == 0
+    )
     assert rank0(capsys.readouterr().out) == ""  # no job id: not submitted
     text = (out / "sweep.sbatch").read_text()
-    for line in ("#SBATCH --array=1,2", "#SBATCH --ntasks=2", "#SBATCH --signal=USR1@120",
-                 "#SBATCH --time=00:10:00", "#SBATCH --exclusive"):  # fmt: skip
+    for line in (
+        "#SBATCH --array=1,2",
+        "#SBATCH --ntasks=2",
+        "#SBATCH --signal=USR1@120",
+        "#SBATCH --time=00:10:00",
+        "#SBATCH --exclusive",
+    ):
         assert line in text.splitlines(), text
     srun = next(line for line in text.splitlines() if line.startswith("srun "))
     words = shlex.split(srun)
@@ -94,8 +120,12 @@ def test_bad_slurm_input_exits_2_with_one_line(shared_tmp, capsys, options, mess
 def test_no_sbatch_exits_2(shared_tmp, capsys, monkeypatch):
     monkeypatch.setenv("PATH", str(shared_tmp))
     out = shared_tmp / "sweep"
-    assert sweep_main(CHANNEL, "--out", out, "--vary", "fluid.density=1000,1060",
-                      "--scheduler", "slurm") == 2  # fmt: skip
+    assert (
+        sweep_main(
+            CHANNEL, "--out", out, "--vary", "fluid.density=1000,1060", "--scheduler", "slurm"
+        )
+        == 2
+    )
     err = rank0(capsys.readouterr().err)
     assert (
         err == "fsi: error: --scheduler slurm: sbatch not found (is Slurm's client on the PATH?)\n"
@@ -113,8 +143,8 @@ def test_a_failed_task_is_recorded_and_collected(shared_tmp, capsys):
     """The array tasks' command run here: task 1 fails (one Newton iteration allowed), task 2
     finishes; the collected table has ``failed: <why>`` and the numbers, exit status 3."""
     out = shared_tmp / "sweep"
-    options = ["--out", str(out), "--vary", "fluid.solver.max_iterations=1,25",
-               "--set", "time.end=0.002", "--set", "time.retries=0"]  # fmt: skip
+    options = ["--out", str(out), "--vary", "fluid.solver.max_iterations=1,25"]
+    options += "--set time.end=0.002 --set time.retries=0".split()
     assert sweep_main(CHANNEL, *options, "--scheduler", "slurm", "--dry-run") == 0
     assert sweep_main(CHANNEL, *options, "--task", "1") == 3
     assert sweep_main(CHANNEL, *options, "--task", "2") == 0
@@ -157,8 +187,19 @@ def test_a_slurm_sweep_tables_the_numbers_of_the_same_sweep_run_here(cluster, sh
     jobs = {}
     for ranks in (1, 2):
         out = shared_tmp / f"slurm{ranks}"
-        assert sweep_main(STENOSIS, "--out", out, *options, "--scheduler", "slurm",
-                          "--ranks-per-run", str(ranks)) == 0  # fmt: skip
+        assert (
+            sweep_main(
+                STENOSIS,
+                "--out",
+                out,
+                *options,
+                "--scheduler",
+                "slurm",
+                "--ranks-per-run",
+                str(ranks),
+            )
+            == 0
+        )
         jobs[out] = capsys.readouterr().out.strip()
         assert jobs[out].isdigit()
     assert sweep_main(STENOSIS, "--out", shared_tmp / "here", *options) == 0
@@ -177,3 +218,44 @@ def test_a_slurm_sweep_tables_the_numbers_of_the_same_sweep_run_here(cluster, sh
                     assert row[name] == value, name
     ranks = (shared_tmp / "slurm2" / "geometry.stenosis_degree=0.4" / "summary.json").read_text()
     assert '"ranks": 2' in ranks
+
+
+@serial_lane
+def test_a_task_signalled_before_its_time_limit_stops_and_a_resubmission_continues_it(
+    cluster, shared_tmp, capsys
+):
+    """SIGUSR1 to the job's ranks (what ``--signal=USR1@120`` sends before the time limit):
+    the run stops with a checkpoint, the table says ``stopped``; the same command submitted
+    again (with a nearer end) continues it from its checkpoint to the end."""
+    out = shared_tmp / "sweep"
+    first = out / "fluid.rheology.viscosity=0.0035"
+    options = [
+        "--out",
+        str(out),
+        "--vary",
+        "fluid.rheology.viscosity=0.0035",
+        "--set",
+        "time.schedule=[{until: 10, dt: 0.001}]",
+        "--scheduler",
+        "slurm",
+    ]
+    assert sweep_main(CHANNEL, *options, "--set", "time.end=10") == 0
+    job = capsys.readouterr().out.strip()
+    deadline = time.monotonic() + SWEEP_WAIT
+    while time.monotonic() < deadline and steps(first) < 2:
+        time.sleep(0.5)
+    assert cluster.run("scancel", "--signal=USR1", job).returncode == 0
+    assert cluster.wait(job, SWEEP_WAIT)
+    assert sweep_main(out, "--collect") == 0
+    assert [r["status"] for r in read_table(out)] == ["stopped"]
+    last = int(max(r["step"] for r in io.read_metrics(first / "metrics.csv")))
+
+    end = f"time.end={round((last + 2) * 0.001, 6)}"
+    assert sweep_main(CHANNEL, *options, "--set", end) == 0
+    job = capsys.readouterr().out.strip()
+    assert cluster.wait(job, SWEEP_WAIT)
+    assert sweep_main(out, "--collect") == 0
+    assert [r["status"] for r in read_table(out)] == ["done"]
+    assert [r["step"] for r in io.read_metrics(first / "metrics.csv")] == list(range(1, last + 3))
+    log = next((out / slurm.TASKS).glob(f"{job}_1.log")).read_text()
+    assert f"resumed from its checkpoint at t = {last * 0.001:.6g} s" in log
