@@ -233,7 +233,7 @@ def _add_slurm_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--collect",
         action="store_true",
-        help="CONFIG is the folder of a sweep submitted to Slurm: write its table of the "
+        help="config is the folder of a sweep submitted to Slurm: write its table of the "
         "finished runs (sweep.csv, sweep.md, plots) and list the others with why",
     )
     p.add_argument("--task", type=int, metavar="INDEX", help=argparse.SUPPRESS)

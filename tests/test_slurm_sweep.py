@@ -89,6 +89,9 @@ def test_the_batch_script_quotes_every_word(shared_tmp, capsys):
     assert words[3:7] == [sys.executable, "-m", "fsi", "sweep"]
     assert words[7:10] == [str(Path(CHANNEL).absolute()), "--out", str(out.absolute())]
     assert "name=it's a $test" in words
+    assert (
+        "folders=([1]=fluid.rheology.viscosity=0.0035 [2]=fluid.rheology.viscosity=0.004)" in text
+    )
     if MPI.COMM_WORLD.rank == 0:
         assert (
             subprocess.run(["bash", "-n", str(out / "sweep.sbatch")], check=False).returncode == 0

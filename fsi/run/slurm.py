@@ -28,9 +28,12 @@ from fsi.run import sweep
 
 log = logging.getLogger("fsi")
 
-SCRIPT, DEFINITION, TASKS, SUBMITTED = "sweep.sbatch", "sweep.json", "slurm", "submitted.yaml"
-"""The batch script, the sweep's definition, the folder of the tasks' logs and outcomes (in
-the sweep's folder), and each run's resolved configuration (in its run folder)."""
+SCRIPT, DEFINITION, TASKS = "sweep.sbatch", "sweep.json", "slurm"
+"""The batch script, the sweep's definition and the folder of the tasks' logs (in DIR)."""
+
+SUBMITTED, OUTCOME = "submitted.yaml", "slurm-task.status"
+"""In each run folder: its resolved configuration as submitted, and how its last array task
+ended (done, stopped, ``failed: <why>``)."""
 
 DEFAULT_OPTIONS = {"job-name": "fsi-sweep", "signal": "USR1@120"}
 """``#SBATCH`` options written unless ``--slurm-option`` gives them: USR1 two minutes before
@@ -55,8 +58,8 @@ class SlurmError(Exception):
 @dataclass(frozen=True)
 class SlurmSweep:
     """A sweep for Slurm: the case file and ``--out`` (absolute), the ``--vary`` and ``--set``
-    options, the ranks of each run, the ``#SBATCH`` options, and the job that last took each
-    run (run index → job id)."""
+    options, the ranks of each run, the ``#SBATCH`` options, and the array task that last
+    took each run (run folder's name → ``<job>_<run number>``)."""
 
     case: str
     out: str
@@ -124,7 +127,7 @@ def prepare(
 
 
 def _earlier_jobs(out: Path) -> dict[str, str]:
-    """The jobs of a sweep submitted earlier into ``out`` (run index → job id)."""
+    """The array tasks of a sweep submitted earlier into ``out`` (:attr:`SlurmSweep.jobs`)."""
     try:
         return dict(load(out).jobs)
     except SlurmError:
@@ -154,11 +157,6 @@ def save(definition: SlurmSweep) -> None:
     (Path(definition.out) / DEFINITION).write_text(text)
 
 
-def outcome_file(out: Path, index: int) -> Path:
-    """Where the task of run ``index`` writes how it ended (done, stopped, ``failed: <why>``)."""
-    return out / TASKS / f"task-{index}.status"
-
-
 def task_command(definition: SlurmSweep) -> list[str]:
     """``python -m fsi sweep CASE --out DIR --vary ... --set ... --task`` (the task's index
     follows), with this Python's absolute path."""
@@ -176,17 +174,18 @@ def task_command(definition: SlurmSweep) -> list[str]:
     ]
 
 
-def script(definition: SlurmSweep, indices: Sequence[int]) -> str:
-    """The batch script: a job array of the runs ``indices``, each task ``srun -n <ranks>``
-    running its run (every word shell-quoted); a task that ends without writing its outcome
-    gets ``failed: ...`` with its exit status."""
+def script(definition: SlurmSweep, runs: Sequence[sweep.SweepRun]) -> str:
+    """The batch script: a job array of ``runs``, each task ``srun -n <ranks>`` running its run
+    (every word shell-quoted); a task that ends without writing its outcome gets ``failed:
+    ...`` with its exit status."""
     options = {
-        "array": ",".join(str(i) for i in indices),
+        "array": ",".join(str(run.index) for run in runs),
         "ntasks": str(definition.ranks),
         "output": f"{TASKS}/%A_%a.log",
         **definition.options,
     }
-    outcome = shlex.quote(str(Path(definition.out) / TASKS)) + '/task-"$SLURM_ARRAY_TASK_ID".status'
+    folders = " ".join(f"[{run.index}]={shlex.quote(run.folder.name)}" for run in runs)
+    outcome = f'{shlex.quote(definition.out)}/"${{folders[$SLURM_ARRAY_TASK_ID]}}"/{OUTCOME}'
     lines = [
         "#!/bin/bash",
         f"# fsi sweep of {shlex.quote(definition.case)}: one array task per run to do.",
@@ -195,6 +194,7 @@ def script(definition: SlurmSweep, indices: Sequence[int]) -> str:
         *[f"#SBATCH --{k}={shlex.quote(v)}" if v else f"#SBATCH --{k}" for k, v in options.items()],
         "export SLURM_MPI_TYPE=${SLURM_MPI_TYPE:-pmix}  # srun starts the MPI ranks",
         "export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1",
+        f"folders=({folders})",
         f"outcome={outcome}",
         'rm -f "$outcome"',
         f'srun -n {definition.ranks} {shlex.join(task_command(definition))} "$SLURM_ARRAY_TASK_ID"',
@@ -209,19 +209,20 @@ def script(definition: SlurmSweep, indices: Sequence[int]) -> str:
 
 
 def write(definition: SlurmSweep, runs: Sequence[sweep.SweepRun], todo: Sequence[int]) -> Path:
-    """Write each run folder's ``submitted.yaml``, ``DIR/slurm/`` (the earlier outcomes of the
-    runs ``todo`` deleted), ``DIR/sweep.json`` and the batch script of ``todo``; returns the
-    script's path. Rank 0; raises OSError."""
+    """Write each run folder's ``submitted.yaml`` (the earlier outcomes of the runs numbered
+    ``todo`` deleted), ``DIR/slurm/``, ``DIR/sweep.json`` and the batch script of ``todo``;
+    returns the script's path. Rank 0; raises OSError."""
     out = Path(definition.out)
     (out / TASKS).mkdir(parents=True, exist_ok=True)
     for run in runs:
         run.folder.mkdir(exist_ok=True)
         (run.folder / SUBMITTED).write_text(config.to_yaml(run.case))
-    for index in todo:
-        outcome_file(out, index).unlink(missing_ok=True)
+    chosen = [run for run in runs if run.index in todo]
+    for run in chosen:
+        (run.folder / OUTCOME).unlink(missing_ok=True)
     save(definition)
     path = out / SCRIPT
-    path.write_text(script(definition, todo))
+    path.write_text(script(definition, chosen))
     path.chmod(0o755)
     return path
 
@@ -249,14 +250,15 @@ def sbatch(out: Path) -> str:
     return done.stdout.strip().split(";")[0]
 
 
-def queued(jobs: Mapping[str, str]) -> dict[int, str]:
-    """The runs whose task is still in Slurm's queue: index → ``queued (job J)`` or ``running
-    (job J)``, from ``squeue`` (jobs that left the queue, or no squeue: none)."""
-    found: dict[int, str] = {}
-    for job in sorted(set(jobs.values())):
+def queued(jobs: Mapping[str, str]) -> dict[str, str]:
+    """The array tasks of ``jobs`` (:attr:`SlurmSweep.jobs`) still in Slurm's queue:
+    ``<job>_<number>`` → ``queued (job J)`` or ``running (job J)``, from ``squeue`` (jobs
+    that left the queue, or no squeue: none)."""
+    found: dict[str, str] = {}
+    for job in sorted({task.partition("_")[0] for task in jobs.values()}):
         try:
             done = subprocess.run(
-                ["squeue", "-h", "-r", "-j", job, "-o", "%K %t"],
+                ["squeue", "-h", "-r", "-j", job, "-o", "%i %t"],
                 capture_output=True,
                 text=True,
                 timeout=TIMEOUT,
@@ -266,8 +268,7 @@ def queued(jobs: Mapping[str, str]) -> dict[int, str]:
             continue
         for line in done.stdout.splitlines() if done.returncode == 0 else []:
             task, _, state = line.partition(" ")
-            if task.isdigit() and jobs.get(task) == job:
-                found[int(task)] = f"{'running' if state == 'R' else 'queued'} (job {job})"
+            found[task] = f"{'running' if state == 'R' else 'queued'} (job {job})"
     return found
 
 
@@ -280,22 +281,22 @@ def statuses(definition: SlurmSweep, runs: Sequence[sweep.SweepRun]) -> list[str
     it), ``pending: queued/running (job J)``, its task's outcome (``failed: <why>``,
     ``stopped``), ``failed: ...`` for a task that left the queue without one, else ``pending:
     not submitted``. Rank 0."""
-    out = Path(definition.out)
     in_queue = queued(definition.jobs)
     found = []
     for run in runs:
-        outcome = outcome_file(out, run.index)
+        outcome = run.folder / OUTCOME
+        task = definition.jobs.get(run.folder.name, "")
         if sweep.folder_state(run).action == "skip":
             status = "done"
-        elif run.index in in_queue:
-            status = f"pending: {in_queue[run.index]}"
-        elif outcome.is_file() and outcome.read_text().strip() not in ("", "done"):
-            status = outcome.read_text().strip().splitlines()[0]
-        elif str(run.index) in definition.jobs:
-            job = definition.jobs[str(run.index)]
+        elif task in in_queue:
+            status = f"pending: {in_queue[task]}"
+        elif outcome.is_file():  # done: to another configuration or time.end than now
+            told = (outcome.read_text().strip().splitlines() or [""])[0]
+            status = told if told.startswith(("failed", "stopped")) else "pending: not submitted"
+        elif task:
             status = (
-                f"failed: its task in job {job} ended without an outcome (cancelled, or "
-                f"killed at the time limit?): see {out / TASKS}/{job}_{run.index}.log"
+                f"failed: its array task {task} ended without an outcome (cancelled, or "
+                f"killed at the time limit?): see {Path(definition.out) / TASKS}/{task}.log"
             )
         else:
             status = "pending: not submitted"
@@ -347,7 +348,8 @@ def submit(
         log.info("wrote %s (not submitted: --dry-run) for runs %s", path, _ranges(todo))
         return None
     job = sbatch(Path(definition.out))
-    jobs = {**definition.jobs, **{str(i): job for i in todo}}
+    taken = {run.folder.name: f"{job}_{run.index}" for run in runs if run.index in todo}
+    jobs = {**definition.jobs, **taken}
     save(SlurmSweep(**{**asdict(definition), "jobs": jobs}))
     log.info("submitted %s as job %s: runs %s", path, job, _ranges(todo))
     return job
@@ -397,7 +399,7 @@ def run_task(
 ) -> tuple[int, str, None]:
     """One array task: run number ``index`` skipped, resumed or started as a local sweep would
     (:func:`fsi.run.sweep.advance`), or refused when its case no longer resolves to the
-    submitted configuration; its outcome written to ``DIR/slurm/task-<index>.status``. Returns
+    submitted configuration; its outcome written to its folder's :data:`OUTCOME`. Returns
     the exit status (0 done, 3 failed, 128 + the signal that stopped it, 2 no such run, 4 the
     outcome not written), the error message and no job id. Collective."""
     if not 1 <= index <= len(runs):
@@ -422,9 +424,16 @@ def run_task(
         )
     else:
         status, stopped_by = sweep.advance(run, len(runs), run_one, comm)
-    out = run.folder.parent
+    outcome = run.folder / OUTCOME
     try:
-        io.on_rank0(comm, lambda: outcome_file(out, index).write_text(status + "\n"), out)
+        io.on_rank0(
+            comm,
+            lambda: (
+                outcome.parent.mkdir(parents=True, exist_ok=True),
+                outcome.write_text(status + "\n"),
+            ),
+            outcome,
+        )
     except io.OutputError as e:
         return sweep.EXIT_OUTPUT_FAILED, f"cannot write the task's outcome: {e}", None
     if stopped_by:
