@@ -188,9 +188,8 @@ def script(definition: SlurmSweep, runs: Sequence[sweep.SweepRun]) -> str:
     outcome = f'{shlex.quote(definition.out)}/"${{folders[$SLURM_ARRAY_TASK_ID]}}"/{OUTCOME}'
     lines = [
         "#!/bin/bash",
-        f"# fsi sweep of {shlex.quote(definition.case)}: one array task per run to do.",
-        "# Written by fsi sweep --scheduler slurm; submit again with the same fsi sweep command",
-        f"# (or: cd {shlex.quote(definition.out)} && sbatch {SCRIPT}).",
+        "# fsi sweep --scheduler slurm: one array task per run to do. Submit again with the",
+        f"# same fsi sweep command (or sbatch {SCRIPT} from this folder).",
         *[f"#SBATCH --{k}={shlex.quote(v)}" if v else f"#SBATCH --{k}" for k, v in options.items()],
         "export SLURM_MPI_TYPE=${SLURM_MPI_TYPE:-pmix}  # srun starts the MPI ranks",
         "export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1",
