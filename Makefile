@@ -12,7 +12,9 @@ setup:
 demo: setup
 	$(VENV)/bin/fsi run configs/stenosis_moving_newtonian.yaml --out results/demo --set time.end=0.005
 
-test: setup
+# The tests also need Slurm (scripts/test-packages.txt) for tests/test_slurm_sweep.py.
+test:
+	scripts/setup --test
 	scripts/test
 
 lint: setup

@@ -180,25 +180,63 @@ def _add_plot_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _add_sweep_arguments(p: argparse.ArgumentParser) -> None:
-    """``fsi sweep``: a case, ``--vary``, ``--out``, ``--dry-run``."""
+    """``fsi sweep``: a case, ``--vary``, ``--out``, ``--dry-run``, and the Slurm options."""
     _add_config_arguments(p)
     p.add_argument(
         "--vary",
         action="append",
-        required=True,
+        default=[],
         metavar="KEY.PATH=V1,V2,...",
         help="a key (as --set takes it) and its values, comma-separated (commas "
         "inside [...] or {...} belong to the value); repeatable: the runs are "
-        "the product of the lists",
+        "the product of the lists (required, except with --collect)",
     )
-    _add_out(p, "DIR/<key=value,...>/ for each run, DIR/sweep.csv and sweep.md")
+    _add_out(p, "DIR/<key=value,...>/ for each run, DIR/sweep.csv and sweep.md", required=False)
     p.add_argument(
         "-n",
         "--dry-run",
         action="store_true",
         help="validate every run and list what the sweep would do with each (skip, "
-        "resume, start); run and write nothing",
+        "resume, start); run and write nothing (with --scheduler slurm: write the batch "
+        "script, do not submit it)",
     )
+    _add_slurm_arguments(p)
+
+
+def _add_slurm_arguments(p: argparse.ArgumentParser) -> None:
+    """``fsi sweep``'s ``--scheduler``, ``--ranks-per-run``, ``--slurm-option``, ``--collect``
+    and the hidden ``--task`` (one array task)."""
+    p.add_argument(
+        "--scheduler",
+        default="local",
+        metavar="{local,slurm}",
+        help="local: the runs one after the other in this process (default); slurm: "
+        "DIR/sweep.sbatch, a Slurm job array of the runs not yet done, submitted with sbatch "
+        "(the job id printed)",
+    )
+    p.add_argument(
+        "--ranks-per-run",
+        type=int,
+        default=1,
+        metavar="N",
+        help="with --scheduler slurm: each run on N MPI ranks (srun -n N; default 1)",
+    )
+    p.add_argument(
+        "--slurm-option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="with --scheduler slurm: an #SBATCH --KEY=VALUE line (e.g. time=04:00:00, "
+        "partition=compute; KEY alone for a flag); repeatable. Default: --signal=USR1@120 "
+        "(a run stops with a checkpoint 2 minutes before the time limit)",
+    )
+    p.add_argument(
+        "--collect",
+        action="store_true",
+        help="config is the folder of a sweep submitted to Slurm: write its table of the "
+        "finished runs (sweep.csv, sweep.md, plots) and list the others with why",
+    )
+    p.add_argument("--task", type=int, metavar="INDEX", help=argparse.SUPPRESS)
 
 
 class _Version(argparse.Action):
@@ -533,35 +571,26 @@ class _StopOnSignal:
 def _sweep(args: argparse.Namespace) -> int:
     """``fsi sweep``: every run validated (and ``--out`` checked) before the first starts; then
     the runs one after the other in this process, each as ``fsi run`` (:func:`run_case`), and
-    the table (fsi/run/sweep.py). A stop signal stops the current run as ``fsi run`` and the sweep
-    after it."""
-    from fsi.output import io
+    the table (fsi/run/sweep.py); or, with ``--scheduler slurm``, the runs to do submitted as a
+    Slurm job array, whose tasks (``--task``) run them, and ``--collect`` for the table
+    (fsi/run/slurm.py). A stop signal stops the current run as ``fsi run`` and the sweep after
+    it."""
     from fsi.run import sweep
 
     comm = MPI.COMM_WORLD
     try:
-        variations = sweep.parse_vary(args.vary)
-        runs = sweep.plan(args.config, variations, args.overrides, args.out)
-        io.check_folder(comm, args.out, earlier_run=True)
-    except (sweep.SweepError, config.ConfigError) as e:
+        definition = _slurm_sweep(args, comm)
+        variations, runs = _sweep_plan(args, comm)
+    except _Refused as e:
         _error(comm, str(e))
         return EXIT_USAGE
-    except io.RunFolderError as e:
-        _error(comm, f"--out: {e}")
-        return EXIT_USAGE
+    if definition is not None or args.task is not None:
+        return _sweep_slurm(args, definition, variations, runs, comm)
     if args.dry_run:
         lines = sweep.describe_plan(runs) if comm.rank == 0 else []
         if comm.rank == 0:
             print("\n".join(lines), flush=True)
         return EXIT_OK
-
-    def run_one(run: sweep.SweepRun, resume: bool, overwrite: bool) -> tuple[int, str]:
-        request = RunRequest(
-            args.config, run.folder, run.overrides, run.folder if resume else None, overwrite
-        )
-        outcome = run_case(request, run.case)
-        return outcome.status, outcome.reason
-
     resume = [
         "fsi",
         "sweep",
@@ -572,7 +601,96 @@ def _sweep(args: argparse.Namespace) -> int:
         *[a for s in args.overrides for a in ("--set", s)],
     ]
     with _StopOnSignal() as stop:
-        return sweep.execute(runs, variations, args.out, run_one, stop, resume, comm)
+        return sweep.execute(runs, variations, args.out, _sweep_run_one(args), stop, resume, comm)
+
+
+def _sweep_plan(args: argparse.Namespace, comm: MPI.Comm):
+    """The sweep's variations and validated runs, ``--out`` checked; :class:`_Refused`."""
+    from fsi.output import io
+    from fsi.run import sweep
+
+    try:
+        variations = sweep.parse_vary(args.vary)
+        runs = sweep.plan(args.config, variations, args.overrides, args.out)
+        io.check_folder(comm, args.out, earlier_run=True)
+    except (sweep.SweepError, config.ConfigError) as e:
+        raise _Refused(str(e)) from None
+    except io.RunFolderError as e:
+        raise _Refused(f"--out: {e}") from None
+    return variations, runs
+
+
+def _slurm_sweep(args: argparse.Namespace, comm: MPI.Comm):
+    """The checked :class:`fsi.run.slurm.SlurmSweep` of ``--scheduler slurm``, or of
+    ``--collect`` (DIR/sweep.json, whose case, ``--vary``, ``--set`` and folder then replace
+    ``args``'); None for a local sweep or a task. :class:`_Refused`."""
+    from fsi.run import slurm
+
+    if args.scheduler not in ("local", "slurm"):
+        raise _Refused(f"--scheduler {args.scheduler}: expected local or slurm")
+    try:
+        if args.collect:
+            if args.vary or args.overrides or args.out or args.scheduler != "local":
+                raise _Refused(
+                    "--collect takes the sweep's folder alone (DIR/sweep.json has the rest)"
+                )
+            definition = slurm.load(args.config)
+            args.config, args.out = Path(definition.case), Path(definition.out)
+            args.vary, args.overrides = list(definition.vary), list(definition.sets)
+            return definition
+        if not args.vary or args.out is None:
+            raise _Refused(
+                f"the following arguments are required: {'--out' if args.vary else '--vary'}"
+            )
+        if args.scheduler == "local" or args.task is not None:
+            if args.ranks_per_run != 1 or args.slurm_option:
+                raise _Refused("--ranks-per-run and --slurm-option go with --scheduler slurm")
+            return None
+        return slurm.prepare(
+            args.config,
+            args.out,
+            (args.vary, args.overrides),
+            args.ranks_per_run,
+            args.slurm_option,
+            args.dry_run,
+            comm,
+        )
+    except slurm.SlurmError as e:
+        raise _Refused(str(e)) from None
+
+
+def _sweep_run_one(args: argparse.Namespace):
+    """The function that runs one of the sweep's runs as ``fsi run`` (:func:`run_case`)."""
+    from fsi.run import sweep
+
+    def run_one(run: sweep.SweepRun, resume: bool, overwrite: bool) -> tuple[int, str]:
+        request = RunRequest(
+            args.config, run.folder, run.overrides, run.folder if resume else None, overwrite
+        )
+        outcome = run_case(request, run.case)
+        return outcome.status, outcome.reason
+
+    return run_one
+
+
+def _sweep_slurm(args: argparse.Namespace, definition, variations, runs, comm: MPI.Comm) -> int:
+    """``--task INDEX`` (one array task: run INDEX as a local sweep would), ``--scheduler
+    slurm`` (the table so far, then the runs to do submitted and the job id printed;
+    ``--dry-run``: the batch script written, not submitted) or ``--collect``."""
+    from fsi.run import slurm
+
+    if args.task is not None:
+        with _StopOnSignal():
+            status, message, job = slurm.run_task(runs, args.task, _sweep_run_one(args), comm)
+    else:
+        status, message, job = slurm.submit_or_collect(
+            definition, runs, variations, args.dry_run, args.collect, comm
+        )
+    if message:
+        _error(comm, message)
+    elif job is not None and comm.rank == 0:
+        print(job, flush=True)
+    return status
 
 
 def _mesh(args: argparse.Namespace, case: config.Case) -> int:

@@ -364,13 +364,7 @@ def execute(
             stopped_by = comm.allreduce(stop_requested() or 0, op=MPI.MAX)
             if stopped_by:
                 break
-            state = comm.bcast(folder_state(run) if comm.rank == 0 else None, root=0)
-            head = f"sweep {run.index}/{len(runs)}: {run.label}"
-            log.info("%s: %s", head, state.why)
-            if state.action == "skip":
-                statuses[i] = "done"
-                continue
-            stopped_by = _run_and_log(run, state, head, run_one, comm, statuses, i)
+            statuses[i], stopped_by = advance(run, len(runs), run_one, comm)
             if stopped_by:
                 break
     except KeyboardInterrupt:  # a second signal between runs
@@ -399,18 +393,24 @@ def execute(
     return EXIT_SOLVE_FAILED if any(s.startswith("failed") for s in statuses) else EXIT_OK
 
 
+def advance(run: SweepRun, total: int, run_one: RunOne, comm: MPI.Comm) -> tuple[str, int]:
+    """Skip ``run``, resume it or start it afresh (:func:`folder_state`), with a progress line
+    before and after (``total``: the sweep's number of runs). Returns its status (done,
+    stopped or ``failed: <why>``) and the signal that stopped it, or 0. Collective."""
+    state = comm.bcast(folder_state(run) if comm.rank == 0 else None, root=0)
+    head = f"sweep {run.index}/{total}: {run.label}"
+    log.info("%s: %s", head, state.why)
+    if state.action == "skip":
+        return "done", 0
+    return _run_and_log(run, state, head, run_one, comm)
+
+
 def _run_and_log(
-    run: SweepRun,
-    state: FolderState,
-    head: str,
-    run_one: RunOne,
-    comm: MPI.Comm,
-    statuses: list[str],
-    i: int,
-) -> int:
-    """Run ``run`` (resumed or started afresh as ``state`` says), record its outcome in
-    ``statuses[i]`` (done, stopped or ``failed: <why>``) and log it after ``head``; returns the
-    signal that stopped it, or 0. Collective (garbage collection and a barrier after the run)."""
+    run: SweepRun, state: FolderState, head: str, run_one: RunOne, comm: MPI.Comm
+) -> tuple[str, int]:
+    """Run ``run`` (resumed or started afresh as ``state`` says) and log its outcome after
+    ``head``; returns its status (done, stopped or ``failed: <why>``) and the signal that
+    stopped it, or 0. Collective (garbage collection and a barrier after the run)."""
     tic = wallclock.perf_counter()
     status, reason = run_one(run, state.action == "resume", state.action == "start")
     # Free the run's dolfinx/PETSc objects on every rank at this point: their
@@ -420,16 +420,13 @@ def _run_and_log(
     comm.barrier()
     took = f"{wallclock.perf_counter() - tic:.0f} s"
     if status == EXIT_OK:
-        statuses[i] = "done"
         log.info("%s: done in %s", head, took)
-    elif status > 128:
-        statuses[i] = "stopped"
+        return "done", 0
+    if status > 128:
         log.info("%s: stopped after %s", head, took)
-        return status - 128
-    else:
-        statuses[i] = f"failed: {reason}"
-        log.info("%s: failed after %s (exit status %d): %s", head, took, status, reason)
-    return 0
+        return "stopped", status - 128
+    log.info("%s: failed after %s (exit status %d): %s", head, took, status, reason)
+    return f"failed: {reason}", 0
 
 
 def describe_plan(runs: Sequence[SweepRun]) -> list[str]:
