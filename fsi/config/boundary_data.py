@@ -13,6 +13,8 @@ import stat
 import typing
 from pathlib import Path
 
+import numpy as np
+
 from fsi.config.reader import MAX_FILE_BYTES, shorten
 
 FORMULA_NAMES = ("sin", "cos", "tan", "exp", "log", "sqrt", "tanh", "abs", "min", "max")
@@ -179,8 +181,6 @@ def table_function(
 ) -> typing.Callable[[float], float]:
     """The function of t of the rows [t, y] (t increasing): linear between rows; with
     ``period`` T > 0 of t mod T, else constant beyond the first and last row."""
-    import numpy as np
-
     times, values = np.array(rows, dtype=float).T
     if period > 0:
         return lambda t: float(np.interp(t % period, times, values))
@@ -261,3 +261,13 @@ def _number(cell: str) -> float | None:
         return float(cell)
     except ValueError:
         return None
+
+
+HARMONIC_SAMPLES = 256
+"""Samples of a periodic flow rate Q over one period [0, T) for its discrete Fourier transform
+(the Womersley inlet profile's harmonics, fsi.physics.inflow_profiles)."""
+
+
+def sample_times(period: float):
+    """The :data:`HARMONIC_SAMPLES` times j T / N, j = 0 … N − 1, in [0, T) (s), a numpy array."""
+    return period * np.arange(HARMONIC_SAMPLES) / HARMONIC_SAMPLES

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 
-from fsi.config.boundary_data import FormulaError, periodic, time_function
+from fsi.config.boundary_data import FormulaError, periodic, sample_times, time_function
 from fsi.config.case import Case, heartbeat_period, run_time
 from fsi.config.domain import StenosisGeometry, TurekHronGeometry
 from fsi.config.fluid_section import (
@@ -25,7 +25,6 @@ from fsi.config.run_size import BYTES_PER_CELL, count_steps, estimated_cells, fo
 from fsi.config.time_section import Time
 from fsi.geometry import stenosis as stenosis_geometry
 from fsi.numerics.timestepping import steps
-from fsi.physics.inflow_profiles import sample_times
 
 
 def validate(case: Case) -> None:

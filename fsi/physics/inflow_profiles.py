@@ -9,8 +9,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-HARMONIC_SAMPLES = 256
-"""Samples of Q over one period [0, T) for its discrete Fourier transform."""
+from fsi.config.boundary_data import HARMONIC_SAMPLES, sample_times
 
 HARMONICS = 32
 """Harmonics k = 1 … 32 of Q that get their Womersley profile (a physiological waveform's
@@ -26,11 +25,6 @@ def parabola(s, width: float, mean_velocity: float):
     """1.5 Ū 4 s (H − s)/H² (m/s): Poiseuille's profile of mean velocity Ū (``mean_velocity``,
     m/s; flow rate Ū H) at the distance ``s`` (m) from one side of a channel of width H."""
     return 1.5 * mean_velocity * 4 * s * (width - s) / width**2
-
-
-def sample_times(period: float) -> np.ndarray:
-    """The :data:`HARMONIC_SAMPLES` times j T / N, j = 0 … N − 1, in [0, T) (s)."""
-    return period * np.arange(HARMONIC_SAMPLES) / HARMONIC_SAMPLES
 
 
 def womersley(s, width: float, omega: float, rho: float, mu: float) -> np.ndarray:
