@@ -91,7 +91,14 @@ def _add_out(
     metavar: str = "DIR",
 ) -> None:
     """``--out``: where the command writes (a folder unless ``metavar`` says otherwise)."""
-    p.add_argument("--out", type=Path, required=required, metavar=metavar, help=help)
+    p.add_argument("--out", type=_path, required=required, metavar=metavar, help=help)
+
+
+def _path(text: str) -> Path:
+    """A path argument; an empty one is refused (it would mean the current directory)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected a path, not an empty string")
+    return Path(text)
 
 
 def _add_run_arguments(p: argparse.ArgumentParser) -> None:
@@ -731,6 +738,7 @@ def _report(args: argparse.Namespace) -> int:
     status = EXIT_OK
     if comm.rank == 0:  # reading and plotting a few files: rank 0 alone
         try:
+            report.check_times(args.times)
             runs = [report.load_run(path) for path in args.runs]
         except report.ReportError as e:
             print(f"fsi: error: {e}", file=sys.stderr)

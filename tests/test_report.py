@@ -112,6 +112,25 @@ def test_a_folder_that_is_not_a_run_is_refused(shared_tmp, capsys):
         assert "no config.yaml (not a folder written by fsi run)" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    "times, message",
+    [
+        (["nan"], "--times nan: expected a finite time >= 0 (s)"),
+        (["-1"], "--times -1.0: expected a finite time >= 0 (s)"),
+        (["inf"], "--times inf: expected a finite time >= 0 (s)"),
+        (["0.002", "0.002"], "--times 0.002: given twice"),
+    ],
+)
+def test_report_times_that_are_not_times_are_refused(run_dir, capsys, times, message):
+    """A report time that is not a finite time ≥ 0, or one given twice, is refused (exit 2,
+    one line naming --times) before any table is printed, as ``fsi plot --time`` is."""
+    assert cli.main(["report", str(run_dir), "--times", *times]) == 2
+    if MPI.COMM_WORLD.rank == 0:
+        captured = capsys.readouterr()
+        assert captured.err == f"fsi: error: {message}\n"
+        assert captured.out == ""
+
+
 # --------------------------------------------------------------------------------------------
 # Damaged run folders: a row cut short at the end is left out, anything else is refused
 

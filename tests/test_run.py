@@ -247,3 +247,21 @@ def test_the_blas_under_mumps_is_named_and_the_setup_gives_an_optimised_one():
     library = provenance.blas_library()
     assert library is not None and Path(library).is_file()
     assert provenance.blas_name(library) == "openblas-serial", library
+
+
+@pytest.mark.parametrize(
+    "command",
+    [["run", CASE], ["mesh", CASE], ["sweep", CASE, "--vary", "fluid.density=1000"]],
+)
+def test_an_empty_out_is_refused(command, shared_tmp, monkeypatch, capsys):
+    """``--out ""`` would write into the current directory: refused (exit 2, naming --out),
+    nothing written."""
+    here = shared_tmp / f"cwd-{command[0]}"
+    if MPI.COMM_WORLD.rank == 0:
+        here.mkdir()
+    MPI.COMM_WORLD.barrier()
+    absolute = [str(Path(part).absolute()) if part == CASE else part for part in command]
+    monkeypatch.chdir(here)
+    assert cli.main([*absolute, "--out", ""]) == 2
+    assert "argument --out: expected a path, not an empty string" in capsys.readouterr().err
+    assert list(here.iterdir()) == []

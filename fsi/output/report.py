@@ -29,6 +29,16 @@ class ReportError(ValueError):
     """A run folder is missing a file or is not a run folder."""
 
 
+def check_times(times: Sequence[float] | None) -> None:
+    """Raise :class:`ReportError` naming ``--times`` unless every report time (s) is a finite
+    number ≥ 0 given once (None: the runs' own report times)."""
+    for i, t in enumerate(times or ()):
+        if not math.isfinite(t) or t < 0:
+            raise ReportError(f"--times {t}: expected a finite time >= 0 (s)")
+        if t in times[:i]:
+            raise ReportError(f"--times {t}: given twice")
+
+
 @dataclass(frozen=True)
 class Run:
     """A finished run folder: its resolved case, metrics rows (SI) and summary."""
