@@ -627,10 +627,15 @@ def test_slip_wall_with_traction_on_a_tilted_channel():
     assert np.abs(solver.p.x.array).max() < 1e-8
 
 
-@pytest.mark.parametrize("beta", [0.0, 1.0])
-def test_backflow_stabilization_sets_the_outlet_pressure_of_an_inflow(beta):
-    """Uniform flow u = (−U, 0) entering through the outlet x = 1: the outlet condition
-    σ n = β/2 ρ min(u·n, 0) u makes p = −β ρ U²/2, exactly (P2/P1 holds the solution)."""
+@pytest.mark.parametrize(
+    "beta, form, pressure",
+    [(0.0, "full", 0.0), (1.0, "full", -0.5), (1.0, "tangential", 0.0), (2.0, "tangential", 0.0)],
+)
+def test_backflow_term_and_the_outlet_pressure_of_a_uniform_inflow(beta, form, pressure):
+    """Uniform flow u = (−U, 0) entering through the outlet x = 1 (a full reversal). The
+    ``full`` backflow term σ n = β/2 ρ min(u·n, 0) u makes p = −β ρ U²/2; the ``tangential``
+    one leaves the prescribed traction, p = 0 (u_t = 0, no variation along the outlet).
+    Exact: P2/P1 holds the solution."""
     rho, U = 1000.0, 0.3
     cfg = config.from_dict({"fluid": {"density": rho}}).fluid
     domain, tags = unit_square(3)
@@ -638,14 +643,17 @@ def test_backflow_stabilization_sets_the_outlet_pressure_of_an_inflow(beta):
         domain,
         tags,
         cfg,
-        (fluid_boundaries.Velocity((1, 3, 4)), fluid_boundaries.Outflow(2, beta)),
+        (
+            fluid_boundaries.Velocity((1, 3, 4)),
+            fluid_boundaries.Outflow(2, beta, backflow_form=form),
+        ),
         scheme="steady",
     )
     solver.boundary_velocity.interpolate(lambda x: np.vstack([-U + 0 * x[0], 0 * x[0]]))
     result = solver.step(0.0, 1.0)
     assert result.converged, result
     assert np.allclose(solver.u.x.array.reshape(-1, 2), [-U, 0.0], rtol=0, atol=1e-12)
-    assert np.allclose(solver.p.x.array, -beta * rho * U**2 / 2, rtol=0, atol=1e-9)
+    assert np.allclose(solver.p.x.array, pressure * beta * rho * U**2, rtol=0, atol=1e-9)
 
 
 # --------------------------------------------------------------------------------------------

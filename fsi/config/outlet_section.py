@@ -16,15 +16,23 @@ import numpy as np
 
 from fsi.config.reader import non_negative, positive
 
+BackflowForm = Literal["tangential", "full"]
+"""What the outlet's backflow term −β/2 ρ min(u·n, 0) (…) acts on where blood re-enters:
+``tangential`` (the default) the tangential velocity and the variation of the velocity along the
+outlet (a tangential regularization: a plug-like reversal keeps the prescribed traction),
+``full`` the whole velocity (Esmaily Moghadam et al. 2011: lowers the pressure of any inflow by
+β ρ (u·n)²/2). The terms are in fsi/physics/fluid_residual.py (``FluidResidual._backflow``)."""
+
 
 @dataclass(frozen=True)
 class TractionFreeOutlet:
     """σ n = 0 (in the ``open_boundary`` form; the study's outlet, the default). Every outlet's
-    ``backflow_stabilization`` β ≥ 0 scales the term that removes the kinetic energy of blood
-    re-entering through it (Bazilevs et al. 2009; docs/boundary-conditions.md)."""
+    ``backflow_stabilization`` β ≥ 0 scales the term that acts where blood re-enters through it,
+    in the ``backflow_form`` :data:`BackflowForm` (docs/boundary-conditions.md)."""
 
     kind: Literal["traction_free"] = field(default="traction_free", kw_only=True)
     backflow_stabilization: float = non_negative(1.0)
+    backflow_form: BackflowForm = "tangential"
 
 
 @dataclass(frozen=True)
@@ -37,6 +45,7 @@ class ResistanceOutlet:
     resistance: float = non_negative(0.0, " (Pa s/m^2)")
     reference_pressure: float = 0.0
     backflow_stabilization: float = non_negative(1.0)
+    backflow_form: BackflowForm = "tangential"
 
     def initial_state(self) -> np.ndarray:
         """The state before the first step: empty."""
@@ -76,6 +85,7 @@ class WindkesselOutlet:
     initial_pressure: float = 0.0
     reference_pressure: float = 0.0
     backflow_stabilization: float = non_negative(1.0)
+    backflow_form: BackflowForm = "tangential"
 
     def initial_state(self) -> np.ndarray:
         """The state before the first step: [P_0, P_0] (Pa)."""

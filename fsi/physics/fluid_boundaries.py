@@ -85,16 +85,17 @@ class Inflow:
 
 @dataclass(frozen=True)
 class Outflow:
-    """An open outlet on ``tags``: σ n = −P n + β/2 ρ min(u·n, 0) u (in the ``open_boundary``
-    form), P = 0 (traction-free, the study's) or, with a lumped ``model``
-    (fsi/config/outlet_section.py: resistance, RCR Windkessel), the model's pressure at the outlet's
-    flow rate
-    (:class:`LumpedOutlet`); the β term removes the energy that backflow would carry in
-    (Bazilevs et al. 2009)."""
+    """An open outlet on ``tags``: σ n = −P n (in the ``open_boundary`` form), P = 0
+    (traction-free, the study's) or, with a lumped ``model`` (fsi/config/outlet_section.py:
+    resistance, RCR Windkessel), the model's pressure at the outlet's flow rate
+    (:class:`LumpedOutlet`); where blood re-enters, the backflow term of weight β
+    (``backflow_stabilization``) in the ``backflow_form`` (``tangential`` or ``full``;
+    fsi.config.outlet_section.BackflowForm) damps what the inflow would carry in."""
 
     tags: tuple[int, ...]
     backflow_stabilization: float = 1.0
     model: outlets.OutletModel | None = None
+    backflow_form: str = "tangential"
 
     def __post_init__(self):
         object.__setattr__(self, "tags", as_tags(self.tags))
@@ -147,7 +148,10 @@ def boundary_conditions(
     it moves (a coupled run), no-slip on the :func:`walls`."""
     inlet = Inflow(Boundary.INLET, fluid.inlet, fluid.inflow_stabilization)
     outlet = Outflow(
-        Boundary.OUTLET, fluid.outlet.backflow_stabilization, outlets.from_config(fluid.outlet)
+        Boundary.OUTLET,
+        fluid.outlet.backflow_stabilization,
+        outlets.from_config(fluid.outlet),
+        fluid.outlet.backflow_form,
     )
     moving = (Velocity(Boundary.INTERFACE),) if moving_interface else ()
     return (inlet, outlet, *moving, NoSlip(walls(boundaries, moving_interface)))

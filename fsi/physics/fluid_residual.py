@@ -44,6 +44,12 @@ from fsi.physics.fluid_boundaries import (
     parabolic_values,
 )
 
+BACKFLOW_LENGTH = 0.5
+"""ℓ/h of the ``tangential`` backflow term's regularization ℓ² ∇_Γu : ∇_Γv (h the cell
+diameter). Measured (docs/boundary-conditions.md): ℓ = h/2 keeps the rigid stenosis at a
+0.8 m/s inflow stable (as ℓ = h and h/4 do; ℓ = 0 fails at t = 0.07 s) and moves the plane
+Womersley flow's peak velocity by 0.4 % (0.25 mm cells; the distortion ∝ ℓ²)."""
+
 BodyForce = Callable[[ufl.core.expr.Expr, dolfinx.fem.Constant], ufl.core.expr.Expr]
 """``f(x, t)``: a UFL vector (N/m³) of the spatial coordinate and the time."""
 
@@ -340,7 +346,8 @@ class FluidResidual:
 
     def _outflow(self, bc: Outflow, s: _WeakForm) -> _Contribution:
         """An outlet σ n = −P n (in the configured open-boundary form; P = 0 traction-free, or
-        a lumped model's pressure, :class:`LumpedOutlet`) with the backflow energy term."""
+        a lumped model's pressure, :class:`LumpedOutlet`) with the backflow term
+        (:meth:`_backflow`)."""
         pressure = None
         if bc.model is not None:
             outlet = LumpedOutlet(bc.model, bc.tags, self.W, s.ds_of(bc.tags), s.n)
@@ -349,7 +356,7 @@ class FluidResidual:
         return _Contribution(
             [
                 *self._open_boundary(s, pressure, bc.tags),
-                self._inflow_energy_balance(s, bc.backflow_stabilization, bc.tags),
+                self._backflow(s, bc.backflow_stabilization, bc.backflow_form, bc.tags),
             ]
         )
 
@@ -407,6 +414,29 @@ class FluidResidual:
             * ufl.dot(s.u, s.v)
             * s.ds_of(tags)
         )
+
+    def _backflow(self, s: _WeakForm, beta: float, form: str, tags: Sequence[int]):
+        """The outlet's backflow term, nonzero only where blood re-enters (u·n < 0):
+
+        ``full``: −β/2 ρ min(u·n, 0) u·v (:meth:`_inflow_energy_balance`), which balances all
+        the kinetic energy ½ ρ |u|² |u·n| the inflow carries in, but also lowers the pressure of
+        the inflow by β ρ (u·n)²/2: a full reversal meets a total-pressure outlet;
+
+        ``tangential``: −β/2 ρ min(u·n, 0) (u_t·v_t + ℓ² ∇_Γu : ∇_Γv) with u_t = u − (u·n) n,
+        ∇_Γ = ∇(I − n⊗n) the derivative along the outlet and ℓ = :data:`BACKFLOW_LENGTH` h:
+        it balances the energy of the tangential inflow and of the velocity's variation along
+        the outlet on the scale of the mesh (the modes that grow; a tangential regularization in
+        the spirit of Bertoglio & Caiazzo 2014), and leaves a plug-like normal inflow alone, so
+        a reversing flow keeps the prescribed traction (docs/boundary-conditions.md)."""
+        if form == "full":
+            return self._inflow_energy_balance(s, beta, tags)
+        un = ufl.dot(s.u, s.n)
+        along = ufl.Identity(len(s.u)) - ufl.outer(s.n, s.n)
+        ell = BACKFLOW_LENGTH * s.h
+        damped = ufl.dot(along * s.u, along * s.v) + ell**2 * ufl.inner(
+            ufl.grad(s.u) * along, ufl.grad(s.v) * along
+        )
+        return -(beta / 2 * self._rho * ufl.min_value(un, 0.0) * damped * s.ds_of(tags))
 
     def _supg(self, s: _WeakForm, body_force: BodyForce | None):
         """SUPG: τ ((u − w)·∇)v · R with the strong momentum residual
