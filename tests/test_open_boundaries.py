@@ -51,10 +51,11 @@ def exact_flow_rate(law: rheology.ViscosityLaw, gradient: float) -> float:
 
 def march_channel(
     fluid_section: dict, gradient: float, dt: float, settled: float, end: float = 20.0
-) -> tuple[fluid.FluidSolver, np.ndarray]:
+) -> tuple[fluid.FluidSolver, np.ndarray, float]:
     """The channel under the pressure gradient G between its open ends, marched from rest
-    (BDF2) to ``end``; returns the solver and, for every step from ``settled`` on, the inlet
-    and outlet flow rates relative to the fully developed one, minus 1."""
+    (BDF2) to ``end``; returns the solver, for every step from ``settled`` on the inlet and
+    outlet flow rates relative to the fully developed one, minus 1, and the mean number of
+    Newton iterations per step."""
     case, submesh, tags = channel(
         5e-4, {**fluid_section, "inlet": {"kind": "pressure", "formula": repr(gradient * L)}}
     )
@@ -62,12 +63,13 @@ def march_channel(
         submesh, tags, case.fluid, steppers.fluid_boundaries(case), scheme="bdf2"
     )
     exact = exact_flow_rate(solver.law, gradient)
-    t, late = 0.0, []
+    t, late, iterations = 0.0, [], []
     while t < end - 1e-9:
         t += dt
         result = solver.step(t, dt)
-        assert result.converged, result.reason
+        assert result.converged, (t, result.reason)
         solver.advance()
+        iterations.append(result.iterations)
         if t >= settled - 1e-9:
             late.append(
                 [
@@ -75,7 +77,7 @@ def march_channel(
                     metrics.flow_rate(solver.u, tags, [Boundary.OUTLET]) / exact - 1,
                 ]
             )
-    return solver, np.array(late)
+    return solver, np.array(late), float(np.mean(iterations))
 
 
 def inlet_pressure_range(solver: fluid.FluidSolver) -> tuple[float, float]:
@@ -116,7 +118,7 @@ def test_pressure_driven_channel_reaches_the_exact_flow_rate_and_stays(rheology)
     0.5 % of it from t = 10 s to 20 s (measured at dt 0.02 s: Newtonian 1.00000 at 20 s,
     Carreau +0.11 %, the 0.5 mm mesh's error; 3.1e-4 in test_fluid's steady Carreau check)."""
     G = 100.0
-    solver, late = march_channel(study_fluid(rheology), G, dt=0.05, settled=10.0)
+    solver, late, _ = march_channel(study_fluid(rheology), G, dt=0.05, settled=10.0)
     assert np.abs(late).max() < 5e-3, np.abs(late).max()
     # Settled: the last 5 s move by less than 1e-4 of the flow rate.
     assert np.ptp(late[-100:, 0]) < 1e-4
@@ -236,7 +238,12 @@ def test_stenosis_response_matches_the_plain_traction_condition():
     docs/boundary-conditions.md has the figures."""
     times = (0.0025, 0.005, 0.01, 0.02)
     plain = rigid_stenosis(
-        ["fluid.open_boundary=stress", "fluid.normal_flow=false", "fluid.inflow_stabilization=0"],
+        [
+            "fluid.open_boundary=stress",
+            "fluid.normal_flow=false",
+            "fluid.inflow_stabilization=0",
+            "fluid.supg=false",
+        ],
         times,
     )
     study = rigid_stenosis([], times)
@@ -283,14 +290,21 @@ def test_supg_leaves_poiseuille_flow_exact():
     assert np.abs(solver.p.x.array - G * (L - xp[:, 0])).max() < 1e-10 * G * L
 
 
-@pytest.mark.slow
-def test_supg_carries_a_fast_newtonian_channel_the_galerkin_inlet_cannot():
-    """6 Pa over the channel (300 Pa/m, peak 0.525 m/s, cell Reynolds number ρ|u|h/μ ≈ 80 at
-    the 0.5 mm inlet cells): with the study's settings alone the flow grows a mode at the
-    inlet's centre and Newton fails at t ≈ 1.5 s (measured; 0.25 mm cells: t ≈ 3.7 s). With
-    fluid.supg it settles on Poiseuille's flow rate (measured 1.00000 at 20 s) and stays."""
-    _, late = march_channel(study_fluid("newtonian", supg=True), 300.0, dt=0.02, settled=12.0)
-    assert np.abs(late).max() < 5e-3 and np.abs(late[-1]).max() < 1e-4, late[-1]
+@pytest.mark.parametrize("rheology", ["newtonian", "carreau"])
+def test_a_fast_channel_settles_on_its_exact_flow_rate(rheology):
+    """6 Pa over the channel (300 Pa/m; Newtonian peak 0.525 m/s, Re ≈ 740, cell Reynolds
+    number ρ|u|h/μ ≈ 80 at the 0.5 mm inlet cells) with the study's fluid settings, BDF2,
+    dt 0.02 s, from rest to 20 s. Without SUPG the flow grows a mode at the inlet's centre and
+    Newton fails (measured: t ≈ 1.5 s Newtonian, 1.9 s Carreau); with SUPG's earlier τ
+    (viscous constant 4, not 96) the Carreau run failed at 0.68 s. Now both settle: the flow
+    rate within 0.5 % of Poiseuille's / the Carreau 1D quadrature's over the last 10 % of the
+    run (measured −0.000 % and +0.005 %), drifting by less than 0.1 % there, and Carreau's
+    Newton iterations (chord iterations with the study's Jacobian reuse) ≤ 8 per step on
+    average (measured 5.0; Newtonian 3.9, held to the same bound)."""
+    _, late, newton = march_channel(study_fluid(rheology), 300.0, dt=0.02, settled=18.0)
+    assert np.abs(late).max() < 5e-3, np.abs(late).max()
+    assert np.ptp(late[:, 1]) < 1e-3, np.ptp(late[:, 1])
+    assert newton <= 8, newton
 
 
 # --------------------------------------------------------------------------------------------

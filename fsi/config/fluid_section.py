@@ -194,7 +194,8 @@ class Fluid:
     its static pressure P. ``inflow_stabilization`` β ≥ 0 adds −β/2 ρ min(u·n, 0) u to a traction
     inlet's σ n, lowering its pressure by β ρ (u·n)²/2 (towards a total-pressure inlet).
     ``supg``: consistent streamline-upwind/Petrov–Galerkin stabilization of the momentum equation
-    (Tezduyar & Osawa's τ), for an inlet cell Reynolds number too high for the Galerkin form.
+    (Tezduyar & Osawa's τ with a viscous limit for P2), on by default: it carries cell Reynolds
+    numbers the Galerkin form cannot, Newtonian and generalized Newtonian.
     """
 
     density: float = positive(1060.0, " (kg/m^3)")
@@ -203,7 +204,7 @@ class Fluid:
     outlet: Outlet = field(default_factory=TractionFreeOutlet)
     open_boundary: Literal["stress", "do_nothing"] = "do_nothing"
     normal_flow: bool = True
-    supg: bool = False
+    supg: bool = True
     inflow_stabilization: float = non_negative(0.0)
     quadrature_degree: int = quadrature(4)
     solver: SolverSettings = field(default_factory=SolverSettings)

@@ -50,6 +50,18 @@ diameter). Measured (docs/boundary-conditions.md): ℓ = h/2 keeps the rigid ste
 0.8 m/s inflow stable (as ℓ = h and h/4 do; ℓ = 0 fails at t = 0.07 s) and moves the plane
 Womersley flow's peak velocity by 0.4 % (0.25 mm cells; the distortion ∝ ℓ²)."""
 
+SUPG_VISCOUS_CONSTANT = 96.0
+"""C in the viscous limit τ = ρ h²/(C μ) of the SUPG parameter. Tezduyar & Osawa's 4 is made for
+linear elements, whose strong viscous term vanishes; with P2 velocities the term
+τ ((u − w)·∇)v · ∇·(2 μ D(u)) stays, and it destabilizes unless τ is small enough where the
+flow is viscous (the inverse estimate of P2: ‖Δv‖ ≲ C_I h⁻¹ ‖∇v‖). Measured on the Carreau
+channel at 300 Pa/m (μ up to 0.056 Pa s near the centreline; docs/boundary-conditions.md):
+C = 4 fails at t = 0.68 s, 16 at 1.1 s, 48 runs; 96 is twice the smallest that runs."""
+
+SUPG_SPEED_FLOOR = 1e-12
+"""(m/s) inside τ's |u − w| = sqrt(|u − w|² + floor²): keeps its derivative finite at rest, where
+a steady solve differentiates τ. Far below any speed of interest."""
+
 BodyForce = Callable[[ufl.core.expr.Expr, dolfinx.fem.Constant], ufl.core.expr.Expr]
 """``f(x, t)``: a UFL vector (N/m³) of the spatial coordinate and the time."""
 
@@ -445,12 +457,13 @@ class FluidResidual:
 
         (zero for the exact solution: the method is consistent; P2 velocities make the viscous
         term exact for Poiseuille flow, which stays a discrete solution) and
-        τ = ((2 a₀)² + (2|u − w|/h)² + (4 μ/(ρ h²))²)^(−1/2) (Tezduyar & Osawa 2000; a₀ the
-        BDF weight of u^{n+1}, 1/Δt for backward Euler, 0 when steady; u and μ of the last
-        accepted step, so that τ is a coefficient of the step, not a function of its unknown;
-        the residual R is the step's own). It adds the streamline
-        diffusion ≈ ρ|u − w|h/2 that the Galerkin form lacks where the cell Reynolds number is
-        large, in particular in the cells of an open inlet (docs/boundary-conditions.md)."""
+        τ = ((2 a₀)² + (2|u − w|/h)² + (C μ/(ρ h²))²)^(−1/2) (Tezduyar & Osawa 2000, with
+        C = :data:`SUPG_VISCOUS_CONSTANT` for P2; a₀ the BDF weight of u^{n+1}, 1/Δt for
+        backward Euler, 0 when steady; u and μ(s(u)) of the last accepted step, so that τ is a
+        coefficient of the step, not a function of its unknown; the residual R is the step's
+        own). It adds the streamline diffusion ≈ ρ|u − w|h/2 that the Galerkin form lacks where
+        the cell Reynolds number is large, in particular in the cells of an open inlet
+        (docs/boundary-conditions.md)."""
         rho, w, u, h = self._rho, self.ale.w, s.u, s.h
         a = u - w
         residual = (
@@ -461,11 +474,16 @@ class FluidResidual:
         )
         if body_force is not None:
             residual -= body_force(s.x, self.t)
-        a_n = self.u_n - w
-        mu_n = self.law.mu(rheology.shear_rate(self.u_n))
-        speed = ufl.sqrt(ufl.dot(a_n, a_n))
+        # τ's velocity: the last accepted step's (a coefficient of the step); a steady solve
+        # has no last step, so there τ is the unknown's own (and Newton differentiates it).
+        known = s.u if self.scheme == "steady" else self.u_n
+        a_n = known - w
+        mu_n = s.mu if self.scheme == "steady" else self.law.mu(rheology.shear_rate(self.u_n))
+        speed = ufl.sqrt(ufl.dot(a_n, a_n) + SUPG_SPEED_FLOOR**2)
         tau = (
-            (2 * self._a[0]) ** 2 + (2 * speed / h) ** 2 + (4 * mu_n / (rho * h**2)) ** 2
+            (2 * self._a[0]) ** 2
+            + (2 * speed / h) ** 2
+            + (SUPG_VISCOUS_CONSTANT * mu_n / (rho * h**2)) ** 2
         ) ** -0.5
         return tau * ufl.dot(ufl.grad(s.v) * a, residual)
 
