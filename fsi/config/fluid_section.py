@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar, Literal
 
 from fsi.config.boundary_data import FORMULA_NAMES, time_function
-from fsi.config.outlet_section import Outlet, TractionFreeOutlet
+from fsi.config.outlet_section import BackflowForm, Outlet, TractionFreeOutlet
 from fsi.config.reader import checked, non_negative, positive
 from fsi.config.rheology_section import Newtonian, Rheology
 from fsi.config.solver_settings import SolverSettings, quadrature
@@ -189,10 +189,14 @@ class Fluid:
 
     ``open_boundary``: the form of the inlet/outlet traction conditions, ``do_nothing``
     μ ∇u n − p n = −P n (Heywood, Rannacher & Turek 1996; exact for fully developed flow) or
-    ``stress`` σ n = −P n (its tangential part forbids fully developed flow). ``normal_flow``:
+    ``stress`` σ n = −P n (its tangential part forbids fully developed flow);
+    ``inlet_open_boundary`` the traction inlet's own form (``same``: ``open_boundary``'s).
+    ``normal_flow``:
     u·t = 0 (strongly) on a traction inlet, whose normal traction alone is prescribed, so it keeps
-    its static pressure P. ``inflow_stabilization`` β ≥ 0 adds −β/2 ρ min(u·n, 0) u to a traction
-    inlet's σ n, lowering its pressure by β ρ (u·n)²/2 (towards a total-pressure inlet).
+    its static pressure P. ``inflow_stabilization`` β ≥ 0 weights a traction inlet's backflow
+    term in the ``inflow_form`` (:data:`~fsi.config.outlet_section.BackflowForm`): by default
+    −β/2 ρ min(u·n, 0) u_t, which damps the tangential inflow and leaves the pressure of a normal
+    inflow alone; ``full`` lowers it by β ρ (u·n)²/2 (towards a total-pressure inlet).
     ``supg``: consistent streamline-upwind/Petrov–Galerkin stabilization of the momentum equation
     (Tezduyar & Osawa's τ with a viscous limit for P2), on by default: it carries cell Reynolds
     numbers the Galerkin form cannot, Newtonian and generalized Newtonian.
@@ -203,8 +207,10 @@ class Fluid:
     inlet: Inlet = field(default_factory=InletPulse)
     outlet: Outlet = field(default_factory=TractionFreeOutlet)
     open_boundary: Literal["stress", "do_nothing"] = "do_nothing"
+    inlet_open_boundary: Literal["same", "stress", "do_nothing"] = "same"
     normal_flow: bool = True
     supg: bool = True
     inflow_stabilization: float = non_negative(0.0)
+    inflow_form: BackflowForm = "tangential_velocity"
     quadrature_degree: int = quadrature(4)
     solver: SolverSettings = field(default_factory=SolverSettings)

@@ -16,12 +16,14 @@ import numpy as np
 
 from fsi.config.reader import non_negative, positive
 
-BackflowForm = Literal["tangential", "full"]
-"""What the outlet's backflow term −β/2 ρ min(u·n, 0) (…) acts on where blood re-enters:
-``tangential`` (the default) the tangential velocity and the variation of the velocity along the
-outlet (a tangential regularization: a plug-like reversal keeps the prescribed traction),
-``full`` the whole velocity (Esmaily Moghadam et al. 2011: lowers the pressure of any inflow by
-β ρ (u·n)²/2). The terms are in fsi/physics/fluid_residual.py (``FluidResidual._backflow``)."""
+BackflowForm = Literal["tangential", "tangential_velocity", "full"]
+"""What an open boundary's backflow term −β/2 ρ min(u·n, 0) (…) acts on where blood enters:
+``tangential`` (the outlet's default) the tangential velocity and the variation of the velocity
+along the boundary (a tangential regularization: a plug-like reversal keeps the prescribed
+traction), ``tangential_velocity`` (the inlet's default) the tangential velocity only (a normal
+inflow of any profile keeps it), ``full`` the whole velocity (Esmaily Moghadam et al. 2011:
+lowers the pressure of any inflow by β ρ (u·n)²/2). The terms are in
+fsi/physics/fluid_residual.py (``FluidResidual._backflow``)."""
 
 
 @dataclass(frozen=True)

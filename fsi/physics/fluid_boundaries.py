@@ -72,12 +72,14 @@ class Velocity:
 class Inflow:
     """The configured inlet on ``tags``: a normal traction σ n = −P(t) n (``traction_pulse``,
     ``pressure``, ``pressure_table``, ``pressure_file``; in the ``do_nothing`` form
-    μ∇u n − p n = −P n) or a parabolic velocity (``parabolic_velocity``). A traction inlet with
-    ``inflow_stabilization`` β > 0 adds −β/2 ρ min(u·n, 0) u to σ n (as :class:`Outflow`)."""
+    μ∇u n − p n = −P n) or a velocity (``parabolic_velocity``, the flow-rate inlets). A
+    traction inlet with ``inflow_stabilization`` β > 0 adds the backflow term in the
+    ``inflow_form`` (as :class:`Outflow`)."""
 
     tags: tuple[int, ...]
     spec: config.Inlet
     inflow_stabilization: float = 0.0
+    inflow_form: str = "tangential_velocity"
 
     def __post_init__(self):
         object.__setattr__(self, "tags", as_tags(self.tags))
@@ -89,8 +91,8 @@ class Outflow:
     (traction-free, the study's) or, with a lumped ``model`` (fsi/config/outlet_section.py:
     resistance, RCR Windkessel), the model's pressure at the outlet's flow rate
     (:class:`LumpedOutlet`); where blood re-enters, the backflow term of weight β
-    (``backflow_stabilization``) in the ``backflow_form`` (``tangential`` or ``full``;
-    fsi.config.outlet_section.BackflowForm) damps what the inflow would carry in."""
+    (``backflow_stabilization``) in the ``backflow_form`` (fsi.config.outlet_section.BackflowForm)
+    damps what the inflow would carry in."""
 
     tags: tuple[int, ...]
     backflow_stabilization: float = 1.0
@@ -146,7 +148,7 @@ def boundary_conditions(
     """The fluid's boundary conditions in every mode (docs/model.md, Fluid), for a geometry with
     ``boundaries``: the configured inlet, the configured outlet, u = ∂η/∂t on the interface if
     it moves (a coupled run), no-slip on the :func:`walls`."""
-    inlet = Inflow(Boundary.INLET, fluid.inlet, fluid.inflow_stabilization)
+    inlet = Inflow(Boundary.INLET, fluid.inlet, fluid.inflow_stabilization, fluid.inflow_form)
     outlet = Outflow(
         Boundary.OUTLET,
         fluid.outlet.backflow_stabilization,

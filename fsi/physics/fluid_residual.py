@@ -342,16 +342,17 @@ class FluidResidual:
 
     def _inflow(self, bc: Inflow, s: _WeakForm) -> _Contribution:
         """A velocity inlet (Dirichlet: parabolic, flow rate), or a traction inlet: σ n = −P(t) n
-        as an open boundary (:meth:`_open_boundary`), its inflow energy term, and u·t = 0 with
-        ``normal_flow`` (first, so that walls and the interface win at the corners)."""
+        as an open boundary (:meth:`_open_boundary`), its backflow term (:meth:`_backflow`), and
+        u·t = 0 with ``normal_flow`` (first, so that walls and the interface win at the
+        corners)."""
         if isinstance(bc.spec, (config.ParabolicInflow, *config.FLOW_RATE_INLETS)):
             return _Contribution(dirichlet=[(_PRESCRIBED, self._velocity_inflow(bc))])
         pressure = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(0.0))
         law = inlet_pressure(bc.spec)
         self.updates.append(lambda t, c=pressure, law=law: c.value.fill(law(t)))
         terms = [
-            *self._open_boundary(s, pressure, bc.tags),
-            self._inflow_energy_balance(s, bc.inflow_stabilization, bc.tags),
+            *self._open_boundary(s, pressure, bc.tags, self._inlet_form()),
+            self._backflow(s, bc.inflow_stabilization, bc.inflow_form, bc.tags),
         ]
         dirichlet = [(_NORMAL_FLOW, self._normal_flow(bc.tags))] if self.config.normal_flow else []
         return _Contribution(terms, dirichlet)
@@ -367,7 +368,7 @@ class FluidResidual:
             pressure = outlet.pressure
         return _Contribution(
             [
-                *self._open_boundary(s, pressure, bc.tags),
+                *self._open_boundary(s, pressure, bc.tags, self.config.open_boundary),
                 self._backflow(s, bc.backflow_stabilization, bc.backflow_form, bc.tags),
             ]
         )
@@ -407,11 +408,16 @@ class FluidResidual:
     """The function that turns each kind of boundary condition into its residual terms and
     Dirichlet conditions."""
 
-    def _open_boundary(self, s: _WeakForm, pressure, tags: Sequence[int]) -> list:
+    def _inlet_form(self) -> str:
+        """The traction inlet's open-boundary form: ``inlet_open_boundary``, unless ``same``."""
+        form = self.config.inlet_open_boundary
+        return self.config.open_boundary if form == "same" else form
+
+    def _open_boundary(self, s: _WeakForm, pressure, tags: Sequence[int], form: str) -> list:
         """−∫ σn·v with σn = −P n (P = 0 if ``pressure`` is None), plus −∫ μ (∇u)ᵀn·v in the
         do-nothing form μ∇u n − p n = −P n."""
         terms = [] if pressure is None else [pressure * ufl.dot(s.n, s.v) * s.ds_of(tags)]
-        if self.config.open_boundary == "do_nothing":
+        if form == "do_nothing":
             terms.append(-s.mu * ufl.dot(ufl.grad(s.u).T * s.n, s.v) * s.ds_of(tags))
         return terms
 
@@ -428,7 +434,7 @@ class FluidResidual:
         )
 
     def _backflow(self, s: _WeakForm, beta: float, form: str, tags: Sequence[int]):
-        """The outlet's backflow term, nonzero only where blood re-enters (u·n < 0):
+        """An open boundary's backflow term, nonzero only where blood enters (u·n < 0):
 
         ``full``: −β/2 ρ min(u·n, 0) u·v (:meth:`_inflow_energy_balance`), which balances all
         the kinetic energy ½ ρ |u|² |u·n| the inflow carries in, but also lowers the pressure of
@@ -439,15 +445,18 @@ class FluidResidual:
         it balances the energy of the tangential inflow and of the velocity's variation along
         the outlet on the scale of the mesh (the modes that grow; a tangential regularization in
         the spirit of Bertoglio & Caiazzo 2014), and leaves a plug-like normal inflow alone, so
-        a reversing flow keeps the prescribed traction (docs/boundary-conditions.md)."""
+        a reversing flow keeps the prescribed traction (docs/boundary-conditions.md);
+
+        ``tangential_velocity``: −β/2 ρ min(u·n, 0) u_t·v_t, the tangential part alone (a traction
+        inlet's: a normal inflow of any profile keeps the prescribed traction)."""
         if form == "full":
             return self._inflow_energy_balance(s, beta, tags)
         un = ufl.dot(s.u, s.n)
         along = ufl.Identity(len(s.u)) - ufl.outer(s.n, s.n)
-        ell = BACKFLOW_LENGTH * s.h
-        damped = ufl.dot(along * s.u, along * s.v) + ell**2 * ufl.inner(
-            ufl.grad(s.u) * along, ufl.grad(s.v) * along
-        )
+        damped = ufl.dot(along * s.u, along * s.v)
+        if form == "tangential":
+            ell = BACKFLOW_LENGTH * s.h
+            damped += ell**2 * ufl.inner(ufl.grad(s.u) * along, ufl.grad(s.v) * along)
         return -(beta / 2 * self._rho * ufl.min_value(un, 0.0) * damped * s.ds_of(tags))
 
     def _supg(self, s: _WeakForm, body_force: BodyForce | None):
