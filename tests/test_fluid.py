@@ -466,8 +466,9 @@ def carreau_mms(n: int, comm: MPI.Comm = MPI.COMM_WORLD) -> np.ndarray:
 
 
 def test_carreau_mms_converges_at_the_optimal_rates():
-    """Taylor–Hood P2/P1: ‖u‖ h³, |u|_1 h², ‖p‖ h². Measured rates (8→16→32): 3.06, 3.05;
-    1.97, 1.99; 2.59, 2.90."""
+    """Taylor–Hood P2/P1: ‖u‖ h³, |u|_1 h², ‖p‖ h², with SUPG (the default; consistent: the body
+    force is in its residual). Measured rates (8→16→32): 3.06, 3.06; 1.97, 1.99; 2.46, 2.88
+    (without SUPG: 3.06, 3.05; 1.97, 1.99; 2.59, 2.90)."""
     errors = np.array([carreau_mms(n) for n in (8, 16, 32)])
     rates = np.log2(errors[:-1] / errors[1:])
     assert rates[-1, 0] > 2.8 and rates[-1, 1] > 1.9 and rates[-1, 2] > 1.9, rates
@@ -867,8 +868,9 @@ def turek_hron_forces(name: str, mean_velocity: float, level: str = "coarse"):
 
 def test_turek_hron_cfd1_drag_and_lift():
     """Re 20, steady, rigid flag, coarse mesh (4,871 fluid triangles with gmsh 4.8; Newton 4
-    iterations). Measured: residual-based drag 14.282 (−0.05 %), lift 1.1172 (−0.16 %); surface
-    integral 14.214 (−0.54 %), 1.1236 (+0.41 %). Reference 14.29, 1.119."""
+    iterations), SUPG on (the default). Measured: residual-based drag 14.284 (−0.04 %), lift
+    1.1171 (−0.17 %); surface integral 14.215 (−0.52 %), 1.1235 (+0.40 %) (without SUPG:
+    −0.05 %, −0.16 %, −0.54 %, +0.41 %). Reference 14.29, 1.119."""
     residual_based, surface, _ = turek_hron_forces("cfd1", 0.2)
     reference = np.array([14.29, 1.119])
     assert np.abs(residual_based / reference - 1).max() < 0.01, residual_based

@@ -17,9 +17,9 @@ FSI1_REFERENCE = {"ux_A": 0.0227e-3, "uy_A": 0.8209e-3, "drag": 14.295, "lift": 
 
 def test_fsi1_steady_state_within_one_percent(shared_tmp):
     """The shipped FSI1 case is one steady coupled solve (steady fluid, quasi-static flag) on the
-    coarse mesh (5,600 triangles, P2/P1 fluid, P2 flag). Measured: u_x(A) −0.10 %,
-    u_y(A) −0.65 %, drag −0.08 %, lift +0.11 % (Featflow's level 2+0 has u_y −0.19 %, drag
-    −0.15 %); the issue asks for 1 %."""
+    coarse mesh (5,600 triangles, P2/P1 fluid, P2 flag), SUPG on. Measured: u_x(A) −0.09 %,
+    u_y(A) −0.66 %, drag −0.07 %, lift +0.10 % (without SUPG −0.10, −0.65, −0.08, +0.11 %;
+    Featflow's level 2+0 has u_y −0.19 %, drag −0.15 %); the issue asks for 1 %."""
     out = shared_tmp / "fsi1"
     assert cli.main(["run", FSI1, "--out", str(out)]) == 0
     (row,) = io.read_metrics(out / "metrics.csv")
