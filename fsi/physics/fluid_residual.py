@@ -469,9 +469,10 @@ class FluidResidual:
         τ = ((2 a₀)² + (2|u − w|/h)² + (C μ/(ρ h²))²)^(−1/2) (Tezduyar & Osawa 2000, with
         C = :data:`SUPG_VISCOUS_CONSTANT` for P2; a₀ the BDF weight of u^{n+1}, 1/Δt for
         backward Euler, 0 when steady; u and μ(s(u)) of the last accepted step, so that τ is a
-        coefficient of the step, not a function of its unknown; the residual R is the step's
-        own). It adds the streamline diffusion ≈ ρ|u − w|h/2 that the Galerkin form lacks where
-        the cell Reynolds number is large, in particular in the cells of an open inlet
+        coefficient of the step, not a function of its unknown; a steady solve has no last step
+        and takes them from its unknown; the residual R is the step's own). It adds the
+        streamline diffusion ≈ ρ|u − w|h/2 that the Galerkin form lacks where the cell Reynolds
+        number is large, in particular in the cells of an open inlet
         (docs/boundary-conditions.md)."""
         rho, w, u, h = self._rho, self.ale.w, s.u, s.h
         a = u - w
