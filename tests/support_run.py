@@ -14,9 +14,18 @@ import dolfinx.io
 import numpy as np
 import ufl
 
-from fsi import compat
-from fsi.output import metrics, report
+from fsi import cli, compat
+from fsi.output import io, metrics, report
 from fsi.physics import rheology
+
+
+def fsi_run(case_file: str, out: Path, overrides: Sequence[str] = ()) -> tuple[int, list[dict]]:
+    """``fsi run case_file --out out --set ...`` (fields written rarely): the exit status and the
+    complete metrics rows as numbers (those written before a failure)."""
+    settings = ["output.fields_every=100000", *overrides]
+    args = ["run", case_file, "--out", str(out), *sum((["--set", s] for s in settings), [])]
+    status = cli.main(args)
+    return status, io.read_metrics(out / "metrics.csv")
 
 
 def reattachment_point(s: np.ndarray, tau: np.ndarray) -> float | None:

@@ -9,19 +9,19 @@ import json
 
 import numpy as np
 import pytest
+import support_run
 
-from fsi import cli, config
+from fsi import config
 from fsi.config.boundary_data import read_waveform
-from fsi.output import io
 
 CONFIG = "configs/carotid_heartbeat.yaml"
 MMHG = 133.322  # Pa
 
 
 def carotid(out, overrides: list[str]) -> list[dict]:
-    args = ["run", CONFIG, "--out", str(out), "--set", "output.fields_every=100000"]
-    assert cli.main(args + sum((["--set", s] for s in overrides), [])) == 0
-    return io.read_metrics(out / "metrics.csv")
+    status, rows = support_run.fsi_run(CONFIG, out, overrides)
+    assert status == 0
+    return rows
 
 
 def file_flow_rate(t: np.ndarray) -> np.ndarray:

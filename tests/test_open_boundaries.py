@@ -8,7 +8,6 @@ steady solve that converges to it, and the stenosis's response to the pulse as t
 traction condition gives it, wherever that condition still holds its own inlet pressure.
 """
 
-import csv
 import dataclasses
 
 from mpi4py import MPI
@@ -17,9 +16,10 @@ import dolfinx.mesh
 import numpy as np
 import pytest
 import support_physics
+import support_run
 from test_fluid import carreau_flow_rate_1d, channel
 
-from fsi import cli, config
+from fsi import config
 from fsi.config import reader
 from fsi.geometry.tags import Boundary
 from fsi.numerics.timestepping import steps
@@ -403,11 +403,7 @@ def test_a_full_reversal_keeps_the_prescribed_traction():
 
 def fsi_run_rigid_stenosis(overrides: list[str], out) -> tuple[int, list[dict]]:
     """``fsi run`` of the rigid Newtonian study case with ``overrides``: exit status, rows."""
-    args = ["run", STUDY["newtonian"], "--out", str(out), "--set", "structure.mode=rigid"]
-    args += sum((["--set", s] for s in ["output.fields_every=1000", *overrides]), [])
-    status = cli.main(args)
-    with (out / "metrics.csv").open(newline="") as f:
-        return status, list(csv.DictReader(f))
+    return support_run.fsi_run(STUDY["newtonian"], out, ["structure.mode=rigid", *overrides])
 
 
 JET = [
@@ -429,7 +425,7 @@ def test_a_jet_recirculating_through_the_outlet_runs_with_the_tangential_term(sh
     docs/boundary-conditions.md)."""
     status, rows = fsi_run_rigid_stenosis(JET, shared_tmp / "tangential")
     assert status == 0 and len(rows) == 150
-    assert float(rows[-1]["min_wss"]) < 0, rows[-1]
+    assert rows[-1]["min_wss"] < 0, rows[-1]
     status, rows = fsi_run_rigid_stenosis(
         [*JET, "fluid.outlet.backflow_stabilization=0"], shared_tmp / "none"
     )
@@ -471,7 +467,7 @@ def test_the_shipped_stress_inlet_holds_the_heartbeat_with_its_tangential_term(s
         [*LITERAL_INLET, "fluid.inflow_stabilization=0", "time.retries=0", "time.end=0.06"],
         shared_tmp / "literal_without_term",
     )
-    assert status != 0 and float(rows[-1]["t"]) < 0.06, rows[-1]["t"]
+    assert status != 0 and rows[-1]["t"] < 0.06, rows[-1]["t"]
 
 
 def test_a_fast_falling_pressure_waveform_runs_two_heartbeats_on_the_moving_wall(shared_tmp):
@@ -481,26 +477,16 @@ def test_a_fast_falling_pressure_waveform_runs_two_heartbeats_on_the_moving_wall
     spiked to 8.5 m/s near (0, 5.5 mm) and the adaptive steps shrank to 1e-7 s (issue #27).
     Now all 160 steps converge without a retry (measured: peak velocity 0.55 m/s in the first
     beat, 0.98 m/s in the second)."""
-    out = shared_tmp / "falling"
     table = "[[0, 0], [0.004, 1200], [0.008, 200], [0.02, 0]]"
-    status = cli.main(
+    status, rows = support_run.fsi_run(
+        "configs/stenosis_moving_newtonian.yaml",
+        shared_tmp / "falling",
         [
-            "run",
-            "configs/stenosis_moving_newtonian.yaml",
-            "--out",
-            str(out),
-            "--set",
             f"fluid.inlet={{kind: pressure_table, period: 0.02, table: {table}}}",
-            "--set",
             "time.end=0.04",
-            "--set",
             "time.retries=0",
-            "--set",
-            "output.fields_every=1000",
-        ]
+        ],
     )
     assert status == 0
-    with (out / "metrics.csv").open(newline="") as f:
-        rows = list(csv.DictReader(f))
-    assert len(rows) == 160 and float(rows[-1]["t"]) == pytest.approx(0.04)
-    assert max(float(r["peak_velocity"]) for r in rows) < 2.0
+    assert len(rows) == 160 and rows[-1]["t"] == pytest.approx(0.04)
+    assert max(r["peak_velocity"] for r in rows) < 2.0

@@ -421,24 +421,12 @@ class FluidResidual:
             terms.append(-s.mu * ufl.dot(ufl.grad(s.u).T * s.n, s.v) * s.ds_of(tags))
         return terms
 
-    def _inflow_energy_balance(self, s: _WeakForm, beta: float, tags: Sequence[int]):
-        """−β/2 ρ min(u·n, 0) u·v on an open boundary: balances the kinetic energy that inflow
-        (u·n < 0) carries into the domain (Bazilevs et al. 2009); 0 for β = 0."""
-        return -(
-            beta
-            / 2
-            * self._rho
-            * ufl.min_value(ufl.dot(s.u, s.n), 0.0)
-            * ufl.dot(s.u, s.v)
-            * s.ds_of(tags)
-        )
-
     def _backflow(self, s: _WeakForm, beta: float, form: str, tags: Sequence[int]):
         """An open boundary's backflow term, nonzero only where blood enters (u·n < 0):
 
-        ``full``: −β/2 ρ min(u·n, 0) u·v (:meth:`_inflow_energy_balance`), which balances all
-        the kinetic energy ½ ρ |u|² |u·n| the inflow carries in, but also lowers the pressure of
-        the inflow by β ρ (u·n)²/2: a full reversal meets a total-pressure outlet;
+        ``full``: −β/2 ρ min(u·n, 0) u·v (Bazilevs et al. 2009), which balances all the kinetic
+        energy ½ ρ |u|² |u·n| the inflow carries in, but also lowers the pressure of the inflow
+        by β ρ (u·n)²/2: a full reversal meets a total-pressure outlet;
 
         ``tangential``: −β/2 ρ min(u·n, 0) (u_t·v_t + ℓ² ∇_Γu : ∇_Γv) with u_t = u − (u·n) n,
         ∇_Γ = ∇(I − n⊗n) the derivative along the outlet and ℓ = :data:`BACKFLOW_LENGTH` h:
@@ -449,15 +437,16 @@ class FluidResidual:
 
         ``tangential_velocity``: −β/2 ρ min(u·n, 0) u_t·v_t, the tangential part alone (a traction
         inlet's: a normal inflow of any profile keeps the prescribed traction)."""
-        if form == "full":
-            return self._inflow_energy_balance(s, beta, tags)
-        un = ufl.dot(s.u, s.n)
         along = ufl.Identity(len(s.u)) - ufl.outer(s.n, s.n)
-        damped = ufl.dot(along * s.u, along * s.v)
+        if form == "full":
+            damped = ufl.dot(s.u, s.v)
+        else:
+            damped = ufl.dot(along * s.u, along * s.v)
         if form == "tangential":
             ell = BACKFLOW_LENGTH * s.h
             damped += ell**2 * ufl.inner(ufl.grad(s.u) * along, ufl.grad(s.v) * along)
-        return -(beta / 2 * self._rho * ufl.min_value(un, 0.0) * damped * s.ds_of(tags))
+        inflow = ufl.min_value(ufl.dot(s.u, s.n), 0.0)
+        return -(beta / 2 * self._rho * inflow * damped * s.ds_of(tags))
 
     def _supg(self, s: _WeakForm, body_force: BodyForce | None):
         """SUPG: τ ((u − w)·∇)v · R with the strong momentum residual
@@ -484,16 +473,18 @@ class FluidResidual:
         )
         if body_force is not None:
             residual -= body_force(s.x, self.t)
-        # τ's velocity: the last accepted step's (a coefficient of the step); a steady solve
-        # has no last step, so there τ is the unknown's own (and Newton differentiates it).
-        known = s.u if self.scheme == "steady" else self.u_n
-        a_n = known - w
-        mu_n = s.mu if self.scheme == "steady" else self.law.mu(rheology.shear_rate(self.u_n))
-        speed = ufl.sqrt(ufl.dot(a_n, a_n) + SUPG_SPEED_FLOOR**2)
+        # τ's velocity and viscosity: the last accepted step's (coefficients of the step); a
+        # steady solve has no last step, so there they are the unknown's (Newton differentiates).
+        if self.scheme == "steady":
+            u_tau, mu_tau = s.u, s.mu
+        else:
+            u_tau, mu_tau = self.u_n, self.law.mu(rheology.shear_rate(self.u_n))
+        a_tau = u_tau - w
+        speed = ufl.sqrt(ufl.dot(a_tau, a_tau) + SUPG_SPEED_FLOOR**2)
         tau = (
             (2 * self._a[0]) ** 2
             + (2 * speed / h) ** 2
-            + (SUPG_VISCOUS_CONSTANT * mu_n / (rho * h**2)) ** 2
+            + (SUPG_VISCOUS_CONSTANT * mu_tau / (rho * h**2)) ** 2
         ) ** -0.5
         return tau * ufl.dot(ufl.grad(s.v) * a, residual)
 
