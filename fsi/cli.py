@@ -128,10 +128,16 @@ def _add_mesh_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _add_report_arguments(p: argparse.ArgumentParser) -> None:
-    """``fsi report``: run folders, ``--out``, ``--times``."""
+    """``fsi report``: run folders, ``--out``, ``--format``, ``--times``."""
     p.add_argument("runs", type=Path, nargs="+", metavar="RUN_DIR")
     _add_out(
-        p, "write DIR/report.md and PNG plots (default: print the tables only)", required=False
+        p, "write DIR/report.md and the plots (default: print the tables only)", required=False
+    )
+    p.add_argument(
+        "--format",
+        choices=["png", "pdf", "svg"],
+        default="png",
+        help="the plots' file format (default png; pdf and svg for papers)",
     )
     p.add_argument(
         "--times",
@@ -183,7 +189,7 @@ def _add_plot_arguments(p: argparse.ArgumentParser) -> None:
         choices=["x", "y", "magnitude"],
         help="of a vector field (default: magnitude)",
     )
-    _add_out(p, metavar="FILE.png")
+    _add_out(p, "the picture: FILE.png, FILE.pdf or FILE.svg", metavar="FILE")
 
 
 def _add_sweep_arguments(p: argparse.ArgumentParser) -> None:
@@ -747,7 +753,7 @@ def _report(args: argparse.Namespace) -> int:
             print(report.markdown(runs, args.times))
             if args.out is not None:
                 try:
-                    written = report.write(runs, args.out, args.times)
+                    written = report.write(runs, args.out, args.times, args.format)
                 except OSError as e:
                     print(f"fsi: error: --out: {e}", file=sys.stderr)
                     status = EXIT_OUTPUT_FAILED

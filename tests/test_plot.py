@@ -241,7 +241,8 @@ def test_a_missing_or_foreign_folder_and_a_bad_out_are_refused(run_dir, capsys):
         ),
         (
             [str(run_dir), "--out", str(out.with_suffix(".jpg"))],
-            f"--out {out.with_suffix('.jpg')}: the picture's file name must end in .png",
+            f"--out {out.with_suffix('.jpg')}: the picture's file name must end in .png, "
+            ".pdf, .svg",
         ),
     ]
     for arguments, message in cases:
@@ -262,3 +263,25 @@ def test_fsi_report_includes_snapshots_at_the_report_times(run_dir):
             assert is_png(out / f"{name}_{field}_t0.002.png")
             assert not (out / f"{name}_{field}_t0.5.png").exists()  # not reached
             assert f"{name}_{field}_t0.002.png" in (out / "report.md").read_text()
+
+
+def test_a_picture_for_a_paper_is_a_pdf_or_an_svg(run_dir):
+    """``fsi plot --out FILE.pdf`` or ``.svg`` writes that format (the file's own signature);
+    ``fsi report --format`` writes every plot and snapshot in it and links them in report.md."""
+    stem = run_dir.parent / "paper"
+    for suffix, signature in ((".pdf", b"%PDF-"), (".svg", b"<svg")):
+        out = stem.with_suffix(suffix)
+        assert cli.main(["plot", str(run_dir), "--field", "velocity", "--time", "0.002",
+                         "--out", str(out)]) == 0  # fmt: skip
+        if MPI.COMM_WORLD.rank == 0:
+            head = out.read_bytes()[:2000]
+            assert head.startswith(signature) or signature in head, (suffix, head[:80])
+    out = run_dir.parent / "report_svg"
+    assert cli.main(["report", str(run_dir), "--out", str(out), "--format", "svg",
+                     "--times", "0.002"]) == 0  # fmt: skip
+    if MPI.COMM_WORLD.rank == 0:
+        text = (out / "report.md").read_text()
+        for name in ("peak_velocity", f"{run_dir.name}_velocity_t0.002"):
+            assert b"<svg" in (out / f"{name}.svg").read_bytes()[:2000]
+            assert f"![{name}.svg]({name}.svg)" in text
+        assert not list(out.glob("*.png"))

@@ -298,6 +298,8 @@ def study_columns(stress: float, displacement: float, recirculation: float) -> d
         "recirculation_length": lambda t: recirculation * pulse(t),
         "inlet_flow_rate": lambda t: 2.0e-5 * pulse(t),
         "outlet_flow_rate": lambda t: 1.8e-5 * pulse(t),
+        "mean_inlet_pressure": lambda t: 1200.0 * pulse(t),
+        "mean_outlet_pressure": lambda t: 40.0 * pulse(t),
         "max_von_mises": lambda t: 1.7 * stress * (0.05 + pulse(t)),
         "max_principal": lambda t: 1.2 * stress * (0.05 + pulse(t)),
         **{
@@ -380,6 +382,7 @@ def test_every_plot_is_written_for_a_fixed_and_a_moving_wall(fixed_and_moving, f
         "wall_shear_stress.png",
         "inlet_pressure.png",
         "flow_rate.png",
+        "boundary_pressure.png",
     } <= set(names)
     for path in written[1:]:
         assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -482,3 +485,50 @@ def test_old_runs_without_the_new_columns_still_report(fixed_and_moving, folder,
     if MPI.COMM_WORLD.rank == 0:
         assert len(captions((out / "report.md").read_text())) == len(report.FIGURES)
         assert "| Peak displacement (µm) |" in capsys.readouterr().out
+
+
+def test_the_boundary_pressures_are_the_mean_inlet_and_outlet_pressures(fixed_and_moving):
+    run = report.load_run(fixed_and_moving[0])
+    (group,) = report.boundary_pressure_groups([run])
+    inlet, outlet = group.lines
+    assert (inlet.style, outlet.style) == ("-", "--")
+    assert inlet.t == outlet.t == [r["t"] for r in run.rows]
+    assert inlet.y == [r["mean_inlet_pressure"] for r in run.rows]
+    assert outlet.y == [r["mean_outlet_pressure"] for r in run.rows]
+
+
+def test_heartbeat_ends_are_the_multiples_of_each_period_up_to_the_end():
+    assert report.heartbeat_ends([0.004], 0.01) == pytest.approx([0.004, 0.008])
+    assert report.heartbeat_ends([0.0025], 0.01) == pytest.approx([0.0025, 0.005, 0.0075, 0.01])
+    assert report.heartbeat_ends([0.004, 0.002], 0.008) == pytest.approx(
+        [0.002, 0.004, 0.006, 0.008]
+    )
+    assert report.heartbeat_ends([], 1.0) == [] and report.heartbeat_ends([0.5], 0.4) == []
+
+
+def test_runs_with_heartbeats_have_them_marked_and_said(folder):
+    """With a periodic inlet every time plot has a dotted line at each heartbeat's end, and its
+    caption says so; without one, neither."""
+    beating = config.from_dict(
+        {
+            "name": "beats",
+            "structure": {"mode": "rigid"},
+            "fluid": {
+                "inlet": {
+                    "kind": "pressure_table",
+                    "table": [[0.0, 0.0], [0.002, 100.0], [0.004, 0.0]],
+                    "period": 0.004,
+                }
+            },
+        }
+    )
+    columns = {"peak_velocity": lambda t: 0.2 + t, "mean_inlet_pressure": lambda t: 50.0}
+    runs = [report.load_run(synthetic_run(folder / "beats", beating, columns))]
+    text = report.write(runs, folder / "beats_report")[0].read_text()
+    note = "Dotted vertical lines: the ends of the heartbeats (period 0.004 s)."
+    for name in ("peak_velocity.png", "inlet_pressure.png", "boundary_pressure.png"):
+        assert note in captions(text)[name]
+    plain = [report.load_run(synthetic_run(folder / "plain", stenosis_case("rigid"), columns))]
+    assert (
+        "Dotted vertical lines" not in report.write(plain, folder / "plain_report")[0].read_text()
+    )

@@ -417,11 +417,20 @@ def title(snapshot: Snapshot) -> str:
     return text
 
 
+FORMATS = ("png", "pdf", "svg")
+"""The picture formats, named by the file's suffix: PNG (150 dpi) for the screen, PDF and SVG
+(vector; the shaded field stays a raster inside them) for papers."""
+
+
 def check_out(path: Path) -> None:
-    """Raises :class:`PlotError` unless ``path`` can name the PNG file to write."""
+    """Raises :class:`PlotError` unless ``path`` can name the picture to write (.png, .pdf or
+    .svg)."""
     path = Path(path)
-    if path.suffix.lower() != ".png":
-        raise PlotError(f"--out {path}: the picture's file name must end in .png")
+    if path.suffix.lower().lstrip(".") not in FORMATS:
+        raise PlotError(
+            f"--out {path}: the picture's file name must end in "
+            + ", ".join(f".{f}" for f in FORMATS)
+        )
     if path.is_dir():
         raise PlotError(f"--out {path}: is a folder, not a file name")
     if path.parent.exists() and not path.parent.is_dir():
@@ -431,14 +440,14 @@ def check_out(path: Path) -> None:
 def draw(
     snapshot: Snapshot, path: Path, *, component: str | None = None, flow: Snapshot | None = None
 ) -> Path:
-    """Write ``path`` (PNG): the field as filled contours (node values shaded between the
-    nodes, cell values flat) on the snapshot's coordinates in mm, equal aspect, with a colour
-    bar labelled with the field and its unit and the :func:`title`; with ``flow`` (the fluid
-    velocity on the same nodes, :func:`streamline_field`) its streamlines over it, the velocity
-    interpolated linearly on a regular grid and masked outside the fluid mesh. The file appears
-    complete or not at all (written under another name, then renamed). Raises
-    :class:`PlotError` for a bad ``component`` or ``path`` before anything is written, OSError
-    if the file cannot be written."""
+    """Write ``path`` (PNG, PDF or SVG, by its suffix): the field as filled contours (node
+    values shaded between the nodes, cell values flat) on the snapshot's coordinates in mm,
+    equal aspect, with a colour bar labelled with the field and its unit and the :func:`title`;
+    with ``flow`` (the fluid velocity on the same nodes, :func:`streamline_field`) its
+    streamlines over it, the velocity interpolated linearly on a regular grid and masked outside
+    the fluid mesh. The file appears complete or not at all (written under another name, then
+    renamed). Raises :class:`PlotError` for a bad ``component`` or ``path`` before anything is
+    written, OSError if the file cannot be written."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -476,7 +485,7 @@ def draw(
     ax.set_title(title(snapshot), fontsize=9)
     bar_label = f"{prefix}{label}" + (f" ({unit})" if unit else "")
     _colour_bar(fig, ax, image, bar_label, quantity, shown, wide=aspect < 0.6)
-    _save_png(fig, path)
+    save_figure(fig, path)
     return path
 
 
@@ -519,15 +528,16 @@ def _colour_bar(fig, ax, image, label: str, quantity: str, shown: np.ndarray, wi
         bar.set_ticklabels([Region(tag).label if tag in set(Region) else str(tag) for tag in tags])
 
 
-def _save_png(fig, path: Path) -> None:
-    """Write ``fig`` to ``path`` (PNG, 150 dpi) under another name, then rename it: the file
-    appears complete or not at all. Closes ``fig`` once the writing was tried."""
+def save_figure(fig, path: Path, dpi: int = 150) -> None:
+    """Write ``fig`` to ``path`` in the format of its suffix (:data:`FORMATS`; PNG at ``dpi``)
+    under another name, then rename it: the file appears complete or not at all. Closes ``fig``
+    once the writing was tried."""
     import matplotlib.pyplot as plt
 
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_name(path.name + ".partial")
     try:
-        fig.savefig(partial, dpi=150, format="png")
+        fig.savefig(partial, dpi=dpi, format=path.suffix.lower().lstrip("."))
         os.replace(partial, path)
     finally:
         plt.close(fig)

@@ -5,7 +5,7 @@ times, a fourth each run's solver effort, and runs with heartbeats a table of th
 (:func:`cycles_table`). The plots (:data:`FIGURES`) show the reported metrics over time in
 readable units (:func:`fsi.output.units.choose_unit`), on a linear or log axis or in panels
 (:func:`choose_scale`); a run without a column is left out of that plot and shows '–' in the
-tables. ``report.md`` lists every PNG with a caption line.
+tables. ``report.md`` lists every picture with a caption line.
 """
 
 from __future__ import annotations
@@ -236,8 +236,8 @@ def markdown(
     figures: Sequence[tuple[str, str]] = (),
 ) -> str:
     """Tables 1–3 and the solver effort; for runs with heartbeats (a periodic inlet), a table
-    of each run's heartbeats (:func:`cycles_table`); with ``figures`` ((PNG file name,
-    caption) pairs), a section that shows each PNG followed by its caption line."""
+    of each run's heartbeats (:func:`cycles_table`); with ``figures`` ((picture file name,
+    caption) pairs), a section that shows each picture followed by its caption line."""
     parts = [
         f"## Table {i + 1}: {title}\n\n{peaks_table(runs, column, title, quantity, times)}"
         for i, (column, title, quantity) in enumerate(TABLES)
@@ -353,6 +353,26 @@ def flow_rate_groups(runs: Sequence[Run]) -> list[Group]:
     return groups
 
 
+BOUNDARY_PRESSURES = [
+    ("mean_inlet_pressure", "inlet", "-"),
+    ("mean_outlet_pressure", "outlet", "--"),
+]
+
+
+def boundary_pressure_groups(runs: Sequence[Run]) -> list[Group]:
+    """The mean inlet (solid) and outlet (dashed) pressures over time, one group per run: with
+    a resistance or Windkessel outlet the outlet's is the pressure the lumped model sets."""
+    groups = []
+    for k, run in enumerate(runs):
+        lines = []
+        for column, boundary, style in BOUNDARY_PRESSURES:
+            rows = [r for r in run.rows if column in r]
+            t, y = [r["t"] for r in rows], [r[column] for r in rows]
+            lines.append(Line(f"{run.label} {boundary}", t, y, style))
+        groups.append(Group(run.label, k, lines))
+    return groups
+
+
 INLET_SAMPLES = 2001
 """Evenly spaced times at which P(t) is evaluated over a time span (besides the runs' step
 times and a table's rows)."""
@@ -411,9 +431,10 @@ def _describe(inlet: config.Inlet) -> str:
 
 @dataclass(frozen=True)
 class Figure:
-    """One PNG, ``<name>.png``: ``groups(runs)`` drawn with :func:`draw`, the y-axis labelled
-    ``ylabel`` and the unit :func:`choose_unit` picks for ``quantity``; ``caption`` says what it
-    shows (report.md), ``group`` what one group of lines is (for the caption of panels)."""
+    """One picture, ``<name>.<format>``: ``groups(runs)`` drawn with :func:`draw`, the y-axis
+    labelled ``ylabel`` and the unit :func:`choose_unit` picks for ``quantity``; ``caption``
+    says what it shows (report.md), ``group`` what one group of lines is (for the caption of
+    panels)."""
 
     name: str
     caption: str
@@ -507,6 +528,15 @@ FIGURES = [
         flow_rate_groups,
     ),
     Figure(
+        "boundary_pressure",
+        "The pressure averaged over the inlet (solid) and over the outlet (dashed) over "
+        "time, one colour per run; with a resistance or Windkessel outlet the outlet's is "
+        "the pressure the lumped model sets from the flow rate.",
+        "mean pressure",
+        "pressure",
+        boundary_pressure_groups,
+    ),
+    Figure(
         "inlet_pressure",
         "The inlet pressure P(t) of the runs' configurations (traction "
         "inlets; velocity inlets have none) over their time span, one line per distinct "
@@ -523,15 +553,32 @@ FIGURES = [
 # Drawing
 
 
-def draw(groups: Sequence[Group], ylabel: str, quantity: str, path: Path) -> str | None:
-    """The groups' lines that have points as a PNG at ``path``, in the unit
-    :func:`choose_unit` picks for ``quantity`` from all their values, on the scale
-    :func:`choose_scale` picks from each group's values; returns that scale, or None (and
-    writes nothing) when no line has a point."""
+def heartbeat_ends(periods: Sequence[float], end: float) -> list[float]:
+    """The times k T (k = 1, 2, ...) up to ``end`` at which a heartbeat of one of ``periods``
+    ends (each once, sorted)."""
+    return sorted(
+        {k * T for T in periods if T > 0 for k in range(1, math.floor(end / T * (1 + 1e-9)) + 1)}
+    )
+
+
+def draw(
+    groups: Sequence[Group],
+    ylabel: str,
+    quantity: str,
+    path: Path,
+    periods: Sequence[float] = (),
+) -> str | None:
+    """The groups' lines that have points as a picture at ``path`` (PNG, PDF or SVG by its
+    suffix), in the unit :func:`choose_unit` picks for ``quantity`` from all their values, on
+    the scale :func:`choose_scale` picks from each group's values, with a dotted vertical line
+    where a heartbeat of one of ``periods`` ends (:func:`heartbeat_ends`); returns that scale,
+    or None (and writes nothing) when no line has a point."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from fsi.output import plot
 
     groups = [
         Group(g.label, g.colour, [line for line in g.lines if line.t], g.band) for g in groups
@@ -555,9 +602,12 @@ def draw(groups: Sequence[Group], ylabel: str, quantity: str, path: Path) -> str
     axes = list(axes[:, 0])
     for k, group in enumerate(groups):
         _plot_group(axes[k if scale == "panels" else 0], group, unit.scale)
+    end = max(t for g in groups for line in g.lines for t in line.t)
     for ax in axes:
         if scale == "log":
             ax.set_yscale("log")
+        for t in heartbeat_ends(periods, end):
+            ax.axvline(t, color="0.5", ls=":", lw=0.8)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
     axes[-1].set_xlabel("t (s)")
@@ -565,8 +615,7 @@ def draw(groups: Sequence[Group], ylabel: str, quantity: str, path: Path) -> str
         fig.supylabel(label)
     else:
         axes[0].set_ylabel(label)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    plot.save_figure(fig, path, dpi=120)
     return scale
 
 
@@ -603,20 +652,31 @@ SCALE_NOTES = {
 }
 
 
-def write(runs: Sequence[Run], out: Path, times: Sequence[float] | None = None) -> list[Path]:
-    """The PNGs of :data:`FIGURES` that have a line (``out/<name>.png``) and ``out/report.md``
-    (the tables, then each PNG with its caption and scale); returns the files written,
-    report.md first."""
+def write(
+    runs: Sequence[Run], out: Path, times: Sequence[float] | None = None, picture: str = "png"
+) -> list[Path]:
+    """The pictures of :data:`FIGURES` that have a line (``out/<name>.<picture>``, ``picture``
+    one of fsi.output.plot.FORMATS) and ``out/report.md`` (the tables, then each picture with
+    its caption and scale); returns the files written, report.md first. With periodic inlets
+    the time plots mark the heartbeats' ends."""
     out.mkdir(parents=True, exist_ok=True)
+    periods = sorted({config.heartbeat_period(run.case) for run in runs} - {0.0})
+    beats = (
+        " Dotted vertical lines: the ends of the heartbeats (period "
+        + ", ".join(f"{T:g} s" for T in periods)
+        + ")."
+        if periods
+        else ""
+    )
     pictures, captions = [], []
     for figure in FIGURES:
-        path = out / f"{figure.name}.png"
-        scale = draw(figure.groups(runs), figure.ylabel, figure.quantity, path)
+        path = out / f"{figure.name}.{picture}"
+        scale = draw(figure.groups(runs), figure.ylabel, figure.quantity, path, periods)
         if scale is not None:
             pictures.append(path)
             note = SCALE_NOTES[scale].format(group=figure.group, ratio=MAGNITUDE_RATIO)
-            captions.append((path.name, figure.caption + note))
-    for path, caption in snapshots(runs, out, times):
+            captions.append((path.name, figure.caption + note + beats))
+    for path, caption in snapshots(runs, out, times, picture):
         pictures.append(path)
         captions.append((path.name, caption))
     (out / "report.md").write_text(markdown(runs, times, captions))
@@ -624,12 +684,12 @@ def write(runs: Sequence[Run], out: Path, times: Sequence[float] | None = None) 
 
 
 def snapshots(
-    runs: Sequence[Run], out: Path, times: Sequence[float] | None = None
+    runs: Sequence[Run], out: Path, times: Sequence[float] | None = None, picture: str = "png"
 ) -> list[tuple[Path, str]]:
     """Field pictures (fsi/output/plot.py) at the report times of every run that has field files:
-    the structural shear stress σ₁₂ on the structure (``<run>_sss_t<T>.png``) and the velocity
-    with its streamlines on the current fluid mesh (``<run>_velocity_t<T>.png``). A time the
-    run has not reached is skipped. Returns (file, caption) pairs."""
+    the structural shear stress σ₁₂ on the structure (``<run>_sss_t<T>.<picture>``) and the
+    velocity with its streamlines on the current fluid mesh (``<run>_velocity_t<T>.<picture>``).
+    A time the run has not reached is skipped. Returns (file, caption) pairs."""
     from fsi.output import plot
 
     written = []
@@ -651,7 +711,7 @@ def snapshots(
             for t in report_times:
                 if t > last * (1 + 1e-9):
                     continue
-                path = out / f"{run.path.name}_{field}_t{t:g}.png"
+                path = out / f"{run.path.name}_{field}_t{t:g}.{picture}"
                 try:
                     plot.field_snapshot(run.path, field, t, path, **options)
                 except plot.PlotError as e:  # a run written before the field existed
