@@ -157,14 +157,22 @@ def _add_plot_arguments(p: argparse.ArgumentParser) -> None:
         metavar="NAME",
         help="a field of RUN_DIR/fields.xdmf (fluid: velocity, pressure, "
         "wall_shear_stress, viscosity, shear_rate, mesh_displacement) or "
-        "solid.xdmf (structure: eta, sss, von_mises, max_principal, region)",
+        "solid.xdmf (structure: eta, sss, von_mises, max_principal, region); or an index of "
+        "RUN_DIR/wall_indices.csv along the walls (tawss, osi, rrt)",
     )
     p.add_argument(
         "--time",
         type=float,
-        required=True,
         metavar="T",
-        help="time in s: the stored time nearest to T (restarted runs: in the segment holding it)",
+        help="time in s: the stored time nearest to T (restarted runs: in the segment holding "
+        "it); required for a field",
+    )
+    p.add_argument(
+        "--cycle",
+        type=int,
+        metavar="K",
+        help="for tawss, osi, rrt with a periodic inlet: over heartbeat K (default: the last "
+        "in the file)",
     )
     p.add_argument(
         "--warp",
@@ -762,6 +770,55 @@ def _report(args: argparse.Namespace) -> int:
     return comm.bcast(status, root=0)
 
 
+def _plot_options_refused(args: argparse.Namespace) -> str | None:
+    """The first option given that ``--field`` cannot take, with why (None: all fit)."""
+    from fsi.output import wall_plot
+
+    if args.field in wall_plot.INDICES:
+        for option, value in (
+            ("--time", args.time),
+            ("--warp", args.warp),
+            ("--streamlines", args.streamlines or None),
+            ("--region", args.region),
+            ("--component", args.component),
+        ):
+            if value is not None:
+                return (
+                    f"{option}: not for --field {args.field}, an average along the walls "
+                    "(over the run, or over heartbeat --cycle K)"
+                )
+        return None
+    if args.time is None:
+        return f"--time: required for --field {args.field}"
+    if args.cycle is not None:
+        return f"--cycle: only for the wall indices (tawss, osi, rrt), not --field {args.field}"
+    return None
+
+
+def _draw_plot(args: argparse.Namespace) -> tuple[Path, str | None]:
+    """The picture ``fsi plot`` asks for, written to ``--out``; and a note for stdout, or
+    None. Raises PlotError, OSError."""
+    from fsi.output import plot, wall_plot
+
+    plot.check_out(args.out)
+    refused = _plot_options_refused(args)
+    if refused:
+        raise plot.PlotError(refused)
+    if args.field in wall_plot.INDICES:
+        index = wall_plot.read(args.run, args.field, args.cycle)
+        return wall_plot.draw(index, args.out), None
+    snapshot = plot.read_field(args.run, args.field, args.time, warp=args.warp, region=args.region)
+    flow = plot.streamline_field(snapshot) if args.streamlines else None
+    written = plot.draw(snapshot, args.out, component=args.component, flow=flow)
+    note = None
+    if snapshot.time_differs:
+        note = (
+            f"{args.run}: {args.field} is stored at t = {snapshot.time:.6g} s, the "
+            f"nearest to --time {args.time:g}"
+        )
+    return written, note
+
+
 def _plot(args: argparse.Namespace) -> int:
     from fsi.output import plot
 
@@ -769,12 +826,7 @@ def _plot(args: argparse.Namespace) -> int:
     status = EXIT_OK
     if comm.rank == 0:  # reading two files and drawing one picture: rank 0 alone
         try:
-            plot.check_out(args.out)
-            snapshot = plot.read_field(
-                args.run, args.field, args.time, warp=args.warp, region=args.region
-            )
-            flow = plot.streamline_field(snapshot) if args.streamlines else None
-            written = plot.draw(snapshot, args.out, component=args.component, flow=flow)
+            written, note = _draw_plot(args)
         except plot.PlotError as e:
             print(f"fsi: error: {e}", file=sys.stderr, flush=True)
             status = EXIT_USAGE
@@ -786,12 +838,8 @@ def _plot(args: argparse.Namespace) -> int:
             )
             status = EXIT_OUTPUT_FAILED
         else:
-            if snapshot.time_differs:
-                print(
-                    f"{args.run}: {args.field} is stored at t = {snapshot.time:.6g} s, the "
-                    f"nearest to --time {args.time:g}",
-                    flush=True,
-                )
+            if note:
+                print(note, flush=True)
             log.info("wrote %s", written)
     return comm.bcast(status, root=0)
 

@@ -285,3 +285,85 @@ def test_a_picture_for_a_paper_is_a_pdf_or_an_svg(run_dir):
             assert b"<svg" in (out / f"{name}.svg").read_bytes()[:2000]
             assert f"![{name}.svg]({name}.svg)" in text
         assert not list(out.glob("*.png"))
+
+
+# --------------------------------------------------------------------------------------------
+# The wall indices along the walls (wall_indices.csv)
+
+
+def test_tawss_along_the_walls_is_drawn_from_wall_indices_csv(run_dir, capsys):
+    """``--field tawss``: the file's TAWSS against x, one line per wall and side, x increasing;
+    ``fsi report`` draws TAWSS and OSI for the run."""
+    import csv
+
+    from fsi.output import wall_plot
+
+    with (run_dir / "wall_indices.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    index = wall_plot.read(run_dir, "tawss")
+    assert index.cycle is None
+    assert set(index.lines) == {f"{r['wall']}, {r['side']}" for r in rows}
+    for label, (x, y) in index.lines.items():
+        mine = sorted(
+            (float(r["x"]), float(r["TAWSS"])) for r in rows if f"{r['wall']}, {r['side']}" == label
+        )
+        assert (x, y) == ([a for a, _ in mine], [b for _, b in mine])
+    assert max(max(y) for _, y in index.lines.values()) > 0
+    for name in ("tawss", "osi", "rrt"):
+        assert is_png(draw(run_dir, f"wall_{name}", "--field", name))
+    out = run_dir.parent / f"report_walls{MPI.COMM_WORLD.rank}"
+    assert cli.main(["report", str(run_dir), "--out", str(out), "--times", "0.002"]) == 0
+    if MPI.COMM_WORLD.rank == 0:
+        for name in ("tawss", "osi"):
+            assert is_png(out / f"{run_dir.name}_{name}.png")
+            assert f"![{run_dir.name}_{name}.png]" in (out / "report.md").read_text()
+
+
+def test_a_heartbeat_of_the_wall_indices_is_chosen_with_cycle(shared_tmp, capsys):
+    """With a ``cycle`` column the last heartbeat in the file is drawn unless ``--cycle K``
+    names another; a heartbeat the file lacks, ``--cycle`` without heartbeats, and options that
+    belong to fields are refused with exit 2 and one line naming them."""
+    from fsi.output import wall_plot
+
+    run = shared_tmp / "beats"
+    if MPI.COMM_WORLD.rank == 0:
+        run.mkdir()
+        lines = ["cycle,wall,side,x,y,TAWSS,OSI,RRT"]
+        for cycle in (1, 2):
+            for x in (0.002, 0.001, 0.003):
+                lines.append(f"{cycle},interface,lower,{x},0,{cycle * x * 1e3},0.1,{1 / x}")
+        (run / "wall_indices.csv").write_text("\n".join(lines) + "\n")
+    MPI.COMM_WORLD.barrier()
+    last = wall_plot.read(run, "tawss")
+    assert (last.cycle, last.cycles) == (2, 2)
+    assert last.lines["interface, lower"] == ([0.001, 0.002, 0.003], [2.0, 4.0, 6.0])
+    first = wall_plot.read(run, "tawss", cycle=1)
+    assert first.lines["interface, lower"][1] == [1.0, 2.0, 3.0]
+    assert "over heartbeat 1" in wall_plot.title(first)
+    out = shared_tmp / "beat.svg"
+    assert cli.main(["plot", str(run), "--field", "osi", "--cycle", "1", "--out", str(out)]) == 0
+    refused = [
+        (["--field", "tawss", "--cycle", "3"], f"--cycle 3: {run / 'wall_indices.csv'} holds "
+         "heartbeats 1 to 2"),
+        (["--field", "tawss", "--time", "0.1"], "--time: not for --field tawss, an average along "
+         "the walls (over the run, or over heartbeat --cycle K)"),
+        (["--field", "velocity"], "--time: required for --field velocity"),
+        (["--field", "velocity", "--time", "0", "--cycle", "1"], "--cycle: only for the wall "
+         "indices (tawss, osi, rrt), not --field velocity"),
+    ]  # fmt: skip
+    for options, message in refused:
+        capsys.readouterr()
+        bad = shared_tmp / "refused.png"
+        assert cli.main(["plot", str(run), *options, "--out", str(bad)]) == 2
+        if MPI.COMM_WORLD.rank == 0:
+            assert capsys.readouterr().err == f"fsi: error: {message}\n"
+            assert not bad.exists()
+    if MPI.COMM_WORLD.rank == 0:
+        assert b"<svg" in out.read_bytes()[:2000]
+        (run / "wall_indices.csv").write_text(
+            "wall,side,x,y,TAWSS,OSI,RRT\ninterface,lower,0,0,1,0,1\n"
+        )
+    MPI.COMM_WORLD.barrier()
+    with pytest.raises(plot.PlotError, match="--cycle 1: .* is over the whole run"):
+        wall_plot.read(run, "tawss", cycle=1)
+    MPI.COMM_WORLD.barrier()

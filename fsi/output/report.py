@@ -676,11 +676,38 @@ def write(
             pictures.append(path)
             note = SCALE_NOTES[scale].format(group=figure.group, ratio=MAGNITUDE_RATIO)
             captions.append((path.name, figure.caption + note + beats))
-    for path, caption in snapshots(runs, out, times, picture):
+    for path, caption in [
+        *wall_index_pictures(runs, out, picture),
+        *snapshots(runs, out, times, picture),
+    ]:
         pictures.append(path)
         captions.append((path.name, caption))
     (out / "report.md").write_text(markdown(runs, times, captions))
     return [out / "report.md", *pictures]
+
+
+def wall_index_pictures(
+    runs: Sequence[Run], out: Path, picture: str = "png"
+) -> list[tuple[Path, str]]:
+    """TAWSS and OSI along the walls (fsi/output/wall_plot.py) of every run with a
+    ``wall_indices.csv``: ``<run>_tawss.<picture>``, ``<run>_osi.<picture>``, over the last
+    heartbeat in the file (periodic inlets) or the whole run. Returns (file, caption) pairs."""
+    from fsi.output import plot, wall_plot
+
+    written = []
+    for run in runs:
+        if not (run.path / "wall_indices.csv").is_file():
+            continue
+        for name in ("tawss", "osi"):
+            path = out / f"{run.path.name}_{name}.{picture}"
+            try:
+                index = wall_plot.read(run.path, name)
+                wall_plot.draw(index, path)
+            except plot.PlotError as e:
+                log.warning("fsi report: no %s: %s", path.name, e)
+                continue
+            written.append((path, wall_plot.title(index) + ", one line per wall and side."))
+    return written
 
 
 def snapshots(

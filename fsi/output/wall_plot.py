@@ -1,0 +1,111 @@
+"""Along-wall plots of the hemodynamic indices in a run's ``wall_indices.csv`` (TAWSS, OSI,
+RRT; docs/hemodynamic-indices.md): x along the vessel's axis, one line per wall and side, over
+the whole run or over one heartbeat (``fsi plot RUN_DIR --field tawss [--cycle K]``, and
+``fsi report`` for every run that has the file).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from fsi.output.plot import PlotError, check_out, save_figure
+
+INDICES = {
+    "tawss": ("TAWSS", "time-averaged wall shear stress TAWSS", "Pa"),
+    "osi": ("OSI", "oscillatory shear index OSI", ""),
+    "rrt": ("RRT", "relative residence time RRT", "1/Pa"),
+}
+"""``--field`` name → (wall_indices.csv column, axis label, unit)."""
+
+
+@dataclass(frozen=True)
+class WallIndex:
+    """One index along the walls: per (wall, side) the samples' x (m, reference
+    configuration, increasing) and values; ``cycle`` the heartbeat (None: the whole run)."""
+
+    name: str
+    run: str
+    cycle: int | None
+    cycles: int
+    lines: dict[str, tuple[list[float], list[float]]]
+
+
+def read(run_dir: Path, name: str, cycle: int | None = None) -> WallIndex:
+    """The index ``name`` (a key of :data:`INDICES`) from ``run_dir/wall_indices.csv``: over
+    heartbeat ``cycle`` (default: the last one in the file, which is the part reached so far
+    when the run stopped within a beat) for a run with a periodic inlet, else over the run.
+    Raises :class:`PlotError` naming the file for a missing or unreadable file, a cycle it
+    does not hold, or ``--cycle`` for a run without heartbeats."""
+    column = INDICES[name][0]
+    path = Path(run_dir) / "wall_indices.csv"
+    if not Path(run_dir).is_dir():
+        raise PlotError(f"{run_dir}: no such folder")
+    try:
+        with path.open(newline="") as f:
+            rows = list(csv.DictReader(f))
+    except FileNotFoundError:
+        raise PlotError(f"{path}: no such file (runs with a fluid write it)") from None
+    except (OSError, UnicodeDecodeError, csv.Error) as e:
+        raise PlotError(f"{path}: cannot be read ({e})") from None
+    needed = {"wall", "side", "x", column}
+    if not rows or not needed <= set(rows[0]):
+        raise PlotError(f"{path}: no rows with the columns {', '.join(sorted(needed))}")
+    periodic = "cycle" in rows[0]
+    try:
+        beats = [int(r["cycle"]) if periodic else 0 for r in rows]
+        points = [(float(r["x"]), float(r[column])) for r in rows]
+    except (TypeError, ValueError) as e:
+        raise PlotError(f"{path}: a value is not a number ({e})") from None
+    cycles = sorted(set(beats)) if periodic else []
+    if periodic:
+        cycle = cycles[-1] if cycle is None else cycle
+        if cycle not in cycles:
+            raise PlotError(f"--cycle {cycle}: {path} holds heartbeats {cycles[0]} to {cycles[-1]}")
+    elif cycle is not None:
+        raise PlotError(f"--cycle {cycle}: {path} is over the whole run (no periodic inlet)")
+    samples: dict[str, list[tuple[float, float]]] = {}
+    for r, beat, point in zip(rows, beats, points, strict=True):
+        if not periodic or beat == cycle:
+            samples.setdefault(f"{r['wall']}, {r['side']}", []).append(point)
+    lines = {}
+    for label, points in samples.items():
+        points.sort()
+        lines[label] = ([x for x, _ in points], [v for _, v in points])
+    return WallIndex(name, Path(run_dir).name, cycle if periodic else None, len(cycles), lines)
+
+
+def title(index: WallIndex) -> str:
+    """The run, the index and what it is averaged over."""
+    over = "the whole run" if index.cycle is None else f"heartbeat {index.cycle}"
+    if index.cycle is not None and index.cycle == index.cycles:
+        over += " (the last in the file)"
+    return f"{index.run}: {INDICES[index.name][1]} along the walls, over {over}"
+
+
+def draw(index: WallIndex, path: Path) -> Path:
+    """Write ``path`` (PNG, PDF or SVG by its suffix): the index against x (mm), one line per
+    wall and side, samples where a value is not finite (RRT where TAWSS is 0) left out."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    check_out(path)
+    _, label, unit = INDICES[index.name]
+    fig, ax = plt.subplots(figsize=(8.0, 3.6), layout="constrained")
+    for k, (wall, (x, y)) in enumerate(sorted(index.lines.items())):
+        shown = [(1e3 * a, b) for a, b in zip(x, y, strict=True) if math.isfinite(b)]
+        ax.plot([a for a, _ in shown], [b for _, b in shown], lw=1.2, color=f"C{k}", label=wall)
+    if index.name == "rrt":
+        ax.set_yscale("log")
+    ax.set_xlabel("x along the axis (mm)")
+    ax.set_ylabel(f"{label} ({unit})" if unit else label)
+    ax.set_title(title(index), fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    save_figure(fig, path)
+    return path
