@@ -367,3 +367,13 @@ def test_a_heartbeat_of_the_wall_indices_is_chosen_with_cycle(shared_tmp, capsys
     with pytest.raises(plot.PlotError, match="--cycle 1: .* is over the whole run"):
         wall_plot.read(run, "tawss", cycle=1)
     MPI.COMM_WORLD.barrier()
+
+
+def test_region_tags_get_one_colour_each_and_other_fields_a_continuous_map():
+    cmap, norm = plot._colours(np.array([3.0, 1.0, 2.0, 3.0]), "tag")
+    assert cmap.N == 3 and [int(norm(tag)) for tag in (1, 2, 3)] == [0, 1, 2]
+    assert len({cmap(k) for k in range(3)}) == 3  # distinct colours
+    cmap, norm = plot._colours(np.array([-1.0, 3.0]), "stress")
+    assert (cmap, norm.vmin, norm.vmax) == ("RdBu_r", -3.0, 3.0)  # signed: zero in the middle
+    cmap, norm = plot._colours(np.array([2.0, 2.0]), "velocity")
+    assert (cmap, norm.vmin, norm.vmax) == ("viridis", 1.0, 3.0)  # never an empty range

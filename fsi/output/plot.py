@@ -460,7 +460,7 @@ def draw(
     label, quantity = FIELDS.get(snapshot.name, (snapshot.name, ""))
     used = np.unique(snapshot.triangles)
     values, shown, unit = _in_unit(snapshot, values, used, quantity)
-    low, high, cmap = _colour_range(shown, quantity)
+    cmap, norm = _colours(shown, quantity)
 
     xy = snapshot.coordinates * 1e3  # mm
     triangulation = mtri.Triangulation(xy[:, 0], xy[:, 1], snapshot.triangles)
@@ -470,11 +470,9 @@ def draw(
         figsize=(9.0, min(max(9.0 * aspect + 1.6, 3.0), 9.0)), layout="constrained"
     )
     if snapshot.center == "node":
-        image = ax.tripcolor(
-            triangulation, values, shading="gouraud", cmap=cmap, vmin=low, vmax=high
-        )
+        image = ax.tripcolor(triangulation, values, shading="gouraud", cmap=cmap, norm=norm)
     else:
-        image = ax.tripcolor(triangulation, facecolors=values, cmap=cmap, vmin=low, vmax=high)
+        image = ax.tripcolor(triangulation, facecolors=values, cmap=cmap, norm=norm)
     if flow is not None:
         _streamlines(ax, flow, lo, hi)
     ax.set_xlim(lo[0], hi[0])
@@ -499,16 +497,24 @@ def _in_unit(
     return values * scale, shown * scale, unit
 
 
-def _colour_range(shown: np.ndarray, quantity: str) -> tuple[float, float, str]:
-    """The colour map's limits and name: symmetric about zero in ``RdBu_r`` for signed values
-    (not region tags), else the values' range in ``viridis``; never an empty range."""
+def _colours(shown: np.ndarray, quantity: str):
+    """The colour map and its normalization: for region tags one distinct colour per tag shown
+    (a discrete bar); signed values symmetric about zero in ``RdBu_r``; else the values' range
+    in ``viridis``; never an empty range."""
+    from matplotlib import colors
+
+    if quantity == "tag":
+        tags = np.unique(np.rint(shown))
+        bounds = np.concatenate([[tags[0] - 0.5], (tags[1:] + tags[:-1]) / 2, [tags[-1] + 0.5]])
+        palette = colors.ListedColormap([f"C{k % 10}" for k in range(len(tags))])
+        return palette, colors.BoundaryNorm(bounds, len(tags))
     low, high = float(np.min(shown)), float(np.max(shown))
     cmap = "viridis"
-    if low < 0.0 < high and quantity != "tag":  # signed: zero in the middle, white
+    if low < 0.0 < high:  # signed: zero in the middle, white
         low, high, cmap = -max(-low, high), max(-low, high), "RdBu_r"
     if low == high:
         low, high = low - 1.0, high + 1.0
-    return low, high, cmap
+    return cmap, colors.Normalize(low, high)
 
 
 def _colour_bar(fig, ax, image, label: str, quantity: str, shown: np.ndarray, wide: bool) -> None:
