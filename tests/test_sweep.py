@@ -12,7 +12,7 @@ from mpi4py import MPI
 
 import pytest
 
-from fsi import cli
+from fsi import cli, config
 from fsi.output import io
 from fsi.run import sweep
 
@@ -336,3 +336,17 @@ def test_an_out_that_is_a_file_exits_2(shared_tmp, capsys):
     MPI.COMM_WORLD.barrier()
     assert sweep_main(CHANNEL, out, "--vary", "fluid.density=1000,1060") == 2
     assert rank0_stderr(capsys) == f"fsi: error: --out: {out} is a file, not a folder\n"
+
+
+def test_sweep_plots_name_the_quantities_and_their_units():
+    """The x-axis names the varied quantity and its unit as the config declares it, the y-axis
+    the headline's quantity (its unit is chosen from the values): not config keys."""
+    case = config.load("configs/stenosis_moving_newtonian.yaml")
+    assert sweep.axis_label(case, "geometry.cap_thickness") == "cap thickness (m)"
+    assert sweep.axis_label(case, "geometry.stenosis_degree") == "stenosis degree"
+    assert sweep.axis_label(case, "fluid.inlet.amplitude") == "inlet amplitude (Pa)"
+    assert sweep.axis_label(case, "structure.cap.young_modulus") == "cap young modulus (Pa)"
+    assert sweep.axis_label(case, "fluid.rheology.viscosity") == "rheology viscosity (Pa s)"
+    assert sweep.axis_label(case, "mesh.level") == "mesh level"
+    labels = [h.label for h in sweep.HEADLINES]
+    assert len(set(labels)) == len(labels) and all("_" not in label for label in labels)

@@ -20,13 +20,13 @@ class StenosisGeometry:
     """The stenosed carotid of docs/model.md §1 (geometry/stenosis.py has the profiles)."""
 
     kind: Literal["stenosis"] = "stenosis"
-    length: float = positive(0.02, " (m)")
-    height: float = positive(0.007, " (m)")
-    wall_thickness: float = positive(0.001, " (m)")
-    stenosis_length: float = positive(0.01, " (m)")
+    length: float = positive(0.02, "m")
+    height: float = positive(0.007, "m")
+    wall_thickness: float = positive(0.001, "m")
+    stenosis_length: float = positive(0.01, "m")
     stenosis_degree: float = open_interval(0.5, 0.0, 1.0)
-    cap_thickness: float = positive(0.0005, " (m)")
-    lipid_length: float = positive(0.006, " (m)")
+    cap_thickness: float = positive(0.0005, "m")
+    lipid_length: float = positive(0.006, "m")
     plaque_sides: tuple[Literal["bottom", "top"], ...] = ("bottom",)
 
 
@@ -35,8 +35,8 @@ class ChannelGeometry:
     """A straight rigid channel for verification cases (geometry/channel.py)."""
 
     kind: Literal["channel"] = "channel"
-    length: float = positive(0.02, " (m)")
-    height: float = positive(0.007, " (m)")
+    length: float = positive(0.02, "m")
+    height: float = positive(0.007, "m")
 
 
 @dataclass(frozen=True)
@@ -47,12 +47,12 @@ class TurekHronGeometry:
     on the cylinder's axis. Defaults are the benchmark's (tip and point A at x = 0.6)."""
 
     kind: Literal["turek_hron"] = "turek_hron"
-    length: float = positive(2.5, " (m)")
-    height: float = positive(0.41, " (m)")
+    length: float = positive(2.5, "m")
+    height: float = positive(0.41, "m")
     cylinder_centre: tuple[float, ...] = (0.2, 0.2)
-    cylinder_radius: float = positive(0.05, " (m)")
-    flag_length: float = positive(0.35, " (m)")
-    flag_thickness: float = positive(0.02, " (m)")
+    cylinder_radius: float = positive(0.05, "m")
+    flag_length: float = positive(0.35, "m")
+    flag_thickness: float = positive(0.02, "m")
 
 
 Geometry = StenosisGeometry | ChannelGeometry | TurekHronGeometry
@@ -72,8 +72,8 @@ class MeshSettings:
     :data:`fsi.config.run_size.BYTES_PER_CELL` each: the default 10⁶ is ~18 GB)."""
 
     level: Literal["coarse", "medium", "fine", "finest"] = "coarse"
-    size: float = positive(6.0e-4, " (m)")
-    local_size: float = positive(2.2e-4, " (m)")
+    size: float = positive(6.0e-4, "m")
+    local_size: float = positive(2.2e-4, "m")
     max_cells: int = at_least(1_000_000, 1)
 
     @property

@@ -21,8 +21,8 @@ class InletPulse:
     """Inlet traction h(t) = (A/2)(1 − cos(2π t / T)) e_x for t ≤ T, 0 after (docs/model.md §2)."""
 
     kind: Literal["traction_pulse"] = "traction_pulse"
-    amplitude: float = positive(1200.0, " (Pa, peak)")
-    duration: float = positive(0.005, " (s)")
+    amplitude: float = positive(1200.0, "Pa", ", peak")
+    duration: float = positive(0.005, "s")
 
 
 def _is_time_formula(text: str) -> bool:
@@ -64,7 +64,7 @@ def _table(value: str) -> Any:
 
 
 def _period() -> Any:
-    return non_negative(0.0, " (s; 0: no repetition)")
+    return non_negative(0.0, "s", "; 0: no repetition")
 
 
 @dataclass(frozen=True)
@@ -105,8 +105,8 @@ class ParabolicInflow:
     (Turek–Hron: ramp_time 2 s; 0 = no ramp). Defaults: Turek–Hron CFD1/FSI1."""
 
     kind: Literal["parabolic_velocity"] = "parabolic_velocity"
-    mean_velocity: float = positive(0.2, " (m/s)")
-    ramp_time: float = non_negative(2.0, " (s)")
+    mean_velocity: float = positive(0.2, "m/s")
+    ramp_time: float = non_negative(2.0, "s")
 
 
 FlowProfile = Literal["parabolic", "womersley"]
@@ -125,7 +125,7 @@ class InletFlowRate:
     formula: str = _formula()
     period: float = _period()
     profile: FlowProfile = "parabolic"
-    ramp_time: float = non_negative(0.0, " (s)")
+    ramp_time: float = non_negative(0.0, "s")
 
 
 @dataclass(frozen=True)
@@ -137,7 +137,7 @@ class InletFlowRateTable:
     table: tuple[tuple[float, ...], ...] = _table("Q")
     period: float = _period()
     profile: FlowProfile = "parabolic"
-    ramp_time: float = non_negative(0.0, " (s)")
+    ramp_time: float = non_negative(0.0, "s")
 
 
 @dataclass(frozen=True)
@@ -149,7 +149,7 @@ class InletFlowRateFile:
     file: str = ""
     period: float = _period()
     profile: FlowProfile = "parabolic"
-    ramp_time: float = non_negative(0.0, " (s)")
+    ramp_time: float = non_negative(0.0, "s")
     table: tuple[tuple[float, ...], ...] = ()  # filled by from_dict, not a YAML key
 
     quantity: ClassVar[str] = "Q"  # the CSV's second column
@@ -202,7 +202,7 @@ class Fluid:
     numbers the Galerkin form cannot, Newtonian and generalized Newtonian.
     """
 
-    density: float = positive(1060.0, " (kg/m^3)")
+    density: float = positive(1060.0, "kg/m^3")
     rheology: Rheology = field(default_factory=Newtonian)
     inlet: Inlet = field(default_factory=InletPulse)
     outlet: Outlet = field(default_factory=TractionFreeOutlet)

@@ -44,7 +44,7 @@ class ResistanceOutlet:
     fsi.physics.fluid_residual.LumpedOutlet). No state."""
 
     kind: Literal["resistance"] = field(default="resistance", kw_only=True)
-    resistance: float = non_negative(0.0, " (Pa s/m^2)")
+    resistance: float = non_negative(0.0, "Pa s/m^2")
     reference_pressure: float = 0.0
     backflow_stabilization: float = non_negative(1.0)
     backflow_form: BackflowForm = "tangential"
@@ -81,9 +81,9 @@ class WindkesselOutlet:
     """
 
     kind: Literal["windkessel"] = field(default="windkessel", kw_only=True)
-    proximal_resistance: float = non_negative(0.0, " (Pa s/m^2)")
-    distal_resistance: float = positive(1.0e6, " (Pa s/m^2)")
-    compliance: float = positive(1.0e-7, " (m^2/Pa)")
+    proximal_resistance: float = non_negative(0.0, "Pa s/m^2")
+    distal_resistance: float = positive(1.0e6, "Pa s/m^2")
+    compliance: float = positive(1.0e-7, "m^2/Pa")
     initial_pressure: float = 0.0
     reference_pressure: float = 0.0
     backflow_stabilization: float = non_negative(1.0)

@@ -172,24 +172,32 @@ def _finite(value: Any) -> bool:
     return not isinstance(value, float) or math.isfinite(value)
 
 
-def checked(default: Any, check: typing.Callable[[Any], bool], expected: str) -> Any:
+def checked(
+    default: Any, check: typing.Callable[[Any], bool], expected: str, unit: str = ""
+) -> Any:
     """A dataclass field with a range check and the words that describe the allowed range.
 
     ``check`` returns whether a value is allowed; it may instead raise ``ValueError`` whose
     ``reason`` (or message) is added to the error. A non-finite number is refused before
-    ``check`` sees it, with ``expected`` as "a finite ...".
+    ``check`` sees it, with ``expected`` as "a finite ...". ``unit`` is the value's unit
+    (:func:`unit_of`), shown in the message after ``expected``.
     """
-    return field(default=default, metadata={"check": check, "expected": expected})
+    return field(default=default, metadata={"check": check, "expected": expected, "unit": unit})
 
 
-def positive(default: float, unit: str = "") -> Any:
-    """A :func:`checked` field whose value must be > 0 (``unit`` shown in the message)."""
-    return checked(default, lambda v: v > 0, f"a positive number{unit}")
+def _with_unit(expected: str, unit: str) -> str:
+    return f"{expected} ({unit})" if unit else expected
 
 
-def non_negative(default: float, unit: str = "") -> Any:
-    """A :func:`checked` field whose value must be >= 0."""
-    return checked(default, lambda v: v >= 0, f"a number >= 0{unit}")
+def positive(default: float, unit: str = "", note: str = "") -> Any:
+    """A :func:`checked` field whose value must be > 0, in ``unit`` (``note`` follows it in
+    the message)."""
+    return checked(default, lambda v: v > 0, _with_unit("a positive number", unit + note), unit)
+
+
+def non_negative(default: float, unit: str = "", note: str = "") -> Any:
+    """A :func:`checked` field whose value must be >= 0, in ``unit``."""
+    return checked(default, lambda v: v >= 0, _with_unit("a number >= 0", unit + note), unit)
 
 
 def at_least(default: int, low: int) -> Any:
@@ -198,8 +206,24 @@ def at_least(default: int, low: int) -> Any:
 
 
 def open_interval(default: float, low: float, high: float, unit: str = "") -> Any:
-    """A :func:`checked` field whose value must lie in (``low``, ``high``)."""
-    return checked(default, lambda v: low < v < high, f"a number in ({low}, {high}){unit}")
+    """A :func:`checked` field whose value must lie in (``low``, ``high``), in ``unit``."""
+    expected = _with_unit(f"a number in ({low}, {high})", unit)
+    return checked(default, lambda v: low < v < high, expected, unit)
+
+
+def unit_of(section: Any, key: str) -> str:
+    """The unit of the number at dotted ``key`` below the dataclass instance ``section`` (e.g.
+    a Case and ``geometry.cap_thickness`` → "m"), as its field declares it; "" for a number
+    without a unit or a key that is not such a field."""
+    *parents, name = key.split(".")
+    for part in parents:
+        section = getattr(section, part, None)
+    if not dataclasses.is_dataclass(section):
+        return ""
+    for f in dataclasses.fields(section):
+        if f.name == name:
+            return f.metadata.get("unit", "")
+    return ""
 
 
 def read_case_file(path: str | Path) -> dict:

@@ -35,7 +35,7 @@ class Newtonian:
     """μ(s) = μ (``viscosity``)."""
 
     model: Literal["newtonian"] = _tag("newtonian")
-    viscosity: float = positive(0.0035, " (Pa s)")
+    viscosity: float = positive(0.0035, "Pa s")
 
     def mu(self, s):
         """μ (Pa s): a UFL constant for a UFL ``s``, else an array shaped like ``s``."""
@@ -58,9 +58,9 @@ class PlateauLaw:
     law's (docs/model.md §2); the other two laws have their own."""
 
     model: str = field(kw_only=True)
-    mu_0: float = positive(0.0456, " (Pa s)")
-    mu_inf: float = positive(0.0032, " (Pa s)")
-    relaxation_time: float = positive(10.03, " (s)")
+    mu_0: float = positive(0.0456, "Pa s")
+    mu_inf: float = positive(0.0032, "Pa s")
+    relaxation_time: float = positive(10.03, "s")
 
     @property
     def reference_viscosity(self) -> float:
@@ -88,9 +88,9 @@ class CarreauYasuda(PlateauLaw):
     Carreau). Defaults: blood (Cho & Kensey 1991, as used by Johnston et al. 2004)."""
 
     model: Literal["carreau_yasuda"] = _tag("carreau_yasuda")
-    mu_0: float = positive(0.056, " (Pa s)")
-    mu_inf: float = positive(0.00345, " (Pa s)")
-    relaxation_time: float = positive(1.902, " (s)")
+    mu_0: float = positive(0.056, "Pa s")
+    mu_inf: float = positive(0.00345, "Pa s")
+    relaxation_time: float = positive(1.902, "s")
     power_index: float = positive(0.22)
     yasuda_exponent: float = positive(1.25)
 
@@ -106,9 +106,9 @@ class Cross(PlateauLaw):
     al. 2004)."""
 
     model: Literal["cross"] = _tag("cross")
-    mu_0: float = positive(0.0364, " (Pa s)")
-    mu_inf: float = positive(0.0035, " (Pa s)")
-    relaxation_time: float = positive(0.38, " (s)")
+    mu_0: float = positive(0.0364, "Pa s")
+    mu_inf: float = positive(0.0035, "Pa s")
+    relaxation_time: float = positive(0.38, "s")
     exponent: float = positive(1.45)
 
     def mu(self, s):
@@ -126,9 +126,9 @@ class PowerLaw:
     Johnston et al. (2004); s0 = 0.0169 1/s puts μ(0) at their cap of 0.056 Pa s."""
 
     model: Literal["power_law"] = _tag("power_law")
-    consistency: float = positive(0.017, " (Pa s^n)")
+    consistency: float = positive(0.017, "Pa s^n")
     power_index: float = positive(0.708)
-    shear_rate_floor: float = positive(0.0169, " (1/s)")
+    shear_rate_floor: float = positive(0.0169, "1/s")
 
     def mu(self, s):
         """μ(s) (Pa s) at the shear rate ``s`` (1/s): a number, an array or a UFL expression."""
@@ -154,9 +154,9 @@ class Casson:
     3.5 mPa s) and m = 100 s."""
 
     model: Literal["casson"] = _tag("casson")
-    viscosity: float = positive(0.0035, " (Pa s)")
-    yield_stress: float = positive(0.005, " (Pa)")
-    regularization: float = positive(100.0, " (s)")
+    viscosity: float = positive(0.0035, "Pa s")
+    yield_stress: float = positive(0.005, "Pa")
+    regularization: float = positive(100.0, "s")
 
     def mu(self, s):
         """μ(s) (Pa s) at the shear rate ``s`` (1/s): a number, an array or a UFL expression."""

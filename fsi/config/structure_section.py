@@ -23,25 +23,25 @@ class Material:
     angular frequency ω gets the damping ratio ζ = ωτ/2; 0 (the default) is purely elastic."""
 
     law: Literal["svk", "neo_hookean"] = "svk"
-    density: float = positive(1200.0, " (kg/m^3)")
-    young_modulus: float = positive(1.6e6, " (Pa)")
+    density: float = positive(1200.0, "kg/m^3")
+    young_modulus: float = positive(1.6e6, "Pa")
     poisson_ratio: float = open_interval(0.45, -1.0, 0.5)
-    viscous_relaxation_time: float = non_negative(0.0, " (s)")
+    viscous_relaxation_time: float = non_negative(0.0, "s")
 
 
 @dataclass(frozen=True)
 class WallMaterial(Material):
     """The vessel wall's defaults (E = 4 MPa); keys not given keep these, not the plaque's."""
 
-    young_modulus: float = positive(4.0e6, " (Pa)")
+    young_modulus: float = positive(4.0e6, "Pa")
 
 
 @dataclass(frozen=True)
 class FlagMaterial(Material):
     """The Turek–Hron flag's defaults (CSM1/FSI1: ρ 1000, μs 0.5 MPa → E 1.4 MPa, ν 0.4)."""
 
-    density: float = positive(1000.0, " (kg/m^3)")
-    young_modulus: float = positive(1.4e6, " (Pa)")
+    density: float = positive(1000.0, "kg/m^3")
+    young_modulus: float = positive(1.4e6, "Pa")
     poisson_ratio: float = open_interval(0.4, -1.0, 0.5)
 
 
@@ -81,8 +81,8 @@ class TissueSupport:
     inert in ``fixed_wall``, where the wall is held); the Turek–Hron flag has no ΓN and
     ignores it (with a warning)."""
 
-    stiffness: float = non_negative(0.0, " (Pa/m)")
-    damping: float = non_negative(0.0, " (Pa s/m)")
+    stiffness: float = non_negative(0.0, "Pa/m")
+    damping: float = non_negative(0.0, "Pa s/m")
 
 
 @dataclass(frozen=True)

@@ -15,8 +15,8 @@ from fsi.config.reader import at_least, checked, non_negative, positive
 class TimeSegment:
     """Steps of ``dt`` until time ``until`` (the last step of a segment ends exactly on it)."""
 
-    until: float = positive(0.4, " (s)")
-    dt: float = positive(5.0e-3, " (s)")
+    until: float = positive(0.4, "s")
+    dt: float = positive(5.0e-3, "s")
 
 
 @dataclass(frozen=True)
@@ -36,10 +36,10 @@ class AdaptiveStepping:
     """
 
     tolerance: float = positive(1.0e-3)
-    first_dt: float = positive(1.0e-4, " (s)")
-    min_dt: float = positive(1.0e-7, " (s)")
-    velocity_scale: float = non_negative(0.0, " (m/s)")
-    displacement_scale: float = non_negative(0.0, " (m)")
+    first_dt: float = positive(1.0e-4, "s")
+    min_dt: float = positive(1.0e-7, "s")
+    velocity_scale: float = non_negative(0.0, "m/s")
+    displacement_scale: float = non_negative(0.0, "m")
 
 
 MAX_CYCLES = 1000
@@ -63,7 +63,7 @@ class Time:
     as written. docs/configuration.md has the details.
     """
 
-    end: float = positive(0.8, " (s)")
+    end: float = positive(0.8, "s")
     scheme: Literal["backward_euler", "bdf2", "steady"] = "bdf2"
     schedule: tuple[TimeSegment, ...] = (TimeSegment(0.4, 5.0e-3), TimeSegment(0.8, 1.0e-2))
     step_control: Literal["schedule", "adaptive"] = "schedule"

@@ -28,6 +28,7 @@ from mpi4py import MPI
 import yaml
 
 from fsi import config
+from fsi.config import reader
 from fsi.output import io, units
 from fsi.run import checkpoint
 
@@ -454,6 +455,7 @@ class Headline:
     ``source``, or (``how="summary"``) summary.json's key ``source``."""
 
     name: str
+    label: str  # the quantity's short name on a plot's axis
     quantity: str
     meaning: str
     source: str
@@ -464,6 +466,7 @@ class Headline:
 HEADLINES = (
     Headline(
         "max_principal_cap",
+        "peak cap stress (max principal)",
         "stress",
         "peak cap stress: the fibrous cap's largest principal Cauchy stress, max over the run",
         "max_principal_cap",
@@ -472,6 +475,7 @@ HEADLINES = (
     ),
     Headline(
         "max_sss",
+        "max |σ₁₂| in the structure",
         "stress",
         "the structure's largest |σ₁₂| (structural shear stress), max over the run",
         "max_sss",
@@ -480,16 +484,23 @@ HEADLINES = (
     ),
     Headline(
         "min_wss",
+        "min wall shear stress",
         "stress",
         "the smallest signed wall shear stress over the run (negative: reversed flow)",
         "min_wss",
         "min",
     ),
     Headline(
-        "max_wss", "stress", "the largest signed wall shear stress over the run", "max_wss", "max"
+        "max_wss",
+        "max wall shear stress",
+        "stress",
+        "the largest signed wall shear stress over the run",
+        "max_wss",
+        "max",
     ),
     Headline(
         "min_tawss",
+        "min TAWSS",
         "stress",
         "the smallest time-averaged wall shear stress along the lumen's walls (summary.json)",
         "min_tawss",
@@ -497,6 +508,7 @@ HEADLINES = (
     ),
     Headline(
         "max_osi",
+        "max OSI",
         "count",
         "the largest oscillatory shear index along the lumen's walls (summary.json)",
         "max_osi",
@@ -504,6 +516,7 @@ HEADLINES = (
     ),
     Headline(
         "max_recirculation_length",
+        "max recirculation length",
         "length",
         "the longest reversed-flow zone along either wall, max over the run",
         "recirculation_length",
@@ -511,6 +524,7 @@ HEADLINES = (
     ),
     Headline(
         "peak_displacement",
+        "peak displacement",
         "displacement",
         "the structure's largest |η|, max over the run",
         "peak_displacement",
@@ -519,6 +533,7 @@ HEADLINES = (
     ),
     Headline(
         "peak_inlet_flow_rate",
+        "peak inlet flow rate",
         "flow_rate",
         "the largest inlet flow rate per unit depth over the run (positive downstream)",
         "inlet_flow_rate",
@@ -663,6 +678,18 @@ def _numeric(case: config.Case, key: str) -> float | None:
     return float(node)
 
 
+def axis_label(case: config.Case, key: str) -> str:
+    """A varied key as a quantity with its unit: the key's last part in words, after its
+    section's name unless that is ``geometry`` (whose names say what they are), e.g.
+    ``geometry.cap_thickness`` → "cap thickness (m)", ``fluid.inlet.amplitude`` → "inlet
+    amplitude (Pa)", ``structure.cap.young_modulus`` → "cap young modulus (Pa)"."""
+    parts = key.split(".")
+    words = parts[-1:] if parts[0] == "geometry" or len(parts) == 1 else parts[-2:]
+    text = " ".join(words).replace("_", " ")
+    unit = reader.unit_of(case, key)
+    return f"{text} ({unit})" if unit else text
+
+
 def write_plots(
     runs: Sequence[SweepRun],
     variations: Sequence[Variation],
@@ -692,8 +719,8 @@ def write_plots(
         figure, axes = plt.subplots(1, len(panels), figsize=(5.0 * len(panels), 3.8), squeeze=False)
         for axis, panel in zip(axes[0], panels, strict=True):
             _panel(axis, panel, runs, variations, table, h.name, unit.scale)
-            axis.set_xlabel(variations[panel].key)
-            axis.set_ylabel(f"{h.name} ({unit.name})" if unit.name else h.name)
+            axis.set_xlabel(axis_label(runs[0].case, variations[panel].key))
+            axis.set_ylabel(f"{h.label} ({unit.name})" if unit.name else h.label)
             axis.grid(True, alpha=0.3)
         figure.suptitle(h.meaning, fontsize=9)
         figure.tight_layout()
