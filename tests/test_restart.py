@@ -467,6 +467,50 @@ def test_a_checkpoint_of_another_mesh_is_refused_before_writing(rigid, shared_tm
     assert "fluid_velocity: " in err and "dofs of this run are not in the checkpoint" in err
 
 
+def test_a_restart_cannot_shorten_the_run(rigid, shared_tmp, capsys):
+    """The split run's checkpoint is at t = 4 ms: a restart ending at 3 ms is refused, in its
+    own folder too, which is left as it was (its config.yaml keeps the 4 ms end); ending at
+    4 ms (nothing left to do: a run stopped before its summary) is allowed."""
+    split = rigid["split"]
+    out = shared_tmp / "shorter"
+    assert fsi_run(RIGID, out, [*RIGID_SET, "time.end=0.003"], restart=split) == 2
+    assert "the checkpoint is at t = 0.004 s, after the configuration's end (0.003 s)" in (
+        stderr(capsys)
+    )
+    assert not out.exists()
+    source = copy_checkpoint(rigid, shared_tmp)
+    if MPI.COMM_WORLD.rank == 0:
+        shutil.copy(split / "config.yaml", source / "config.yaml")
+    MPI.COMM_WORLD.barrier()
+    before = (source / "config.yaml").read_text()
+    assert fsi_run(RIGID, source, [*RIGID_SET, "time.end=0.003"], restart=source) == 2
+    assert "cannot shorten it (raise time.end)" in stderr(capsys)
+    assert (source / "config.yaml").read_text() == before
+    assert fsi_run(RIGID, source, [*RIGID_SET, "time.end=0.004"], restart=source) == 0
+
+
+def test_a_restart_with_another_heartbeat_period_is_refused(shared_tmp, capsys):
+    """A run with a periodic inlet (period 2 ms), 2 steps; a restart with period 2.5 ms would
+    put the heartbeats of the rows and indices already written elsewhere: refused, naming the
+    key and both periods; the same period continues."""
+
+    def inlet(period: float) -> str:
+        table = "[[0.0, 0.0], [0.001, 100.0], [0.0025, 0.0]]"
+        return f"fluid.inlet={{kind: pressure_table, table: {table}, period: {period}}}"
+
+    steps = ["structure.mode=rigid", "time.schedule=[{until: 0.004, dt: 0.001}]", EVERY_STEP]
+    run = shared_tmp / "periodic"
+    assert fsi_run(RIGID, run, [*steps, inlet(0.002), "time.end=0.002"]) == 0
+    out = shared_tmp / "other_period"
+    assert fsi_run(RIGID, out, [*steps, inlet(0.0025), "time.end=0.004"], restart=run) == 2
+    err = stderr(capsys)
+    assert "fluid.inlet.period: the run being continued has 0.002 s" in err
+    assert "the configuration 0.0025 s" in err
+    assert not out.exists()
+    assert fsi_run(RIGID, run, [*steps, inlet(0.002), "time.end=0.004"], restart=run) == 0
+    assert [int(r["cycle"]) for r in rows(run)] == [1, 1, 2, 2]
+
+
 # --------------------------------------------------------------------------------------------
 # A checkpoint's contents and the rows it keeps are checked before anything is written (exit 2)
 

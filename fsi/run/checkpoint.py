@@ -127,6 +127,34 @@ def check_metadata(meta: dict, case: config.Case, source: Path) -> None:
         )
 
 
+def check_continuation(meta: dict, case: config.Case, source: Path, run_dir: Path) -> None:
+    """Raise :class:`CheckpointError` unless ``case`` continues the run: its end is not before
+    the checkpoint's time (the run folder would then describe a run shorter than its data),
+    and its inlet's period is the one the run used (its ``config.yaml``, when readable): a new
+    period would start the heartbeats of metrics.csv's ``cycle``, summary.json's ``cycles``
+    and wall_indices.csv's blocks at other times than those already written."""
+    t, end = float(meta["t"]), config.run_time(case).end
+    if t > end * (1 + 1e-9):
+        raise CheckpointError(
+            f"{source}: t: the checkpoint is at t = {t:.6g} s, after the configuration's end "
+            f"({end:.6g} s): a restart continues a run, it cannot shorten it (raise time.end)"
+        )
+    try:
+        written = reader.parse_yaml((run_dir / "config.yaml").read_text())
+        inlet = written["fluid"]["inlet"]
+        before = float(inlet.get("period", 0.0)) if isinstance(inlet, dict) else 0.0
+    except (OSError, ValueError, KeyError, TypeError, yaml.YAMLError):
+        return
+    now = config.heartbeat_period(case)
+    if abs(before - now) > 1e-12 * max(before, now):
+        raise CheckpointError(
+            f"{source}: fluid.inlet.period: the run being continued has {before:g} s "
+            f"({run_dir / 'config.yaml'}), the configuration {now:g} s; its heartbeats "
+            "(metrics.csv's cycle, summary.json's cycles, wall_indices.csv) would start at "
+            "other times (start a new run instead)"
+        )
+
+
 def check_position(meta: dict, source: Path) -> None:
     """Raise :class:`CheckpointError` (naming ``source`` and the key) unless checkpoint.json's
     ``step`` is a whole number >= 0, ``t`` a finite number >= 0 (0 at step 0), ``dt`` and
@@ -430,8 +458,9 @@ def locate(path: Path) -> tuple[Path, Path]:
 
 def read(path: Path, case: config.Case, comm: MPI.Comm) -> Checkpoint:
     """Find the checkpoint of ``path`` (:func:`locate`), check it against ``case``
-    (:func:`check_metadata`), check its step, time and files (:func:`check_position`) and that
-    the run folder's metrics.csv holds the rows a restart keeps (:func:`check_metrics`), read
+    (:func:`check_metadata`), check its step, time and files (:func:`check_position`), that
+    the run folder's metrics.csv holds the rows a restart keeps (:func:`check_metrics`) and
+    that ``case`` continues the run (:func:`check_continuation`), read
     its rank files (every rank reads all of them) and check their arrays
     (:func:`check_arrays`). Writes nothing. Collective; raises :class:`CheckpointError` on every
     rank, naming the file and the key (or line), when anything is wrong."""
@@ -452,6 +481,7 @@ def read(path: Path, case: config.Case, comm: MPI.Comm) -> Checkpoint:
                     f"{folder / missing[0]}: missing (the checkpoint is incomplete)"
                 )
             check_metrics(meta, source, run_dir / "metrics.csv")
+            check_continuation(meta, case, source, run_dir)
         except CheckpointError as e:
             message = str(e)
     message, meta, folder, run_dir = comm.bcast((message, meta, folder, run_dir), root=0)
