@@ -753,7 +753,7 @@ def _report(args: argparse.Namespace) -> int:
     if comm.rank == 0:  # reading and plotting a few files: rank 0 alone
         try:
             report.check_times(args.times)
-            runs = [report.load_run(path) for path in args.runs]
+            runs = report.load_runs(args.runs)
         except report.ReportError as e:
             print(f"fsi: error: {e}", file=sys.stderr)
             status = EXIT_USAGE

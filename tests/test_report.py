@@ -532,3 +532,33 @@ def test_runs_with_heartbeats_have_them_marked_and_said(folder):
     assert (
         "Dotted vertical lines" not in report.write(plain, folder / "plain_report")[0].read_text()
     )
+
+
+def test_runs_in_folders_of_the_same_name_are_told_apart(folder, capsys):
+    """``fsi report A/run B/run``: each run is named with as many parent folders as it takes,
+    in the tables, the legends and the pictures' file names (none written over another)."""
+    assert report.unique_names([Path("x/A/run"), Path("x/B/run"), Path("y/other")]) == [
+        "A/run",
+        "B/run",
+        "other",
+    ]
+    assert report.unique_names([Path("x/A/run"), Path("x/A/run")]) == ["run", "run"]  # the same
+    paths = []
+    for parent, stress in (("A", 300.0), ("B", 600.0)):
+        run = synthetic_run(
+            folder / parent / "run", stenosis_case("fixed_wall"), study_columns(stress, 5e-6, 0.0)
+        )
+        (run / "wall_indices.csv").write_text(
+            f"wall,side,x,y,TAWSS,OSI,RRT\ninterface,lower,0.0,0,{stress / 100},0.1,1\n"
+            f"interface,lower,0.001,0,{stress / 50},0.2,1\n"
+        )
+        paths.append(run)
+    out = folder / "same_names"
+    assert cli.main(["report", *map(str, paths), "--out", str(out)]) == 0
+    if MPI.COMM_WORLD.rank == 0:  # the report is rank 0's (each rank made its own folders)
+        text = (out / "report.md").read_text()
+        assert "| A/run (fixed_wall, newtonian, coarse) |" in text
+        assert "| B/run (fixed_wall, newtonian, coarse) |" in text
+        for name in ("A_run_tawss.png", "B_run_tawss.png", "A_run_osi.png", "B_run_osi.png"):
+            assert (out / name).is_file() and f"![{name}]({name})" in text
+        assert "A/run: time-averaged wall shear stress" in text

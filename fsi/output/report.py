@@ -10,6 +10,7 @@ tables. ``report.md`` lists every picture with a caption line.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import math
@@ -47,12 +48,46 @@ class Run:
     case: config.Case
     rows: list[dict[str, float]]
     summary: dict
+    name: str = ""  # unique among the runs of a report (load_runs); default the folder's name
 
     @property
     def label(self) -> str:
-        """The run's name in tables and legends: its folder, mode, rheology and mesh level."""
+        """The run's name in tables and legends: its name, mode, rheology and mesh level."""
         c = self.case
-        return f"{self.path.name} ({c.structure.mode}, {c.fluid.rheology.model}, {c.mesh.level})"
+        return f"{self.title} ({c.structure.mode}, {c.fluid.rheology.model}, {c.mesh.level})"
+
+    @property
+    def title(self) -> str:
+        """The run's name: :attr:`name`, or its folder's."""
+        return self.name or self.path.name
+
+    @property
+    def stem(self) -> str:
+        """The run's name as the start of a file name (``/`` → ``_``)."""
+        return self.title.replace("/", "_")
+
+
+def unique_names(paths: Sequence[Path]) -> list[str]:
+    """A name for each run folder, unique among them unless two are the same folder: its
+    folder name, with as many parent folders as it takes (``A/run`` and ``B/run``)."""
+    resolved = [Path(p).resolve() for p in paths]
+    distinct = set(resolved)
+    names = []
+    for path in resolved:
+        for k in range(1, len(path.parts) + 1):
+            tail = path.parts[-k:]
+            if all(other.parts[-k:] != tail for other in distinct if other != path):
+                break
+        names.append("/".join(tail))
+    return names
+
+
+def load_runs(paths: Sequence[Path]) -> list[Run]:
+    """:func:`load_run` of each path, named by :func:`unique_names`."""
+    return [
+        dataclasses.replace(load_run(path), name=name)
+        for path, name in zip(paths, unique_names(paths), strict=True)
+    ]
 
 
 def load_run(path: Path) -> Run:
@@ -408,7 +443,7 @@ def inlet_pressure_groups(runs: Sequence[Run]) -> list[Group]:
             except boundary_data.FormulaError:
                 continue
             t.append(time)
-        label = f"{', '.join(run.path.name for run in sharing)}: {_describe(inlet)}"
+        label = f"{', '.join(run.title for run in sharing)}: {_describe(inlet)}"
         groups.append(Group(label, len(groups), [Line(label, t, y)]))
     return groups
 
@@ -699,9 +734,9 @@ def wall_index_pictures(
         if not (run.path / "wall_indices.csv").is_file():
             continue
         for name in ("tawss", "osi"):
-            path = out / f"{run.path.name}_{name}.{picture}"
+            path = out / f"{run.stem}_{name}.{picture}"
             try:
-                index = wall_plot.read(run.path, name)
+                index = dataclasses.replace(wall_plot.read(run.path, name), run=run.title)
                 wall_plot.draw(index, path)
             except plot.PlotError as e:
                 log.warning("fsi report: no %s: %s", path.name, e)
@@ -738,7 +773,7 @@ def snapshots(
             for t in report_times:
                 if t > last * (1 + 1e-9):
                     continue
-                path = out / f"{run.path.name}_{field}_t{t:g}.{picture}"
+                path = out / f"{run.stem}_{field}_t{t:g}.{picture}"
                 try:
                     plot.field_snapshot(run.path, field, t, path, **options)
                 except plot.PlotError as e:  # a run written before the field existed
