@@ -466,8 +466,10 @@ def _run_checked(request: RunRequest, case: config.Case, restart, comm: MPI.Comm
 
     at_once = False  # a second interrupt: the ranks may be anywhere, no collective after it
     try:
-        with _StopOnSignal() as stop:
+        with io.RunLock(comm, request.out), _StopOnSignal() as stop:
             result = simulation.run(case, request.out, comm, restart, stop)
+    except io.RunFolderError as e:  # another run holds --out
+        return _refused(comm, f"--out: {e}")
     except checkpoint.CheckpointError as e:
         return _refused(comm, f"--restart: {e}")
     except errors.RunStopped as e:

@@ -265,3 +265,24 @@ def test_an_empty_out_is_refused(command, shared_tmp, monkeypatch, capsys):
     assert cli.main([*absolute, "--out", ""]) == 2
     assert "argument --out: expected a path, not an empty string" in capsys.readouterr().err
     assert list(here.iterdir()) == []
+
+
+def test_a_second_run_into_a_folder_being_written_is_refused(shared_tmp, capsys):
+    """While a run holds ``--out`` (its ``run.lock``), another ``fsi run`` into it, even with
+    ``--overwrite``, is refused with exit 2 naming the holder's process id, and writes nothing;
+    once the holder lets go, the folder can be written."""
+    import os
+
+    out = shared_tmp / "busy"
+    short = ["--set", "structure.mode=rigid", "--set", "time.end=0.001"]
+    holder = MPI.COMM_WORLD.bcast(os.getpid())
+    with io.RunLock(MPI.COMM_WORLD, out):
+        capsys.readouterr()
+        for extra in ([], ["--overwrite"]):
+            assert cli.main(["run", CASE, "--out", str(out), *short, *extra]) == 2
+            if MPI.COMM_WORLD.rank == 0:
+                err = capsys.readouterr().err
+                assert f"is being written by another fsi run (process {holder}," in err, err
+        assert sorted(p.name for p in out.iterdir()) == ["run.lock"]
+    assert cli.main(["run", CASE, "--out", str(out), *short]) == 0
+    assert (out / "summary.json").is_file()

@@ -491,6 +491,56 @@ def remove_run_files(out: Path) -> None:
             path.unlink()
 
 
+LOCK_FILE = "run.lock"
+"""The file in ``--out`` that a run holds an exclusive lock on (flock) for its whole life, with
+its process id in it. Left in place when the run ends (never deleted: a deleted lock file would
+let two runs lock two different files)."""
+
+
+class RunLock:
+    """``with RunLock(comm, out):`` holds ``out/run.lock`` (:data:`LOCK_FILE`) for the block:
+    rank 0 makes ``out`` and takes the lock without waiting. Raises :class:`RunFolderError` on
+    every rank, naming the holder's process id, when another process holds it or the file
+    cannot be made. Collective."""
+
+    def __init__(self, comm: MPI.Comm, out: Path):
+        self.comm, self.path, self._fd = comm, Path(out) / LOCK_FILE, None
+
+    def __enter__(self) -> RunLock:
+        import fcntl
+
+        message = ""
+        if self.comm.rank == 0:
+            try:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as e:
+                message, fd = f"{self.path}: cannot be made ({_describe_error(e)})", None
+        if self.comm.rank == 0 and fd is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "unknown"
+                os.close(fd)
+                message = (
+                    f"{self.path.parent} is being written by another fsi run (process {holder}, "
+                    f"which holds {self.path}); wait for it, or choose another --out"
+                )
+            else:
+                os.ftruncate(fd, 0)
+                os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+                self._fd = fd
+        message = self.comm.bcast(message, root=0)
+        if message:
+            raise RunFolderError(message)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._fd is not None:
+            os.close(self._fd)  # releases the lock
+            self._fd = None
+
+
 def check_folder(comm: MPI.Comm, out: Path, *, earlier_run: bool = False) -> None:
     """Check, before any computation and without writing anything, that ``out`` can take the
     output: a folder, or a path where one can be made, writable by this process (a read-only
