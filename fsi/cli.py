@@ -314,6 +314,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = _parser().parse_args(argv)
     except SystemExit as e:  # argparse has printed the message; --help exits 0
         return int(e.code or 0)
+    try:
+        return _command(args, comm)
+    except KeyboardInterrupt:  # Ctrl-C outside a run's steps (those stop at a step's end)
+        print("fsi: interrupted", file=sys.stderr, flush=True)
+        return 128 + signal.SIGINT
+
+
+def _command(args: argparse.Namespace, comm: MPI.Comm) -> int:
+    """Run the parsed command; its exit status."""
     if args.command == "report":
         return _report(args)
     if args.command == "plot":
@@ -755,6 +764,7 @@ def _report(args: argparse.Namespace) -> int:
     if comm.rank == 0:  # reading and plotting a few files: rank 0 alone
         try:
             report.check_times(args.times)
+            report.check_out(args.out)
             runs = report.load_runs(args.runs)
         except report.ReportError as e:
             print(f"fsi: error: {e}", file=sys.stderr)

@@ -286,3 +286,51 @@ def test_a_second_run_into_a_folder_being_written_is_refused(shared_tmp, capsys)
         assert sorted(p.name for p in out.iterdir()) == ["run.lock"]
     assert cli.main(["run", CASE, "--out", str(out), *short]) == 0
     assert (out / "summary.json").is_file()
+
+
+def test_paths_that_cannot_hold_the_output_exit_2_not_4(shared_tmp, capsys):
+    """A dangling symbolic link as ``--out``, and ``fsi report --out`` at a file or below one:
+    exit 2 naming the path and what is wrong (not 4, "could not write"), nothing written.
+    ``--overwrite`` with a symbolic link among the earlier run's files removes the link and
+    leaves what it points to alone."""
+    import os
+
+    comm = MPI.COMM_WORLD
+    short = ["--set", "structure.mode=rigid", "--set", "time.end=0.001"]
+    dangling = shared_tmp / "dangling"
+    if comm.rank == 0:
+        os.symlink(shared_tmp / "nowhere", dangling)
+    comm.barrier()
+    capsys.readouterr()
+    assert cli.main(["run", CASE, "--out", str(dangling), *short]) == 2
+    if comm.rank == 0:
+        assert (
+            f"--out: {dangling} is a symbolic link to {shared_tmp / 'nowhere'}, which does not "
+            "exist" in capsys.readouterr().err
+        )
+    assert not (shared_tmp / "nowhere").exists()
+    run = shared_tmp / "run"
+    assert cli.main(["run", CASE, "--out", str(run), *short]) == 0
+    for out, what in (
+        (run / "metrics.csv", f"--out {run / 'metrics.csv'}: is a file, not a folder"),
+        (
+            run / "metrics.csv" / "r",
+            f"--out {run / 'metrics.csv' / 'r'}: {run / 'metrics.csv'} is a",
+        ),
+    ):
+        capsys.readouterr()
+        assert cli.main(["report", str(run), "--out", str(out)]) == 2
+        if comm.rank == 0:
+            assert f"fsi: error: {what}" in capsys.readouterr().err
+    # --overwrite: the earlier run's checkpoint is a link to another run's: the link goes.
+    other = shared_tmp / "other"
+    assert cli.main(["run", CASE, "--out", str(other), *short]) == 0
+    if comm.rank == 0:
+        import shutil
+
+        shutil.rmtree(run / "checkpoint")
+        os.symlink(other / "checkpoint", run / "checkpoint")
+    comm.barrier()
+    assert cli.main(["run", CASE, "--out", str(run), "--overwrite", *short]) == 0
+    assert not (run / "checkpoint").is_symlink() and (other / "checkpoint").is_dir()
+    assert (other / "checkpoint" / "checkpoint.json").is_file()

@@ -350,3 +350,20 @@ def test_sweep_plots_name_the_quantities_and_their_units():
     assert sweep.axis_label(case, "mesh.level") == "mesh level"
     labels = [h.label for h in sweep.HEADLINES]
     assert len(set(labels)) == len(labels) and all("_" not in label for label in labels)
+
+
+def test_ctrl_c_while_a_sweep_is_validated_is_one_line_and_exit_130(
+    shared_tmp, capsys, monkeypatch
+):
+    """Ctrl-C outside a run's steps (here while the sweep's runs are validated): one line, no
+    traceback, exit status 128 + SIGINT, nothing written."""
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sweep, "plan", interrupted)
+    out = shared_tmp / "interrupted"
+    capsys.readouterr()
+    assert sweep_main(STENOSIS, out, "--vary", "geometry.stenosis_degree=0.4,0.5") == 130
+    assert capsys.readouterr().err == "fsi: interrupted\n"
+    assert not out.exists()

@@ -483,9 +483,10 @@ def run_files(out: Path) -> list[Path]:
 
 
 def remove_run_files(out: Path) -> None:
-    """Delete an earlier run's :data:`RUN_FILES` from ``out`` (nothing else)."""
+    """Delete an earlier run's :data:`RUN_FILES` from ``out`` (nothing else; a symbolic link
+    among them is removed itself, what it points to is left alone)."""
     for path in run_files(out):
-        if path.is_dir():
+        if path.is_dir() and not path.is_symlink():
             shutil.rmtree(path)
         else:
             path.unlink()
@@ -553,6 +554,8 @@ def check_folder(comm: MPI.Comm, out: Path, *, earlier_run: bool = False) -> Non
 
 
 def _check_folder(out: Path, earlier_run: bool) -> str:
+    if out.is_symlink() and not out.exists():
+        return f"{out} is a symbolic link to {os.readlink(out)}, which does not exist"
     existing = next(p for p in (out, *out.absolute().parents) if p.exists())
     if not existing.is_dir():
         return f"{existing} is a file, not a folder"

@@ -90,6 +90,17 @@ def load_runs(paths: Sequence[Path]) -> list[Run]:
     ]
 
 
+def check_out(out: Path | None) -> None:
+    """Raises :class:`ReportError` unless ``out`` (None: no files) is a folder or a path where
+    one can be made: not a file, nor below one."""
+    if out is None:
+        return
+    existing = next(p for p in (out, *out.absolute().parents) if p.exists())
+    if not existing.is_dir():
+        what = "is a file" if existing == out else f"{existing} is a file"
+        raise ReportError(f"--out {out}: {what}, not a folder")
+
+
 def load_run(path: Path) -> Run:
     """A finished (or stopped, or running) run folder; summary.json is absent when the run
     stopped. The complete rows of metrics.csv (a last row cut short by a run stopped while
