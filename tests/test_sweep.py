@@ -367,3 +367,24 @@ def test_ctrl_c_while_a_sweep_is_validated_is_one_line_and_exit_130(
     assert sweep_main(STENOSIS, out, "--vary", "geometry.stenosis_degree=0.4,0.5") == 130
     assert capsys.readouterr().err == "fsi: interrupted\n"
     assert not out.exists()
+
+
+def test_varied_inlets_are_validated_with_the_cycles_they_make_possible(shared_tmp, capsys):
+    """``--set time.cycles=2`` needs a periodic inlet: the base case's pulse has none, the
+    varied inlets have; each combination is validated, not the base (a dry run lists both).
+    Where no combination fixes it, the base's error is the message."""
+    inlets = ",".join(
+        f"{{kind: pressure_table, table: [[0.0, 0.0], [0.002, {peak}], [0.004, 0.0]], "
+        "period: 0.004}"
+        for peak in (100.0, 200.0)
+    )
+    out = shared_tmp / "inlets"
+    capsys.readouterr()
+    vary = ["--vary", f"fluid.inlet={inlets}", "--set", "time.cycles=2", "--set", "time.end=0.004"]
+    vary.append("--dry-run")
+    assert sweep_main(STENOSIS, out, *vary) == 0
+    listed = MPI.COMM_WORLD.bcast(capsys.readouterr().out, root=0)
+    assert [line.split(":")[0] for line in listed.splitlines()] == ["sweep 1/2", "sweep 2/2"]
+    assert sweep_main(STENOSIS, out, "--vary", "geometry.stenosis_degree=0.4,0.5",
+                      "--set", "time.cycles=2", "--dry-run") == 2  # fmt: skip
+    assert "time.cycles" in rank0_stderr(capsys)

@@ -144,7 +144,8 @@ def plan(
     :class:`fsi.config.ConfigError` when the case file or ``--set`` alone is wrong."""
     _check_variations(variations, sets)
     varied = [v.key for v in variations]
-    _check_base(case_file, sets, varied)
+    first = [f"{v.key}={v.values[0]}" for v in variations]
+    _check_base(case_file, sets, varied, [*sets, *first])
 
     from fsi.run import simulation
 
@@ -210,14 +211,24 @@ def _check_unique(
         )
 
 
-def _check_base(case_file: Path, sets: Sequence[str], varied: Sequence[str]) -> None:
+def _check_base(
+    case_file: Path, sets: Sequence[str], varied: Sequence[str], first: Sequence[str]
+) -> None:
     """Raise the :class:`fsi.config.ConfigError` of the case file with the ``--set``
-    overrides alone, unless it is about a varied key (which every run overrides)."""
+    overrides alone, unless it is about a varied key (which every run overrides) or the first
+    combination's values (``first``: its overrides) remove it, as varied inlets remove the
+    base inlet's "time.cycles needs a periodic inlet": each combination is then validated on
+    its own."""
     try:
         config.load(case_file, sets)
     except config.ConfigError as e:
-        if not (e.key and any(_overlaps(e.key, key) for key in varied)):
-            raise
+        if e.key and any(_overlaps(e.key, key) for key in varied):
+            return
+        try:
+            config.load(case_file, first)
+        except config.ConfigError as again:
+            if again.key == e.key:
+                raise e from None
 
 
 def _culprit(choice: Sequence[tuple[str, str]], key: str) -> str:
