@@ -70,9 +70,19 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _add_config_arguments(p: argparse.ArgumentParser) -> None:
-    """The case file argument and ``--set`` overrides, shared by the commands that read a case."""
-    p.add_argument("config", type=Path, help="YAML case file")
+def _add_config_arguments(p: argparse.ArgumentParser, optional: bool = False) -> None:
+    """The case file argument and ``--set`` overrides, shared by the commands that read a case
+    (``optional``: ``fsi run --restart`` takes the run's own configuration without one)."""
+    if optional:
+        p.add_argument(
+            "config",
+            type=Path,
+            nargs="?",
+            help="YAML case file (with --restart: leave it out to continue the run's own "
+            "DIR/config.yaml)",
+        )
+    else:
+        p.add_argument("config", type=Path, help="YAML case file")
     p.add_argument(
         "--set",
         dest="overrides",
@@ -102,16 +112,23 @@ def _path(text: str) -> Path:
 
 
 def _add_run_arguments(p: argparse.ArgumentParser) -> None:
-    """``fsi run``: a case, ``--out``, ``--restart``, ``--overwrite``."""
-    _add_config_arguments(p)
+    """``fsi run``: a case, ``--out``, ``--restart``, ``--allow-changes``, ``--overwrite``."""
+    _add_config_arguments(p, optional=True)
     _add_out(p)
     p.add_argument(
         "--restart",
         type=Path,
         metavar="DIR",
-        help="continue from the checkpoint of an earlier run in DIR (DIR/checkpoint; "
-        "same mesh and structure, any number of ranks; the schedule, the "
-        "coupling and the solver settings may change)",
+        help="continue from the checkpoint of an earlier run in DIR (DIR/checkpoint) with "
+        "DIR/config.yaml, or the case file given, --set applied; any number of ranks; the "
+        "schedule, outputs, coupling and solver settings may change, other keys only with "
+        "--allow-changes",
+    )
+    p.add_argument(
+        "--allow-changes",
+        action="store_true",
+        help="with --restart: let the case change keys that alter the physics or the "
+        "outputs' meaning (the inlet, the outlet, the rheology, ...); refused otherwise",
     )
     p.add_argument(
         "--overwrite",
@@ -329,13 +346,35 @@ def _command(args: argparse.Namespace, comm: MPI.Comm) -> int:
         return _plot(args)
     if args.command == "sweep":
         return _guarded(comm, lambda: _sweep(args))
+    own = args.command == "run" and args.config is None
     try:
-        case = config.load(args.config, args.overrides)
+        if own:
+            args.config = _own_config(args)
+        case = config.load(args.config, args.overrides, run_config=own)
+    except _Refused as e:
+        _error(comm, str(e))
+        return EXIT_USAGE
     except config.ConfigError as e:
         _error(comm, str(e))
         return EXIT_USAGE
     command = {"run": _run, "mesh": _mesh, "check": _check}[args.command]
     return _guarded(comm, lambda: command(args, case))
+
+
+def _own_config(args: argparse.Namespace) -> Path:
+    """``fsi run`` without a case file: the ``config.yaml`` of the run ``--restart`` names;
+    :class:`_Refused` without ``--restart`` or without that file."""
+    from fsi.run import checkpoint
+
+    if args.restart is None:
+        raise _Refused(
+            "fsi run: a case file is needed, or --restart DIR to continue DIR's run with its "
+            "own configuration"
+        )
+    try:
+        return checkpoint.own_config(args.restart)
+    except checkpoint.CheckpointError as e:
+        raise _Refused(f"--restart: {e}") from None
 
 
 def _guarded(comm: MPI.Comm, command: Callable[[], int]) -> int:
@@ -383,6 +422,7 @@ class RunRequest:
     overrides: Sequence[str] = ()
     restart: Path | None = None
     overwrite: bool = False
+    allow_changes: bool = False
 
 
 @dataclass(frozen=True)
@@ -394,7 +434,9 @@ class RunOutcome:
 
 
 def _run(args: argparse.Namespace, case: config.Case) -> int:
-    request = RunRequest(args.config, args.out, args.overrides, args.restart, args.overwrite)
+    request = RunRequest(
+        args.config, args.out, args.overrides, args.restart, args.overwrite, args.allow_changes
+    )
     return run_case(request, case).status
 
 
@@ -439,6 +481,16 @@ def _checked_start(request: RunRequest, case: config.Case, comm: MPI.Comm):
             restart = checkpoint.read(request.restart, case, comm)
     except checkpoint.CheckpointError as e:
         raise _Refused(f"--restart: {e}") from e
+    changed = restart.changed_keys(case) if restart is not None else []
+    if changed and not request.allow_changes:
+        shown = ", ".join(changed[:6]) + (", ..." if len(changed) > 6 else "")
+        raise _Refused(
+            f"--restart: {request.config}{' (with --set)' if request.overrides else ''} "
+            "differs from the run being continued "
+            f"({restart.run_dir / 'config.yaml'}) in {shown}: a restart continues that run. "
+            f"Leave out the case file to continue it as it was (fsi run --restart "
+            f"{request.restart} --out {request.out}), or add --allow-changes"
+        )
     continuing = restart is not None and restart.continues(request.out)
     try:
         io.check_folder(comm, request.out, earlier_run=continuing or request.overwrite)

@@ -835,3 +835,54 @@ def test_coupling_memory_carries_over_through_its_arrays(acceleration):
         np.array_equal(a, b) for a, b in zip(expected, repeated)
     )
     assert len(without) != len(expected) or not np.array_equal(without[1], expected[1])
+
+
+# --------------------------------------------------------------------------------------------
+# A restart continues the run's own configuration
+
+
+def test_a_restart_continues_the_runs_own_configuration(shared_tmp, capsys):
+    """A run made with ``--set`` of its inlet: ``fsi run --restart RUN`` without a case file
+    continues it with its own config.yaml (``--set`` changes only what it names); with the case
+    file, whose inlet differs, it is refused, naming the keys, and nothing is changed, unless
+    ``--allow-changes``; without a case file or ``--restart``, ``fsi run`` says what it needs."""
+    steps = ["structure.mode=rigid", "time.schedule=[{until: 0.004, dt: 0.001}]", EVERY_STEP]
+    inlet = "fluid.inlet={kind: pressure, formula: '300*sin(pi*t/0.004)**2'}"
+    run = shared_tmp / "own"
+    assert fsi_run(RIGID, run, [*steps, inlet, "time.end=0.002"]) == 0
+    before = {name: (run / name).read_text() for name in ("config.yaml", "metrics.csv")}
+
+    more = ["--set", "time.end=0.003"]
+    rigid = ["--set", "structure.mode=rigid"]
+    capsys.readouterr()
+    assert cli.main(["run", RIGID, "--out", str(run), "--restart", str(run), *more, *rigid]) == 2
+    err = stderr(capsys)
+    assert f"--restart: {RIGID} (with --set) differs from the run being continued" in err
+    assert f"({run / 'config.yaml'}) in fluid.inlet.kind" in err, err
+    assert f"fsi run --restart {run} --out {run}), or add --allow-changes" in err
+    assert {name: (run / name).read_text() for name in before} == before
+
+    assert cli.main(["run", "--out", str(run), "--restart", str(run), *more]) == 0
+    assert config.load(run / "config.yaml").fluid.inlet == config.load(RIGID, [inlet]).fluid.inlet
+    assert [r["step"] for r in rows(run)] == ["1", "2", "3"]
+
+    assert cli.main(["run", RIGID, "--out", str(run), "--restart", str(run), *rigid,
+                     "--set", "time.end=0.004", "--allow-changes"]) == 0  # fmt: skip
+    assert config.load(run / "config.yaml").fluid.inlet.kind == "traction_pulse"
+    capsys.readouterr()
+    assert cli.main(["run", "--out", str(shared_tmp / "none")]) == 2
+    assert "fsi run: a case file is needed, or --restart DIR" in stderr(capsys)
+    assert not (shared_tmp / "none").exists()
+
+
+def test_a_runs_own_configuration_loads_whatever_its_inlet_table(shared_tmp):
+    """A CSV inlet near the case-file limit is written into config.yaml as a table that is
+    larger than a case file may be: the run's own file still loads (report, restart)."""
+    rows_ = [[i * 1e-5, 100.0 + (i % 7) * 1.234567] for i in range(60_000)]
+    case = config.from_dict({"fluid": {"inlet": {"kind": "pressure_table", "table": rows_}}})
+    path = shared_tmp / f"config{MPI.COMM_WORLD.rank}.yaml"
+    config.dump(case, path)
+    assert path.stat().st_size > config.case_file.MAX_FILE_BYTES
+    with pytest.raises(config.ConfigError, match="larger than"):
+        config.load(path)
+    assert config.load(path, run_config=True).fluid.inlet.table[-1] == tuple(rows_[-1])

@@ -7,7 +7,15 @@ The schema is documented in docs/configuration.md; its defaults are the study's 
 """
 
 from fsi.config.case import Case, heartbeat_period, run_time
-from fsi.config.case_file import dump, from_dict, load, to_dict, to_yaml
+from fsi.config.case_file import (
+    RUN_CONFIG_BYTES,
+    differences,
+    dump,
+    from_dict,
+    load,
+    to_dict,
+    to_yaml,
+)
 from fsi.config.coupling_section import Coupling, MeshMotion
 from fsi.config.domain import (
     MESH_LEVELS,
@@ -68,6 +76,8 @@ __all__ = [
     "to_dict",
     "to_yaml",
     "dump",
+    "differences",
+    "RUN_CONFIG_BYTES",
     "heartbeat_period",
     "run_time",
     # geometry, mesh

@@ -16,18 +16,34 @@ import yaml
 from fsi.config.boundary_data import WaveformError, read_waveform
 from fsi.config.case import Case
 from fsi.config.fluid_section import WAVEFORM_FILES
-from fsi.config.reader import ConfigError, apply_overrides, build, read_case_file
+from fsi.config.reader import (
+    MAX_FILE_BYTES,
+    ConfigError,
+    apply_overrides,
+    build,
+    read_case_file,
+)
 from fsi.config.validation import validate
 
+RUN_CONFIG_BYTES = 4 * MAX_FILE_BYTES
+"""The size limit of a run's own ``config.yaml`` (:func:`load` with ``run_config=True``): its
+CSV inlet is written out as a table, and a CSV file of the case-file limit takes up to about
+twice as much as YAML."""
 
-def load(path: str | Path, overrides: typing.Sequence[str] = ()) -> Case:
+
+def load(
+    path: str | Path, overrides: typing.Sequence[str] = (), *, run_config: bool = False
+) -> Case:
     """Read a case from YAML, apply ``key.path=value`` overrides, build and validate it.
+
+    ``run_config``: ``path`` is a run folder's own ``config.yaml`` (written by ``fsi run``),
+    read up to :data:`RUN_CONFIG_BYTES` rather than a case file's limit.
 
     Every failure is a :class:`ConfigError` naming the file (or ``--set``) and the key: what
     :func:`fsi.config.reader.read_case_file` refuses (unreadable, too large, not UTF-8, invalid
     or too deeply nested YAML, a repeated key) and whatever :func:`from_dict` refuses.
     """
-    data = read_case_file(path)
+    data = read_case_file(path, RUN_CONFIG_BYTES if run_config else MAX_FILE_BYTES)
     overridden = apply_overrides(data, overrides)
     return from_dict(data, str(path), overridden)
 
@@ -115,6 +131,22 @@ def to_dict(case: Case) -> dict:
 def to_yaml(case: Case) -> str:
     """The resolved configuration as YAML text (``fsi run`` writes it as DIR/config.yaml)."""
     return yaml.safe_dump(to_dict(case), sort_keys=False)
+
+
+def differences(stored: dict, now: dict, prefix: str = "") -> list[str]:
+    """The key paths where the configuration data ``now`` differs from ``stored`` (both as
+    :func:`to_dict` gives them; keys ``stored`` lacks, written before they existed, are left
+    out; a mapping is compared key by key)."""
+    found = []
+    for key, value in now.items():
+        path = f"{prefix}{key}"
+        if key not in stored:
+            continue
+        if isinstance(value, dict) and isinstance(stored[key], dict):
+            found += differences(stored[key], value, path + ".")
+        elif stored[key] != value:
+            found.append(path)
+    return found
 
 
 def dump(case: Case, path: str | Path) -> None:

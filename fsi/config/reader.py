@@ -226,21 +226,21 @@ def unit_of(section: Any, key: str) -> str:
     return ""
 
 
-def read_case_file(path: str | Path) -> dict:
+def read_case_file(path: str | Path, max_bytes: int = MAX_FILE_BYTES) -> dict:
     """The data of the YAML case file ``path`` (``{}`` for an empty file).
 
     Raises :class:`ConfigError` naming the file for an unreadable file, one larger than
-    :data:`MAX_FILE_BYTES` or not UTF-8 text, invalid or too deeply nested YAML, a repeated key,
-    or a top level that is not a mapping.
+    ``max_bytes`` or not UTF-8 text, invalid or too deeply nested YAML, a repeated key, or a
+    top level that is not a mapping.
     """
     source = str(path)
     try:
         with Path(path).open("rb") as f:
-            raw = f.read(MAX_FILE_BYTES + 1)  # bounded: /dev/zero is refused, not read for ever
+            raw = f.read(max_bytes + 1)  # bounded: /dev/zero is refused, not read for ever
     except OSError as e:
         raise ConfigError(source, "<file>", "a readable YAML file", e.strerror) from None
-    if len(raw) > MAX_FILE_BYTES:
-        raise ConfigError(source, "", reason=f"larger than {MAX_FILE_BYTES} bytes: not a case file")
+    if len(raw) > max_bytes:
+        raise ConfigError(source, "", reason=f"larger than {max_bytes} bytes: not a case file")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as e:

@@ -111,7 +111,7 @@ def load_run(path: Path) -> Run:
         if not (path / name).is_file():
             raise ReportError(f"{path}: no {name} (not a folder written by fsi run)")
     try:
-        case = config.load(path / "config.yaml")
+        case = config.load(path / "config.yaml", run_config=True)
     except config.ConfigError as e:
         raise ReportError(f"{path}: {e}") from None
     try:

@@ -423,6 +423,19 @@ class Checkpoint:
         """Whether a restart into ``out`` continues this checkpoint's own run folder."""
         return self.run_dir.resolve() == Path(out).resolve()
 
+    def changed_keys(self, case: config.Case) -> list[str]:
+        """The keys of ``case`` that differ from the run's own ``config.yaml`` and change its
+        physics or what its outputs mean (every key but those of :data:`FREE_ON_RESTART`);
+        none if that file cannot be read."""
+        try:
+            written = reader.parse_yaml((self.run_dir / "config.yaml").read_text())
+        except (OSError, ValueError, yaml.YAMLError):
+            return []
+        if not isinstance(written, dict):
+            return []
+        changed = config.differences(written, config.to_dict(case))
+        return [k for k in changed if not any(_within(k, free) for free in FREE_ON_RESTART)]
+
     def changed_mesh_motion(self, case: config.Case) -> list[str]:
         """The ``mesh_motion`` keys whose values in ``case`` differ from those of the run that
         wrote the checkpoint (its ``config.yaml``; none if that cannot be read). A restart may
@@ -435,6 +448,35 @@ class Checkpoint:
             return []
         now = config.to_dict(case)["mesh_motion"]
         return sorted(k for k in now if before.get(k) != now[k])
+
+
+FREE_ON_RESTART = (
+    "name",
+    "time",
+    "output",
+    "coupling",
+    "mesh_motion",
+    "fluid.solver",
+    "structure.solver",
+)
+"""What a restart may change without ``--allow-changes``: how far and how finely the run
+goes on (the schedule, its end, ``time.cycles``), what it writes and how often, and the
+solvers' and coupling's settings (their answers agree within their tolerances; the mesh
+motion's change is warned of). Any other key changes the physics or the outputs' meaning."""
+
+
+def _within(key: str, section: str) -> bool:
+    return key == section or key.startswith(section + ".")
+
+
+def own_config(path: Path) -> Path:
+    """The ``config.yaml`` of the run whose checkpoint :func:`locate` finds at ``path``.
+    Raises :class:`CheckpointError` if there is no checkpoint or no such file."""
+    _, run_dir = locate(path)
+    own = run_dir / "config.yaml"
+    if not own.is_file():
+        raise CheckpointError(f"{own}: missing (the run's own configuration)")
+    return own
 
 
 def locate(path: Path) -> tuple[Path, Path]:

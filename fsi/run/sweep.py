@@ -287,7 +287,7 @@ def folder_state(run: SweepRun) -> FolderState:
     if not isinstance(stored, dict):
         return FolderState("start", "started afresh (its folder holds no readable config.yaml)")
     now = yaml.safe_load(config.to_yaml(run.case))
-    different = differences(stored, now)
+    different = config.differences(stored, now)
     end = config.run_time(run.case).end  # time.cycles: cycles × period
     if not different and _reached(folder / "summary.json", end):
         return FolderState("skip", "done earlier, skipped")
@@ -307,21 +307,6 @@ def folder_state(run: SweepRun) -> FolderState:
     else:
         why = f"its checkpoint is at t = {t:.6g} s, after time.end"
     return FolderState("start", f"started afresh ({why})")
-
-
-def differences(stored: dict, now: dict, prefix: str = "") -> list[str]:
-    """The key paths where ``now`` differs from ``stored`` (keys ``stored`` lacks are left
-    out; a mapping is compared key by key)."""
-    found = []
-    for key, value in now.items():
-        path = f"{prefix}{key}"
-        if key not in stored:
-            continue
-        if isinstance(value, dict) and isinstance(stored[key], dict):
-            found += differences(stored[key], value, path + ".")
-        elif stored[key] != value:
-            found.append(path)
-    return found
 
 
 def _reached(summary: Path, end: float) -> bool:
