@@ -218,7 +218,8 @@ def _add_plot_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _add_sweep_arguments(p: argparse.ArgumentParser) -> None:
-    """``fsi sweep``: a case, ``--vary``, ``--out``, ``--dry-run``, and the Slurm options."""
+    """``fsi sweep``: a case, ``--vary``, ``--out``, ``--dry-run``, ``--overwrite``, and the
+    Slurm options."""
     _add_config_arguments(p)
     p.add_argument(
         "--vary",
@@ -235,8 +236,14 @@ def _add_sweep_arguments(p: argparse.ArgumentParser) -> None:
         "--dry-run",
         action="store_true",
         help="validate every run and list what the sweep would do with each (skip, "
-        "resume, start); run and write nothing (with --scheduler slurm: write the batch "
-        "script, do not submit it)",
+        "resume, start, replace); run and write nothing (with --scheduler slurm: write the "
+        "batch script, do not submit it)",
+    )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="let runs replace earlier runs' results in their folders (another "
+        "configuration, schedule or end); refused otherwise",
     )
     _add_slurm_arguments(p)
 
@@ -668,10 +675,15 @@ def _sweep(args: argparse.Namespace) -> int:
     except _Refused as e:
         _error(comm, str(e))
         return EXIT_USAGE
+    if not args.dry_run and args.task is None and not args.collect:
+        refused = comm.bcast(sweep.refusal(runs, args.overwrite) if comm.rank == 0 else "")
+        if refused:
+            _error(comm, f"--out {args.out}: {refused}")
+            return EXIT_USAGE
     if definition is not None or args.task is not None:
         return _sweep_slurm(args, definition, variations, runs, comm)
     if args.dry_run:
-        lines = sweep.describe_plan(runs) if comm.rank == 0 else []
+        lines = sweep.describe_plan(runs, args.overwrite) if comm.rank == 0 else []
         if comm.rank == 0:
             print("\n".join(lines), flush=True)
         return EXIT_OK

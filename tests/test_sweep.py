@@ -388,3 +388,40 @@ def test_varied_inlets_are_validated_with_the_cycles_they_make_possible(shared_t
     assert sweep_main(STENOSIS, out, "--vary", "geometry.stenosis_degree=0.4,0.5",
                       "--set", "time.cycles=2", "--dry-run") == 2  # fmt: skip
     assert "time.cycles" in rank0_stderr(capsys)
+
+
+def test_a_sweep_never_deletes_results_without_overwrite_nor_through_a_link(shared_tmp, capsys):
+    """Finished runs to 2 ms; the same sweep to 1 ms (shorter), or with another ``--set``,
+    would replace them: refused (exit 2, naming how many and the first, with why), nothing
+    touched, unless ``--overwrite``. A run folder that is a symbolic link to another folder is
+    refused even with ``--overwrite``, and what it points to is left alone."""
+    import os
+
+    comm = MPI.COMM_WORLD
+    out = shared_tmp / "sweep"
+    vary = ["--vary", "fluid.rheology.viscosity=0.0035,0.004"]
+    assert sweep_main(CHANNEL, out, *vary, "--set", "time.end=0.002") == 0
+    before = comm.bcast(stamps(out) if comm.rank == 0 else None)
+    for changed in ("time.end=0.001", "fluid.density=1000"):
+        capsys.readouterr()
+        assert sweep_main(CHANNEL, out, *vary, "--set", "time.end=0.002", "--set", changed) == 2
+        err = rank0_stderr(capsys)
+        assert "2 of the 2 runs would delete an earlier run's results" in err, err
+        assert "add --overwrite to replace them" in err
+        assert stamps(out) == before
+    shorter = [*vary, "--set", "time.end=0.001"]
+    assert sweep_main(CHANNEL, out, *shorter, "--overwrite") == 0
+    run = out / "fluid.rheology.viscosity=0.004"
+    assert [r["step"] for r in io.read_metrics(run / "metrics.csv")] == [1]
+
+    elsewhere = shared_tmp / "elsewhere"
+    if comm.rank == 0:
+        os.rename(run, elsewhere)
+        os.symlink(elsewhere, run)
+    comm.barrier()
+    kept = comm.bcast(stamps(elsewhere) if comm.rank == 0 else None)
+    for extra in ([], ["--overwrite"]):
+        capsys.readouterr()
+        assert sweep_main(CHANNEL, out, *vary, "--set", "time.end=0.003", *extra) == 2
+        assert "is a symbolic link (to " in rank0_stderr(capsys)
+    assert stamps(elsewhere) == kept

@@ -257,10 +257,11 @@ def folder_name(choice: Sequence[tuple[str, str]]) -> str:
 @dataclass(frozen=True)
 class FolderState:
     """What a sweep does with a run's folder: ``skip`` it (finished), ``resume`` it from its
-    checkpoint, or ``start`` the run afresh (deleting an earlier run's files, as ``fsi run
-    --overwrite``); ``why`` says so for the progress line."""
+    checkpoint, ``start`` the run in it (no earlier run there), or ``replace`` an earlier run
+    there, deleting its files as ``fsi run --overwrite`` (only with ``fsi sweep
+    --overwrite``: :func:`refusal`); ``why`` says so for the progress line."""
 
-    action: Literal["skip", "resume", "start"]
+    action: Literal["skip", "resume", "start", "replace"]
     why: str
 
 
@@ -285,7 +286,7 @@ def folder_state(run: SweepRun) -> FolderState:
     except (OSError, ValueError, yaml.YAMLError):
         stored = None
     if not isinstance(stored, dict):
-        return FolderState("start", "started afresh (its folder holds no readable config.yaml)")
+        return FolderState("replace", "started afresh (its folder holds no readable config.yaml)")
     now = yaml.safe_load(config.to_yaml(run.case))
     different = config.differences(stored, now)
     end = config.run_time(run.case).end  # time.cycles: cycles × period
@@ -294,7 +295,7 @@ def folder_state(run: SweepRun) -> FolderState:
     other = [key for key in different if not _overlaps(key, "time")]
     if other:
         return FolderState(
-            "start", f"started afresh (its folder holds a run with another {other[0]})"
+            "replace", f"started afresh (its folder holds a run with another {other[0]})"
         )
     t = checkpoint_time(folder)
     at_end = t is not None and abs(t - end) <= 1e-9 * end
@@ -306,7 +307,7 @@ def folder_state(run: SweepRun) -> FolderState:
         why = "it ran to time.end with another schedule"
     else:
         why = f"its checkpoint is at t = {t:.6g} s, after time.end"
-    return FolderState("start", f"started afresh ({why})")
+    return FolderState("replace", f"started afresh ({why})")
 
 
 def _reached(summary: Path, end: float) -> bool:
@@ -409,7 +410,7 @@ def _run_and_log(
     ``head``; returns its status (done, stopped or ``failed: <why>``) and the signal that
     stopped it, or 0. Collective (garbage collection and a barrier after the run)."""
     tic = wallclock.perf_counter()
-    status, reason = run_one(run, state.action == "resume", state.action == "start")
+    status, reason = run_one(run, state.action == "resume", state.action == "replace")
     # Free the run's dolfinx/PETSc objects on every rank at this point: their
     # destructors are collective, and a failed run leaves them in reference cycles
     # that the garbage collector would free at different moments on each rank.
@@ -426,18 +427,48 @@ def _run_and_log(
     return f"failed: {reason}", 0
 
 
-def describe_plan(runs: Sequence[SweepRun]) -> list[str]:
-    """One line per run saying what a sweep would do with it (``--dry-run``; rank 0)."""
+def describe_plan(runs: Sequence[SweepRun], overwrite: bool = False) -> list[str]:
+    """One line per run saying what a sweep would do with it (``--dry-run``; rank 0), and
+    what it refuses (:func:`refusal`)."""
     lines = []
     for run in runs:
-        state = folder_state(run)
-        what = {
-            "skip": "done, would be skipped",
-            "resume": "would be " + state.why,
-            "start": "would be " + state.why,
-        }[state.action]
+        if run.folder.is_symlink():
+            what = "refused: " + _linked(run)
+        else:
+            state = folder_state(run)
+            what = "done, would be skipped" if state.action == "skip" else "would be " + state.why
+            if state.action == "replace" and not overwrite:
+                what += ", deleting its earlier run: refused without --overwrite"
         lines.append(f"sweep {run.index}/{len(runs)}: {run.label}: {what} ({run.folder})")
     return lines
+
+
+def _linked(run: SweepRun) -> str:
+    return (
+        f"{run.folder} is a symbolic link (to {run.folder.readlink()}): a sweep writes only "
+        "into its own folders"
+    )
+
+
+def refusal(runs: Sequence[SweepRun], overwrite: bool) -> str:
+    """Why the sweep must not start (rank 0; "" if it may): a run's folder is a symbolic link
+    (never followed, with or without ``--overwrite``), or, without ``overwrite``, runs would
+    replace earlier runs' results (another configuration, schedule or end in their folders):
+    it names how many and the first, with why."""
+    linked = next((run for run in runs if run.folder.is_symlink()), None)
+    if linked is not None:
+        return f"{linked.label}: {_linked(linked)}"
+    if overwrite:
+        return ""
+    replaced = [(run, state) for run in runs if (state := folder_state(run)).action == "replace"]
+    if not replaced:
+        return ""
+    run, state = replaced[0]
+    return (
+        f"{len(replaced)} of the {len(runs)} runs would delete an earlier run's results, e.g. "
+        f"{run.label}: {state.why.replace('started afresh', 'its folder would be replaced')}: "
+        "add --overwrite to replace them (--dry-run lists them), or choose another --out"
+    )
 
 
 # --------------------------------------------------------------------------------------------
