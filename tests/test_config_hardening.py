@@ -283,6 +283,31 @@ def test_binary_and_non_utf8_files_exit_2_naming_the_file(shared_tmp, capsys):
         assert_refused(*cli_error(capsys, "check", str(path)), str(path), "", "not UTF-8 text")
 
 
+def test_a_fifo_or_a_folder_as_the_case_file_is_refused_without_blocking(shared_tmp, capsys):
+    """A FIFO with no writer would block the read for ever: only regular files are read; and a
+    FIFO as a CSV inlet file the same way."""
+    import os
+
+    fifo, folder = shared_tmp / "case.yaml", shared_tmp / "folder.yaml"
+    if MPI.COMM_WORLD.rank == 0:
+        os.mkfifo(fifo)
+        folder.mkdir()
+    MPI.COMM_WORLD.barrier()
+    for path in (fifo, folder):
+        assert_refused(*cli_error(capsys, "check", str(path)), str(path), "", "not a regular file")
+    table = shared_tmp / "table.csv"
+    if MPI.COMM_WORLD.rank == 0:
+        os.mkfifo(table)
+    MPI.COMM_WORLD.barrier()
+    inlet = f"fluid.inlet={{kind: pressure_file, file: {table}, period: 0.01}}"
+    assert_refused(
+        *cli_error(capsys, "check", str(CHANNEL), "--set", inlet),
+        "--set",
+        "fluid.inlet.file",
+        "not a regular file",
+    )
+
+
 def test_a_file_over_1_mib_is_refused_unread(shared_tmp, capsys):
     path = write(shared_tmp / "big.yaml", "#" * reader.MAX_FILE_BYTES + "\n")
     assert_refused(*cli_error(capsys, "check", str(path)), str(path), "", "larger than 1048576")

@@ -14,6 +14,7 @@ import dataclasses
 import math
 import re
 import reprlib
+import stat
 import types
 import typing
 from dataclasses import field
@@ -235,6 +236,8 @@ def read_case_file(path: str | Path, max_bytes: int = MAX_FILE_BYTES) -> dict:
     """
     source = str(path)
     try:
+        if not stat.S_ISREG(Path(path).stat().st_mode):  # a FIFO would block for ever
+            raise ConfigError(source, "", reason="not a regular file: not a case file")
         with Path(path).open("rb") as f:
             raw = f.read(max_bytes + 1)  # bounded: /dev/zero is refused, not read for ever
     except OSError as e:
