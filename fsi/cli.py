@@ -364,6 +364,9 @@ def _command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     except config.ConfigError as e:
         _error(comm, str(e))
         return EXIT_USAGE
+    if args.command in ("run", "check") and comm.rank == 0:
+        for caution in config.cautions(case):
+            log.warning("fsi: warning: %s", caution)
     command = {"run": _run, "mesh": _mesh, "check": _check}[args.command]
     return _guarded(comm, lambda: command(args, case))
 

@@ -214,3 +214,48 @@ def test_a_periodic_inline_table_must_cover_its_period():
     pressure = fluid_boundaries.inlet_pressure(periodic.fluid.inlet)
     assert pressure(0.25) == pytest.approx(1.5) and pressure(0.75) == pytest.approx(1.5)
     assert math.isclose(pressure(1.0 + 0.1), pressure(0.1))
+
+
+@pytest.mark.parametrize(
+    "header, message",
+    [
+        ("t (ms),P (mmHg)\n", "the header gives t in 'ms'; the file is read with t in s"),
+        ("t (s),P (mmHg)\n", "the header gives P in 'mmHg'; the file is read with P in Pa"),
+        ("t [s],P [kPa]\n", "the header gives P in 'kPa'"),
+    ],
+)
+def test_a_header_naming_other_units_is_refused(shared_tmp, capsys, header, message):
+    """A file whose header says ms or mmHg would be read as s and Pa: refused, naming the
+    line and the unit; the units it is read in, or none, are accepted."""
+    path = shared_tmp / "units.csv"
+    write(path, csv(ROWS, header=header))
+    inlet = ["--set", f"fluid.inlet={{kind: pressure_file, file: {path}}}"]
+    capsys.readouterr()
+    assert cli.main(["check", CHANNEL, *inlet]) == 2
+    if MPI.COMM_WORLD.rank == 0:
+        assert f"{path}: line 1: {message}" in capsys.readouterr().err
+    for fine in ("t (s),P (Pa)\n", "time,pressure\n"):
+        write(path, csv(ROWS, header=fine))
+        assert cli.main(["check", CHANNEL, *inlet]) == 0
+
+
+def test_a_period_of_fewer_than_4_steps_is_warned_of(capsys):
+    """``period: 1e-9`` with 1 ms steps (a period in the wrong unit) samples the waveform
+    once every 10⁶ periods: ``fsi check`` warns, naming the key and the step."""
+    short = "fluid.inlet={kind: pressure_table, table: [[0, 0], [1.0e-9, 1]], period: 1.0e-9}"
+    capsys.readouterr()
+    assert (
+        cli.main(["check", CHANNEL, "--set", short, *sum([["--set", s] for s in THREE_STEPS], [])])
+        == 0
+    )
+    if MPI.COMM_WORLD.rank == 0:
+        err = capsys.readouterr().err
+        assert "fsi: warning: fluid.inlet.period = 1e-09 s holds 1e-06 of the schedule's" in err
+        assert "largest steps (dt = 0.001 s)" in err
+    ok = "fluid.inlet={kind: pressure_table, table: [[0, 0], [0.004, 1]], period: 0.004}"
+    capsys.readouterr()
+    assert (
+        cli.main(["check", CHANNEL, "--set", ok, *sum([["--set", s] for s in THREE_STEPS], [])])
+        == 0
+    )
+    assert "warning" not in capsys.readouterr().err

@@ -64,7 +64,7 @@ from fsi.config.structure_section import (
     WallMaterial,
 )
 from fsi.config.time_section import MAX_CYCLES, AdaptiveStepping, Time, TimeSegment
-from fsi.config.validation import validate
+from fsi.config.validation import cautions, validate
 
 __all__ = [
     # the case and its files
@@ -73,6 +73,7 @@ __all__ = [
     "load",
     "from_dict",
     "validate",
+    "cautions",
     "to_dict",
     "to_yaml",
     "dump",

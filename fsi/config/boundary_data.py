@@ -9,6 +9,7 @@ before it runs) into a function of time that returns a finite float or raises
 from __future__ import annotations
 
 import math
+import re
 import stat
 import typing
 from pathlib import Path
@@ -231,6 +232,7 @@ def read_waveform(path: str | Path, quantity: str = "P") -> tuple[tuple[float, f
         first, header_allowed = header_allowed, False
         values = [_number(cell) for cell in cells]
         if first and all(value is None for value in values):
+            _check_header_units(cells, quantity, f"{path}: line {number}")
             continue  # the header
         where = f"{path}: line {number}"
         if len(cells) != 2:
@@ -253,6 +255,24 @@ def read_waveform(path: str | Path, quantity: str = "P") -> tuple[tuple[float, f
             "are needed"
         )
     return tuple(rows)
+
+
+HEADER_UNITS = {"t": ("s",), "P": ("Pa",), "Q": ("m^2/s", "m²/s", "m2/s")}
+"""The units a waveform file's header may give (``t (s), P (Pa)``): the ones the file is read
+in. A header naming another (``t (ms)``, ``P (mmHg)``) is refused, not silently misread."""
+
+
+def _check_header_units(cells: list[str], quantity: str, where: str) -> None:
+    """Raise :class:`WaveformError` if a header cell names a unit, in parentheses or brackets,
+    other than the one its column is read in (t in s; P in Pa or Q in m²/s)."""
+    for cell, name in zip(cells, ("t", quantity)):
+        found = re.search(r"[(\[]\s*([^)\]]*?)\s*[)\]]", cell)
+        if found is None or found.group(1) in HEADER_UNITS[name]:
+            continue
+        raise WaveformError(
+            f"{where}: the header gives {name} in {found.group(1)!r}; the file is read with "
+            f"{name} in {HEADER_UNITS[name][0]} (convert the column, or leave the unit out)"
+        )
 
 
 def _number(cell: str) -> float | None:

@@ -396,3 +396,24 @@ def _validate_period(inlet) -> None:
                 f"[0, {period:g}] s (the first t must be <= 0 and the last >= period)"
             ),
         )
+
+
+STEPS_PER_PERIOD = 4
+"""Fewer steps than this per period of a periodic inlet sample its waveform too coarsely to
+follow it (it is aliased): :func:`cautions` says so."""
+
+
+def cautions(case: Case) -> list[str]:
+    """What is valid in ``case`` but probably not meant, one message each (``fsi check`` and
+    ``fsi run`` print them as warnings): a periodic inlet whose period holds fewer than
+    :data:`STEPS_PER_PERIOD` of the schedule's largest steps."""
+    found = []
+    period = heartbeat_period(case)
+    largest = max(segment.dt for segment in case.time.schedule)
+    if 0 < period < STEPS_PER_PERIOD * largest:
+        found.append(
+            f"fluid.inlet.period = {period:g} s holds {period / largest:.3g} of the schedule's "
+            f"largest steps (dt = {largest:g} s): a waveform sampled fewer than "
+            f"{STEPS_PER_PERIOD} times a period is aliased; is the period in seconds?"
+        )
+    return found
