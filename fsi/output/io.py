@@ -494,8 +494,8 @@ def remove_run_files(out: Path) -> None:
 
 LOCK_FILE = "run.lock"
 """The file in ``--out`` that a run holds an exclusive lock on (flock) for its whole life, with
-its process id in it. Left in place when the run ends (never deleted: a deleted lock file would
-let two runs lock two different files)."""
+its process id in it. Left in place when the run ends (a run refused, failed or stopped removes
+the lock file, and the folder, that it made itself)."""
 
 
 class RunLock:
@@ -506,12 +506,14 @@ class RunLock:
 
     def __init__(self, comm: MPI.Comm, out: Path):
         self.comm, self.path, self._fd = comm, Path(out) / LOCK_FILE, None
+        self._made: list[Path] = []  # what taking the lock created: the folder, the file
 
     def __enter__(self) -> RunLock:
         import fcntl
 
         message = ""
         if self.comm.rank == 0:
+            self._made = [p for p in (self.path.parent, self.path) if not p.exists()]
             try:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
                 fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
@@ -536,10 +538,17 @@ class RunLock:
             raise RunFolderError(message)
         return self
 
-    def __exit__(self, *exc) -> None:
-        if self._fd is not None:
-            os.close(self._fd)  # releases the lock
-            self._fd = None
+    def __exit__(self, exc_type, *exc) -> None:
+        if self._fd is None:
+            return
+        if exc_type is not None:  # refused or stopped: remove the lock file and folder it made
+            for path in reversed(self._made):
+                if path == self.path:
+                    path.unlink(missing_ok=True)
+                elif not any(path.iterdir()):
+                    path.rmdir()
+        os.close(self._fd)  # releases the lock
+        self._fd = None
 
 
 def check_folder(comm: MPI.Comm, out: Path, *, earlier_run: bool = False) -> None:
