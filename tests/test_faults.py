@@ -8,6 +8,7 @@ import dataclasses
 import errno
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -340,3 +341,45 @@ def test_a_mesh_build_leaves_the_runs_sigint_handler_in_place():
         assert signal.getsignal(signal.SIGINT) is handler
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+@serial_lane
+def test_kill_9_keeps_the_field_files_readable_and_a_restart_says_what_they_hold(
+    shared_tmp, capsys
+):
+    """A run killed with SIGKILL (no handler runs) after step 8, fields written every 2
+    steps: fields.xdmf/.h5 hold every snapshot written before the kill (the file is closed
+    after each), ``fsi plot`` draws one, and a restart from the checkpoint says what the
+    earlier file holds."""
+    out = shared_tmp / "killed"
+    every = ["output.fields_every=2", "output.checkpoint_every=4"]
+    process = subprocess.Popen(
+        fsi_command(out, *LONG[:2], *every), stderr=subprocess.PIPE, text=True
+    )
+    lines, deadline = [], time.monotonic() + 120
+    try:
+        for line in process.stderr:
+            lines.append(line)
+            if line.startswith("step 8/"):
+                process.send_signal(signal.SIGKILL)
+                break
+            assert time.monotonic() < deadline, "".join(lines)
+        assert process.wait(timeout=60) == -signal.SIGKILL
+    finally:
+        process.kill()
+    times = io.snapshot_times(out / "fields.xdmf")
+    assert len(times) >= 4 and times[0] == 0.0, times  # t = 0, 2, 4, 6 ms at least
+    picture = shared_tmp / "v.png"
+    drawn = ["--field", "velocity", "--time", str(times[-1]), "--out", str(picture)]
+    assert cli.main(["plot", str(out), *drawn]) == 0
+    damaged = shared_tmp / "damaged"
+    shutil.copytree(out, damaged)
+    h5 = damaged / "fields.h5"
+    h5.write_bytes(h5.read_bytes()[:2000])  # as a run killed while writing it left it
+    capsys.readouterr()
+    assert fsi_run(out, ["time.end=0.01", LONG[1], *every], "--restart", str(out)) == 0
+    err = capsys.readouterr().err
+    assert f"fields.xdmf: {len(times)} snapshots kept, the last at t = {times[-1]:g} s" in err
+    assert fsi_run(damaged, ["time.end=0.01", LONG[1], *every], "--restart", str(damaged)) == 0
+    err = capsys.readouterr().err
+    assert f"fsi: warning: {h5} cannot be read (OSError): its snapshots are lost" in err

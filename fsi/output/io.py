@@ -371,12 +371,16 @@ def remove_later_segments(out: Path, names: list[str], first_step: int) -> list[
 class FieldWriter:
     """An XDMF time series of fields for ParaView. Lagrange fields are written as their P1
     interpolants and DG fields as DG0 (XDMF stores vertex and cell data only); on a moving mesh
-    the mesh displacement is one of the fields (ParaView: Warp By Vector)."""
+    the mesh displacement is one of the fields (ParaView: Warp By Vector).
+
+    The file is open only while a snapshot is written (opened to append, then closed): a run
+    killed at any other moment (``kill -9``, a node lost) leaves an XDMF/HDF5 pair that holds
+    every snapshot written before, where an HDF5 file left open is unreadable."""
 
     def __init__(self, comm: MPI.Comm, path: Path, mesh):
-        self.path = path
-        self._xdmf = dolfinx.io.XDMFFile(comm, str(path), "w")
-        self._xdmf.write_mesh(mesh)
+        self.path, self.comm = path, comm
+        with dolfinx.io.XDMFFile(comm, str(path), "w") as xdmf:
+            xdmf.write_mesh(mesh)
         self._outputs: dict[str, dolfinx.fem.Function] = {}
 
     def _output_for(self, f: dolfinx.fem.Function) -> dolfinx.fem.Function:
@@ -405,10 +409,24 @@ class FieldWriter:
         )
         for f, out in zip(fields, outputs):
             out.interpolate(f)
-            self._xdmf.write_function(out, t)
+        with dolfinx.io.XDMFFile(self.comm, str(self.path), "a") as xdmf:
+            for out in outputs:
+                xdmf.write_function(out, t)
 
     def close(self) -> None:
-        self._xdmf.close()
+        """Nothing to do: the file is closed after every snapshot."""
+
+
+def snapshot_times(xdmf: Path) -> list[float]:
+    """The times of the snapshots an XDMF/HDF5 pair written by :class:`FieldWriter` holds,
+    read from its HDF5 file (the first field's datasets, named by the time). Raises OSError
+    (or KeyError) when the HDF5 file cannot be read, as after a run killed while writing it."""
+    import h5py
+
+    with h5py.File(Path(xdmf).with_suffix(".h5"), "r") as f:
+        functions = f["Function"]
+        first = functions[sorted(functions)[0]]
+        return sorted(float(key.replace("_", ".")) for key in first)
 
 
 SPACE_MARGIN = 64 * 1024

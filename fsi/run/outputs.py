@@ -94,12 +94,35 @@ class RunOutputs:
             lambda: io.MetricsTable(comm, metrics, columns, keep_until_step=first, source=source),
             metrics,
         )
+        if continuing and comm.rank == 0:
+            self._report_earlier_fields(list(field_files), first)
         for name, (mesh, fields) in field_files.items():
             path = out / io.field_segment(name, first)
             writer = io.collectively(
                 comm, lambda path=path, mesh=mesh: io.FieldWriter(comm, path, mesh), path
             )
             self.writers.append((writer, fields))
+
+    def _report_earlier_fields(self, names: list[str], first: int) -> None:
+        """Say what the field files of the segments this restart continues hold: their
+        snapshots, or that one cannot be read (a run killed while writing it, before field
+        files were closed after every snapshot). Rank 0."""
+        for name in names:
+            stem = Path(name).stem
+            for xdmf in sorted(self.out.glob(f"{stem}*.xdmf")):
+                try:
+                    times = io.snapshot_times(xdmf)
+                except (OSError, KeyError, IndexError, ValueError) as e:
+                    log.warning(
+                        "fsi: warning: %s cannot be read (%s): its snapshots are lost; this "
+                        "restart writes its own to %s",
+                        xdmf.with_suffix(".h5"),
+                        type(e).__name__,
+                        io.field_segment(name, first),
+                    )
+                    continue
+                last = f", the last at t = {times[-1]:.6g} s" if times else ""
+                log.info("%s: %d snapshots kept%s", xdmf.name, len(times), last)
 
     def __enter__(self) -> RunOutputs:
         return self
