@@ -122,7 +122,22 @@ def min_cap_thickness(p: StenosisParameters, samples: int = 801) -> float:
     x_cap = np.linspace(xc - p.stenosis_length / 2, xc + p.stenosis_length / 2, 2 * samples)
     lipid = np.column_stack([x_lipid, lipid_profile(p, x_lipid)])
     cap = np.column_stack([x_cap, plaque_profile(p, x_cap)])
-    return float(distance_to_polyline(lipid, cap).min())
+    # Every 10th sample first, then the samples around a coarse one that may hold the minimum:
+    # a point's distance to the cap changes by at most the length it moves, so a sample whose
+    # nearest coarse sample is farther than the coarse minimum plus the path between them
+    # cannot be closer. The same minimum as over all the samples, in a fraction of the time.
+    stride = 10
+    coarse = np.arange(0, samples, stride)
+    coarse = np.unique(np.append(coarse, samples - 1))
+    distance = distance_to_polyline(lipid[coarse], cap)
+    path = np.cumsum(np.r_[0.0, np.hypot(*np.diff(lipid, axis=0).T)])
+    # every sample lies within `reach` of path from its nearest coarse sample
+    reach = float(np.diff(path[coarse]).max()) / 2
+    near = coarse[distance <= distance.min() + reach]
+    half = stride // 2 + 1
+    fine = np.unique(np.concatenate([np.arange(i - half, i + half + 1) for i in near]))
+    fine = fine[(fine >= 0) & (fine < samples)]
+    return float(min(distance.min(), distance_to_polyline(lipid[fine], cap).min()))
 
 
 def build(p: StenosisParameters, size: float, local_size: float, spline_points: int = 101) -> None:

@@ -167,3 +167,24 @@ def test_geometry_is_installed_under_the_project_name(tmp_path):
         [sys.executable, "-c", probe], cwd=tmp_path, capture_output=True, text=True, check=True
     )
     assert result.stdout.strip() == "absent"
+
+
+@pytest.mark.parametrize("degree", [0.3, 0.5, 0.8])
+@pytest.mark.parametrize("lipid_length", [0.002, 0.006, 0.0095])
+def test_the_thinnest_cap_is_the_minimum_over_every_sample(degree, lipid_length):
+    """min_cap_thickness searches every 10th lipid sample, then around those that may hold the
+    minimum: the same value as the distance of every sample to the cap (exactly), and the
+    apex's cap_thickness while the pool is short."""
+    import dataclasses
+
+    g = config.load("configs/stenosis_fixed_newtonian.yaml").geometry
+    p = dataclasses.replace(g, stenosis_degree=degree, lipid_length=lipid_length)
+    samples, xc = 801, p.length / 2
+    x_lipid = np.linspace(xc - p.lipid_length / 2, xc + p.lipid_length / 2, samples)
+    x_cap = np.linspace(xc - p.stenosis_length / 2, xc + p.stenosis_length / 2, 2 * samples)
+    lipid = np.column_stack([x_lipid, stenosis.lipid_profile(p, x_lipid)])
+    cap = np.column_stack([x_cap, stenosis.plaque_profile(p, x_cap)])
+    every = float(stenosis.distance_to_polyline(lipid, cap).min())
+    assert stenosis.min_cap_thickness(p) == every
+    if lipid_length <= 0.006:
+        assert every == pytest.approx(p.cap_thickness, rel=2e-5)  # chords of 6 µm: ~5e-9 m

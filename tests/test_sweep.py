@@ -425,3 +425,16 @@ def test_a_sweep_never_deletes_results_without_overwrite_nor_through_a_link(shar
         assert sweep_main(CHANNEL, out, *vary, "--set", "time.end=0.003", *extra) == 2
         assert "is a symbolic link (to " in rank0_stderr(capsys)
     assert stamps(elsewhere) == kept
+
+
+def test_a_long_validation_says_how_far_it_is(shared_tmp, capsys, monkeypatch):
+    """A sweep's runs are validated before the first starts (a thousand take seconds): a
+    progress line comes every VALIDATION_PROGRESS_S seconds (here: at every run)."""
+    monkeypatch.setattr(sweep, "VALIDATION_PROGRESS_S", -1.0)
+    vary = ["--vary", "fluid.density=1000,1001,1002", "--dry-run"]
+    assert sweep_main(STENOSIS, shared_tmp / "progress", *vary) == 0
+    err = rank0_stderr(capsys)
+    assert [line for line in err.splitlines() if "validated" in line] == [
+        "sweep: validated 1 of 3 runs",
+        "sweep: validated 2 of 3 runs",
+    ]

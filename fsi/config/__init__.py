@@ -13,6 +13,7 @@ from fsi.config.case_file import (
     dump,
     from_dict,
     load,
+    loader,
     to_dict,
     to_yaml,
 )
@@ -71,6 +72,7 @@ __all__ = [
     "Case",
     "ConfigError",
     "load",
+    "loader",
     "from_dict",
     "validate",
     "cautions",

@@ -6,6 +6,7 @@ the resolved configuration.
 
 from __future__ import annotations
 
+import copy as copy_module
 import dataclasses
 import typing
 from pathlib import Path
@@ -43,9 +44,24 @@ def load(
     :func:`fsi.config.reader.read_case_file` refuses (unreadable, too large, not UTF-8, invalid
     or too deeply nested YAML, a repeated key) and whatever :func:`from_dict` refuses.
     """
+    return loader(path, run_config=run_config)(overrides)
+
+
+def loader(
+    path: str | Path, *, run_config: bool = False
+) -> typing.Callable[[typing.Sequence[str]], Case]:
+    """:func:`load` of ``path`` with the overrides it is called with, the file read and
+    parsed once (a sweep loads it with each combination's values). Raises the
+    :class:`ConfigError` of reading the file at once; the function returned raises those of
+    the overrides and the case."""
     data = read_case_file(path, RUN_CONFIG_BYTES if run_config else MAX_FILE_BYTES)
-    overridden = apply_overrides(data, overrides)
-    return from_dict(data, str(path), overridden)
+
+    def load_with(overrides: typing.Sequence[str] = ()) -> Case:
+        copy = copy_module.deepcopy(data)
+        overridden = apply_overrides(copy, overrides)
+        return from_dict(copy, str(path), overridden)
+
+    return load_with
 
 
 def from_dict(data: dict, source: str = "<dict>", overridden: set[str] | None = None) -> Case:

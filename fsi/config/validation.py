@@ -5,6 +5,7 @@ naming the key; :func:`fsi.config.from_dict` adds the file (or ``--set``).
 
 from __future__ import annotations
 
+import functools
 import math
 
 from fsi.config.boundary_data import FormulaError, periodic, sample_times, time_function
@@ -78,7 +79,7 @@ def _validate_stenosis(g: StenosisGeometry) -> None:
             g.cap_thickness,
         )
     _refuse_not_shorter(g, "lipid_length", than="stenosis_length")
-    thinnest = stenosis_geometry.min_cap_thickness(g)
+    thinnest = _thinnest_cap(g)
     if thinnest < g.cap_thickness * (1 - 1e-4):
         raise ConfigError(
             "",
@@ -88,6 +89,13 @@ def _validate_stenosis(g: StenosisGeometry) -> None:
             f" {thinnest:.3g} m)",
             g.lipid_length,
         )
+
+
+@functools.lru_cache(maxsize=1024)
+def _thinnest_cap(g: StenosisGeometry) -> float:
+    """The fibrous cap's thinnest point (m), once per geometry: a sweep validates many cases
+    that share theirs."""
+    return stenosis_geometry.min_cap_thickness(g)
 
 
 def _refuse_not_shorter(g: StenosisGeometry, key: str, than: str) -> None:

@@ -145,29 +145,38 @@ def plan(
     _check_variations(variations, sets)
     varied = [v.key for v in variations]
     first = [f"{v.key}={v.values[0]}" for v in variations]
-    _check_base(case_file, sets, varied, [*sets, *first])
+    load = config.loader(case_file)
+    _check_base(load, sets, varied, [*sets, *first])
 
     from fsi.run import simulation
 
     runs: list[SweepRun] = []
     seen: dict[str, SweepRun] = {}
     folders: dict[str, SweepRun] = {}
+    total, said = math.prod(len(v.values) for v in variations), wallclock.monotonic()
     for index, values in enumerate(itertools.product(*(v.values for v in variations)), 1):
+        if index > 1 and wallclock.monotonic() - said > VALIDATION_PROGRESS_S:
+            log.info("sweep: validated %d of %d runs", index - 1, total)
+            said = wallclock.monotonic()
         choice = tuple(zip(varied, values, strict=True))
         overrides = (*sets, *(f"{key}={value}" for key, value in choice))
         try:
-            case = config.load(case_file, overrides)
+            case = load(overrides)
         except config.ConfigError as e:
             raise SweepError(str(e.from_source(_culprit(choice, e.key)))) from None
         reason = simulation.unsupported(case)
         if reason is not None:
             raise SweepError(f"{_culprit(choice, '')}: {reason}")
         run = SweepRun(index, choice, case, overrides, out / folder_name(choice))
-        resolved = config.to_yaml(case)
+        resolved = json.dumps(config.to_dict(case), sort_keys=True)
         _check_unique(run, resolved, seen, folders)
         seen[resolved] = folders[run.folder.name] = run
         runs.append(run)
     return runs
+
+
+VALIDATION_PROGRESS_S = 5.0
+"""While a sweep's runs are validated, a progress line at most this often (s)."""
 
 
 def _check_variations(variations: Sequence[Variation], sets: Sequence[str]) -> None:
@@ -212,20 +221,23 @@ def _check_unique(
 
 
 def _check_base(
-    case_file: Path, sets: Sequence[str], varied: Sequence[str], first: Sequence[str]
+    load: Callable[[Sequence[str]], config.Case],
+    sets: Sequence[str],
+    varied: Sequence[str],
+    first: Sequence[str],
 ) -> None:
-    """Raise the :class:`fsi.config.ConfigError` of the case file with the ``--set``
-    overrides alone, unless it is about a varied key (which every run overrides) or the first
-    combination's values (``first``: its overrides) remove it, as varied inlets remove the
-    base inlet's "time.cycles needs a periodic inlet": each combination is then validated on
-    its own."""
+    """Raise the :class:`fsi.config.ConfigError` of the case file (``load``: it, with the
+    overrides it is called with) with the ``--set`` overrides alone, unless it is about a
+    varied key (which every run overrides) or the first combination's values (``first``: its
+    overrides) remove it, as varied inlets remove the base inlet's "time.cycles needs a
+    periodic inlet": each combination is then validated on its own."""
     try:
-        config.load(case_file, sets)
+        load(sets)
     except config.ConfigError as e:
         if e.key and any(_overlaps(e.key, key) for key in varied):
             return
         try:
-            config.load(case_file, first)
+            load(first)
         except config.ConfigError as again:
             if again.key == e.key:
                 raise e from None
