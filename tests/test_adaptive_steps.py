@@ -139,4 +139,9 @@ def test_a_step_still_too_inaccurate_at_min_dt_fails_the_run(tmp_path_factory, f
     assert len(rows(out)) == 2
     text = MPI.COMM_WORLD.bcast(fsi_log.text)
     assert "time.adaptive.tolerance = 1e-14 at time.adaptive.min_dt = 0.0002 s" in text
+    # ... and what a run from rest usually lacks: the fields' scales.
+    assert (
+        f"time.adaptive.velocity_scale = {G * H**2 / (8 * MU):g} m/s and displacement_scale = 0 m"
+        in text
+    )
     assert f"checkpointed in {out / 'checkpoint'}" in text

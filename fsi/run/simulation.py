@@ -250,10 +250,15 @@ def _adaptive_steps(
             if control.accepts(error):
                 break
             if step.dt <= control.min_dt * (1 + 1e-9):
+                scales = saved.case.time.adaptive
                 raise StepFailed(
                     f"step {step.index} to t = {step.t:g} s: its local time error "
                     f"{error:.3g} is above time.adaptive.tolerance = {control.tolerance:g} "
-                    f"at time.adaptive.min_dt = {control.min_dt:g} s"
+                    f"at time.adaptive.min_dt = {control.min_dt:g} s. The error is relative "
+                    "to the largest each field has been, or while it is smaller to "
+                    f"time.adaptive.velocity_scale = {scales.velocity_scale:g} m/s and "
+                    f"displacement_scale = {scales.displacement_scale:g} m: a run from rest "
+                    "needs them set to the size the fields will reach"
                 )
             stepper.load_state(saved.good.state)
             rejected.append(step)
