@@ -98,8 +98,10 @@ def test_extrapolation_weights_are_exact_for_quadratics_on_uneven_times():
 def test_local_error_scales_with_the_step_cubed_and_vanishes_for_quadratics():
     """x(t) = sin(ω t) e: the estimate ‖x(t) − P(t)‖∞ / ‖x‖max after three accepted levels h
     apart is h³ |x⁽³⁾| / max|x| to leading order (the Lagrange remainder h · 2h · 3h / 3! = h³,
-    x⁽³⁾ between the levels), the relative difference O(h); a quadratic field gives 0; the
-    floor replaces a smaller field size."""
+    x⁽³⁾ between the levels; max|x| over the accepted levels), the relative difference O(h);
+    a quadratic field gives 0; the floor replaces a smaller field size; a step that blows up
+    is measured against the accepted levels, not against itself (which would make its error
+    about 1 however large it grew)."""
     comm = MPI.COMM_WORLD
     e = np.array([1.0, -0.5, 0.25])
     omega, t0 = 3.0, 0.4
@@ -114,13 +116,15 @@ def test_local_error_scales_with_the_step_cubed_and_vanishes_for_quadratics():
         return np.sin(omega * t) * e
 
     for h in (1e-2, 5e-3, 2.5e-3):
-        size = max(abs(np.sin(omega * (t0 + k * h))) for k in range(4))  # ‖x‖max, e's 1
+        size = max(abs(np.sin(omega * (t0 + k * h))) for k in range(3))  # ‖x‖max, e's 1
         exact = h**3 * omega**3 * abs(np.cos(omega * (t0 + 1.5 * h))) / size
         assert estimate(h, wave) == pytest.approx(exact, rel=10 * h)
     assert estimate(1e-2, lambda t: (1 + 2 * t - 3 * t * t) * e) < 1e-14
-    size = max(abs(np.sin(omega * (t0 + k * 1e-2))) for k in range(4))
+    size = max(abs(np.sin(omega * (t0 + k * 1e-2))) for k in range(3))
     floored = estimate(1e-2, wave, floor=10.0)
     assert floored == pytest.approx(estimate(1e-2, wave) * size / 10, rel=1e-12)
+    blown_up = estimate(1e-2, lambda t: wave(t) * (1000.0 if t > t0 + 0.025 else 1.0))
+    assert blown_up > 500  # (before: ~1, the step's own size in the scale)
     assert LocalError(comm, 3).estimate(e, 0.1) is None  # no levels yet
 
 

@@ -137,9 +137,10 @@ class LocalError:
 
     The step's result ``x`` at ``t`` and the quadratic extrapolation ``P(t)`` of the last three
     accepted levels differ by ``C h³ x⁽³⁾`` to leading order, as the step's own local error does.
-    The estimate is that difference relative to the largest the field has been::
+    The estimate is that difference relative to the largest the field has been in the
+    accepted levels (not in this step, whose blow-up would otherwise inflate its own scale)::
 
-        e = ‖x − P(t)‖ / max(floor, max_k ‖x_k‖)
+        e = ‖x − P(t)‖ / max(floor, max_k ‖x_k‖)   (‖x‖ itself only while both are 0)
 
     with ‖·‖ the largest absolute entry over the first ``owned`` local entries, reduced over
     ``comm``. ``floor`` (the size the field is expected to reach) keeps a field starting from rest
@@ -169,7 +170,9 @@ class LocalError:
             return None
         weights = extrapolation_weights(list(self._times), t)
         predicted = sum(w * v for w, v in zip(weights, self._values))
-        scale = max(self.floor, self.scale, self.norm(x))
+        # The accepted levels' size, not this step's: a step that blows up cannot inflate the
+        # scale it is measured against (only a field at rest throughout has none).
+        scale = max(self.floor, self.scale) or self.norm(x)
         return self.norm(x - predicted) / scale if scale > 0 else 0.0
 
     def accept(self, x: np.ndarray, t: float) -> None:
