@@ -295,9 +295,9 @@ WINDKESSEL_RUN = [
 ]
 
 
-def fsi_run(out: Path, overrides, restart: Path | None = None) -> int:
+def fsi_run(out: Path, overrides, restart: Path | None = None, *extra: str) -> int:
     args = ["run", CHANNEL, "--out", str(out), *sum((["--set", s] for s in overrides), [])]
-    return cli.main(args + ([] if restart is None else ["--restart", str(restart)]))
+    return cli.main(args + ([] if restart is None else ["--restart", str(restart)]) + list(extra))
 
 
 def metrics_rows(run: Path) -> list[dict]:
@@ -328,12 +328,14 @@ def test_a_restarted_windkessel_run_continues_like_the_uninterrupted_one(shared_
 
 
 def test_a_windkessel_added_at_a_restart_starts_from_its_initial_pressure(shared_tmp, fsi_log):
-    """A checkpoint of a traction-free run holds no Windkessel state: the restart starts P_c from
-    P_0 at the checkpoint's time, with a warning (a fluid setting may change at a restart)."""
+    """A checkpoint of a traction-free run holds no Windkessel state: a restart that adds one
+    (a change of the outlet: refused unless asked for with --allow-changes) starts P_c from P_0
+    at the checkpoint's time, with a warning."""
     run = shared_tmp / "run"
     traction_free = [s for s in WINDKESSEL_RUN if not s.startswith("fluid.outlet")]
     assert fsi_run(run, [*traction_free, "time.end=0.002"]) == 0
-    assert fsi_run(run, [*WINDKESSEL_RUN, "time.end=0.003"], restart=run) == 0
+    assert fsi_run(run, [*WINDKESSEL_RUN, "time.end=0.003"], restart=run) == 2
+    assert fsi_run(run, [*WINDKESSEL_RUN, "time.end=0.003"], run, "--allow-changes") == 0
     rows = metrics_rows(run)
     assert [r["step"] for r in rows] == ["1", "2", "3", "4"]
     # BDF2's P_c^3 from P_c^2 = P_c^1 = P_0 = 100 Pa, towards 450 Pa.
