@@ -391,26 +391,39 @@ def test_varied_inlets_are_validated_with_the_cycles_they_make_possible(shared_t
 
 
 def test_a_sweep_never_deletes_results_without_overwrite_nor_through_a_link(shared_tmp, capsys):
-    """Finished runs to 2 ms; the same sweep to 1 ms (shorter), or with another ``--set``,
-    would replace them: refused (exit 2, naming how many and the first, with why), nothing
-    touched, unless ``--overwrite``. A run folder that is a symbolic link to another folder is
-    refused even with ``--overwrite``, and what it points to is left alone."""
+    """Finished runs to 2 ms. The same sweep to 1 ms is covered by them: skipped, nothing
+    touched, the table from their rows up to 1 ms. With another ``--set`` the runs would
+    replace them: refused (exit 2, naming how many and the first, with why), nothing touched,
+    unless ``--overwrite``. A run folder that is a symbolic link to another folder is refused
+    even with ``--overwrite``, and what it points to is left alone."""
     import os
 
     comm = MPI.COMM_WORLD
     out = shared_tmp / "sweep"
     vary = ["--vary", "fluid.rheology.viscosity=0.0035,0.004"]
     assert sweep_main(CHANNEL, out, *vary, "--set", "time.end=0.002") == 0
-    before = comm.bcast(stamps(out) if comm.rank == 0 else None)
-    for changed in ("time.end=0.001", "fluid.density=1000"):
-        capsys.readouterr()
-        assert sweep_main(CHANNEL, out, *vary, "--set", "time.end=0.002", "--set", changed) == 2
-        err = rank0_stderr(capsys)
-        assert "2 of the 2 runs would delete an earlier run's results" in err, err
-        assert "add --overwrite to replace them" in err
-        assert stamps(out) == before
-    shorter = [*vary, "--set", "time.end=0.001"]
-    assert sweep_main(CHANNEL, out, *shorter, "--overwrite") == 0
+    longer = read_table(out)
+    runs = comm.bcast(stamps(out) if comm.rank == 0 else None)
+    runs = {path: stamp for path, stamp in runs.items() if "/fluid." in path}
+    capsys.readouterr()
+    assert sweep_main(CHANNEL, out, *vary, "--set", "time.end=0.001") == 0
+    err = rank0_stderr(capsys)
+    assert err.count("done earlier to t = 0.002 s, which covers time.end = 0.001 s") == 2, err
+    assert {path: stamp for path, stamp in stamps(out).items() if path in runs} == runs
+    shorter = read_table(out)
+    for row, run in zip(shorter, longer):
+        assert row["status"] == "done"
+        assert float(row["peak_inlet_flow_rate"]) < float(run["peak_inlet_flow_rate"])
+        assert row["min_tawss"] == ""  # summary.json's, over the whole 2 ms: not tabled
+    capsys.readouterr()
+    assert sweep_main(CHANNEL, out, *vary, "--set", "time.end=0.002", "--set",
+                      "fluid.density=1000") == 2  # fmt: skip
+    err = rank0_stderr(capsys)
+    assert "2 of the 2 runs would delete an earlier run's results" in err, err
+    assert "add --overwrite to replace them" in err
+    assert {path: stamp for path, stamp in stamps(out).items() if path in runs} == runs
+    changed = [*vary, "--set", "time.end=0.001", "--set", "fluid.density=1000"]
+    assert sweep_main(CHANNEL, out, *changed, "--overwrite") == 0
     run = out / "fluid.rheology.viscosity=0.004"
     assert [r["step"] for r in io.read_metrics(run / "metrics.csv")] == [1]
 

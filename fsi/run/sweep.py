@@ -304,6 +304,13 @@ def folder_state(run: SweepRun) -> FolderState:
     end = config.run_time(run.case).end  # time.cycles: cycles × period
     if not different and _reached(folder / "summary.json", end):
         return FolderState("skip", "done earlier, skipped")
+    reached = _covering_end(folder, different, end)
+    if reached is not None:
+        return FolderState(
+            "skip",
+            f"done earlier to t = {reached:.6g} s, which covers time.end = {end:.6g} s: "
+            "skipped (its rows up to that end are tabled)",
+        )
     other = [key for key in different if not _overlaps(key, "time")]
     if other:
         return FolderState(
@@ -320,6 +327,19 @@ def folder_state(run: SweepRun) -> FolderState:
     else:
         why = f"its checkpoint is at t = {t:.6g} s, after time.end"
     return FolderState("replace", f"started afresh ({why})")
+
+
+def _covering_end(folder: Path, different: Sequence[str], end: float) -> float | None:
+    """The end a finished run in ``folder`` reached when it covers a request that differs
+    from its configuration only in ``time.end`` (``different``), ending earlier: the same steps
+    up to ``end``, so its rows up to ``end`` are the request's. None otherwise."""
+    if list(different) != ["time.end"]:
+        return None
+    try:
+        reached = float(json.loads((folder / "summary.json").read_text())["end_time_s"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return reached if reached > end * (1 + 1e-9) else None
 
 
 def _reached(summary: Path, end: float) -> bool:
@@ -585,19 +605,23 @@ class ResultError(Exception):
     """A finished run's summary.json or metrics.csv cannot be read."""
 
 
-def headline_values(folder: Path) -> dict[str, float | None]:
-    """The :data:`HEADLINES` of the finished run in ``folder``: None for a quantity its case
-    does not have (no such column or key, no value in any row; the structure's quantities of
-    a rigid-structure run). Raises :class:`ResultError`."""
+def headline_values(folder: Path, end: float | None = None) -> dict[str, float | None]:
+    """The :data:`HEADLINES` of the finished run in ``folder``, over its rows up to ``end``
+    (None: all): None for a quantity its case does not have (no such column or key, no value
+    in any row; the structure's quantities of a rigid-structure run) and, when ``end`` cuts the
+    run short, for those of summary.json (over the whole run). Raises :class:`ResultError`."""
     try:
         summary = json.loads((folder / "summary.json").read_text())
         rows = io.read_metrics(folder / "metrics.csv")
     except (OSError, ValueError) as e:  # io.MetricsError is a ValueError
         raise ResultError(str(e)) from e
+    cut = end is not None and any(r["t"] > end * (1 + 1e-9) for r in rows)
+    if cut:
+        rows = [r for r in rows if r["t"] <= end * (1 + 1e-9)]
     rigid = summary.get("structure_mode") == "rigid"
     values: dict[str, float | None] = {}
     for h in HEADLINES:
-        if h.structure and rigid:
+        if (h.structure and rigid) or (cut and h.how == "summary"):
             value = None
         elif h.how == "summary":
             value = summary.get(h.source)
@@ -630,7 +654,7 @@ def write_results(
             values = {h.name: None for h in HEADLINES}
             if statuses[i] == "done":
                 try:
-                    values = headline_values(run.folder)
+                    values = headline_values(run.folder, config.run_time(run.case).end)
                 except ResultError as e:
                     statuses[i] = f"failed: cannot read its results: {e}"
             table.append(values)
