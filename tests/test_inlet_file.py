@@ -234,8 +234,10 @@ def test_a_header_naming_other_units_is_refused(shared_tmp, capsys, header, mess
     assert cli.main(["check", CHANNEL, *inlet]) == 2
     if MPI.COMM_WORLD.rank == 0:
         assert f"{path}: line 1: {message}" in capsys.readouterr().err
-    for fine in ("t (s),P (Pa)\n", "time,pressure\n"):
+    for k, fine in enumerate(("t (s),P (Pa)\n", "time,pressure\n")):
+        path = shared_tmp / f"fine{k}.csv"  # a new file: another rank may still read the last
         write(path, csv(ROWS, header=fine))
+        inlet = ["--set", f"fluid.inlet={{kind: pressure_file, file: {path}}}"]
         assert cli.main(["check", CHANNEL, *inlet]) == 0
 
 
