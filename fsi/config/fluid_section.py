@@ -200,6 +200,10 @@ class Fluid:
     ``supg``: consistent streamline-upwind/Petrov–Galerkin stabilization of the momentum equation
     (Tezduyar & Osawa's τ with a viscous limit for P2), on by default: it carries cell Reynolds
     numbers the Galerkin form cannot, Newtonian and generalized Newtonian.
+    ``element``: ``p2p1`` Taylor–Hood (inf-sup stable, the default) or ``p1p1`` equal-order
+    linear velocity and pressure, which needs the stabilized form's pressure terms (PSPG and
+    LSIC, added with ``supg``); a fluid-only option (``structure.mode: rigid``): the interface
+    maps pair the fluid's P2 velocity nodes with the solid's.
     """
 
     density: float = positive(1060.0, "kg/m^3")
@@ -210,6 +214,7 @@ class Fluid:
     inlet_open_boundary: Literal["same", "stress", "do_nothing"] = "same"
     normal_flow: bool = True
     supg: bool = True
+    element: Literal["p2p1", "p1p1"] = "p2p1"
     inflow_stabilization: float = non_negative(0.0)
     inflow_form: BackflowForm = "tangential_velocity"
     quadrature_degree: int = quadrature(4)

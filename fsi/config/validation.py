@@ -30,7 +30,8 @@ from fsi.numerics.timestepping import steps
 
 def validate(case: Case) -> None:
     """Checks that involve several keys (single values are checked while building), in the
-    order of the sections: geometry, structure load, mesh size, schedule, solvers, inlet."""
+    order of the sections: geometry, structure load, mesh size, schedule, solvers, fluid element,
+    inlet."""
     _validate_geometry(case)
     _validate_structure_load(case)
     _validate_cell_count(case)  # before the size order: mesh.size 1e-6 gets the estimate
@@ -40,6 +41,7 @@ def validate(case: Case) -> None:
         )
     _validate_schedule(case)
     _validate_solvers(case)
+    _validate_element(case)
     check_petsc_options(case.fluid.solver.petsc_options, "fluid.solver.petsc_options")
     check_petsc_options(case.structure.solver.petsc_options, "structure.solver.petsc_options")
     check_petsc_options(case.mesh_motion.petsc_options, "mesh_motion.petsc_options")
@@ -292,6 +294,29 @@ def _validate_cycles(time: Time, period: float) -> None:
                 f"run) when time.cycles is {n}",
                 time.end,
             )
+
+
+def _validate_element(case: Case) -> None:
+    """Equal-order P1–P1 is stable only with the stabilized form's pressure terms, and only the
+    fluid-only problem supports it (the interface maps pair P2 velocity nodes)."""
+    if case.fluid.element != "p1p1":
+        return
+    if not case.fluid.supg:
+        raise ConfigError(
+            "",
+            "fluid.element",
+            "'p2p1' when fluid.supg is false (equal-order P1–P1 needs the stabilized form's"
+            " PSPG term to hold the pressure)",
+            case.fluid.element,
+        )
+    if case.structure.mode != "rigid":
+        raise ConfigError(
+            "",
+            "fluid.element",
+            "'p2p1' when structure.mode is not 'rigid' (the fluid–structure interface pairs the"
+            " fluid's P2 velocity nodes with the solid's)",
+            case.fluid.element,
+        )
 
 
 def _validate_solvers(case: Case) -> None:

@@ -1,4 +1,5 @@
-"""The fluid solver: generalized Navier–Stokes in ALE form, Taylor–Hood P2/P1, Newton.
+"""The fluid solver: generalized Navier–Stokes in ALE form, Taylor–Hood P2/P1 (or stabilized
+equal-order P1/P1, ``fluid.element``), Newton.
 
     ρ (∂u/∂t|_X + ((u − w)·∇)u) − ∇·(2 μ(s(u)) D(u)) + ∇p = f,   ∇·u = 0   in Ωf(t)
 
@@ -37,6 +38,9 @@ from fsi.physics.mesh_motion import AleMesh
 log = logging.getLogger(__name__)
 
 Scheme = Literal["backward_euler", "bdf2", "steady"]
+
+VELOCITY_DEGREE = {"p2p1": 2, "p1p1": 1}
+"""The velocity's Lagrange degree of each ``fluid.element``; the pressure is P1 in both."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -166,8 +170,9 @@ class FluidSolver:
         fdim = mesh.topology.dim - 1
         mesh.topology.create_connectivity(fdim, mesh.topology.dim)
 
-        self.W = compat.mixed_space(mesh, [("Lagrange", 2, (gdim,)), ("Lagrange", 1, ())])
-        self.V = compat.function_space(mesh, "Lagrange", 2, (gdim,))
+        degree = VELOCITY_DEGREE[fluid.element]
+        self.W = compat.mixed_space(mesh, [("Lagrange", degree, (gdim,)), ("Lagrange", 1, ())])
+        self.V = compat.function_space(mesh, "Lagrange", degree, (gdim,))
         self.Q = compat.function_space(mesh, "Lagrange", 1)
         self._V_to_W = _subspace_map(self.W, 0, self.V)
         self._Q_to_W = _subspace_map(self.W, 1, self.Q)

@@ -3,7 +3,7 @@
 :class:`FluidResidual` builds, on the current configuration,
 
     ρ (Σ_k a_k u^{n+1−k}, v) + ρ (((u − w)·∇)u, v) + (2 μ D(u), D(v)) − (p, ∇·v) − (q, ∇·u)
-        − (f, v) − ⟨σ n, v⟩_natural [+ SUPG] = 0,
+        − (f, v) − ⟨σ n, v⟩_natural [+ SUPG (+ PSPG, LSIC for P1–P1)] = 0,
 
 one method per term, and turns each boundary condition (fsi/physics/fluid_boundaries.py) into
 its Dirichlet conditions and boundary terms. :class:`LumpedOutlet` is an outlet whose pressure
@@ -50,13 +50,14 @@ diameter). Measured (docs/boundary-conditions.md): ℓ = h/2 keeps the rigid ste
 0.8 m/s inflow stable (as ℓ = h and h/4 do; ℓ = 0 fails at t = 0.07 s) and moves the plane
 Womersley flow's peak velocity by 0.4 % (0.25 mm cells; the distortion ∝ ℓ²)."""
 
-SUPG_VISCOUS_CONSTANT = 96.0
-"""C in the viscous limit τ = ρ h²/(C μ) of the SUPG parameter. Tezduyar & Osawa's 4 is made for
-linear elements, whose strong viscous term vanishes; with P2 velocities the term
-τ ((u − w)·∇)v · ∇·(2 μ D(u)) stays, and it destabilizes unless τ is small enough where the
-flow is viscous (the inverse estimate of P2: ‖Δv‖ ≲ C_I h⁻¹ ‖∇v‖). Measured on the Carreau
-channel at 300 Pa/m (μ up to 0.056 Pa s near the centreline; docs/boundary-conditions.md):
-C = 4 fails at t = 0.68 s, 16 at 1.1 s, 48 runs; 96 is twice the smallest that runs."""
+VISCOUS_CONSTANT = {"p2p1": 96.0, "p1p1": 4.0}
+"""C in the viscous limit τ = ρ h²/(C μ) of the stabilization parameter, per ``fluid.element``.
+Tezduyar & Osawa's 4 is made for linear elements, whose strong viscous term vanishes (P1–P1
+keeps it). With P2 velocities the term τ ((u − w)·∇)v · ∇·(2 μ D(u)) stays, and it
+destabilizes unless τ is small enough where the flow is viscous (the inverse estimate of P2:
+‖Δv‖ ≲ C_I h⁻¹ ‖∇v‖). Measured on the Carreau channel at 300 Pa/m (μ up to 0.056 Pa s near
+the centreline; docs/boundary-conditions.md): C = 4 fails at t = 0.68 s, 16 at 1.1 s, 48
+runs; 96 is twice the smallest that runs."""
 
 SUPG_SPEED_FLOOR = 1e-12
 """(m/s) inside τ's |u − w| = sqrt(|u − w|² + floor²): keeps its derivative finite at rest, where
@@ -253,7 +254,7 @@ class FluidResidual:
         """F((u, p); (v, q)) of the module docstring, one named term per line of it:
 
             inertia + convection (ALE) + viscous stress − pressure − continuity − body force
-            + SUPG + the boundary terms of each condition (:attr:`BOUNDARY_KINDS`),
+            + stabilization + the boundary terms of each condition (:attr:`BOUNDARY_KINDS`),
 
         and the Dirichlet conditions of the boundaries (in ``self.bcs``, ordered by
         :data:`_Contribution` precedence: later ones win at shared corner dofs)."""
@@ -268,7 +269,7 @@ class FluidResidual:
         if body_force is not None:
             F -= self._body_force(s, body_force) * s.dx
         if self.config.supg:
-            F += self._supg(s, body_force) * s.dx
+            F += self._stabilization(s, body_force) * s.dx
         dirichlet = []
         for bc in self.boundaries:
             kind = self.BOUNDARY_KINDS.get(type(bc))
@@ -448,45 +449,61 @@ class FluidResidual:
         inflow = ufl.min_value(ufl.dot(s.u, s.n), 0.0)
         return -(beta / 2 * self._rho * inflow * damped * s.ds_of(tags))
 
-    def _supg(self, s: _WeakForm, body_force: BodyForce | None):
-        """SUPG: τ ((u − w)·∇)v · R with the strong momentum residual
+    def _stabilization(self, s: _WeakForm, body_force: BodyForce | None):
+        """The residual-based stabilization: SUPG (:meth:`_supg`) and, for equal-order P1–P1,
+        PSPG and LSIC (:meth:`_pspg`, :meth:`_lsic`), with the strong momentum residual
 
             R = ρ (∂u/∂t + ((u − w)·∇)u) + ∇p − ∇·(2 μ(s) D(u)) − f
 
-        (zero for the exact solution: the method is consistent; P2 velocities make the viscous
-        term exact for Poiseuille flow, which stays a discrete solution) and
-        τ = ((2 a₀)² + (2|u − w|/h)² + (C μ/(ρ h²))²)^(−1/2) (Tezduyar & Osawa 2000, with
-        C = :data:`SUPG_VISCOUS_CONSTANT` for P2; a₀ the BDF weight of u^{n+1}, 1/Δt for
-        backward Euler, 0 when steady; u and μ(s(u)) of the last accepted step, so that τ is a
-        coefficient of the step, not a function of its unknown; a steady solve has no last step
-        and takes them from its unknown; the residual R is the step's own). It adds the
-        streamline diffusion ≈ ρ|u − w|h/2 that the Galerkin form lacks where the cell Reynolds
-        number is large, in particular in the cells of an open inlet
-        (docs/boundary-conditions.md)."""
+        (zero for the exact solution: the terms are consistent) and one parameter
+        τ = ((2 a₀)² + (2|u − w|/h)² + (C μ/(ρ h²))²)^(−1/2) (Tezduyar & Osawa 2000; a₀ the BDF
+        weight of u^{n+1}, 1/Δt for backward Euler, 0 when steady; C the element's
+        :data:`VISCOUS_CONSTANT`). τ takes u and μ(s(u)) of the last accepted step, so that it
+        is a coefficient of the step, not a function of its unknown; a steady solve has no last
+        step and takes them from its unknown (Newton differentiates); R is the step's own."""
         rho, w, u, h = self._rho, self.ale.w, s.u, s.h
-        a = u - w
         residual = (
             rho * s.dudt
-            + rho * ufl.grad(u) * a
+            + rho * ufl.grad(u) * (u - w)
             + ufl.grad(s.p)
             - ufl.div(2 * s.mu * rheology.strain_rate(u))
         )
         if body_force is not None:
             residual -= body_force(s.x, self.t)
-        # τ's velocity and viscosity: the last accepted step's (coefficients of the step); a
-        # steady solve has no last step, so there they are the unknown's (Newton differentiates).
         if self.scheme == "steady":
             u_tau, mu_tau = s.u, s.mu
         else:
             u_tau, mu_tau = self.u_n, self.law.mu(rheology.shear_rate(self.u_n))
         a_tau = u_tau - w
         speed = ufl.sqrt(ufl.dot(a_tau, a_tau) + SUPG_SPEED_FLOOR**2)
+        viscous = VISCOUS_CONSTANT[self.config.element]
         tau = (
-            (2 * self._a[0]) ** 2
-            + (2 * speed / h) ** 2
-            + (SUPG_VISCOUS_CONSTANT * mu_tau / (rho * h**2)) ** 2
+            (2 * self._a[0]) ** 2 + (2 * speed / h) ** 2 + (viscous * mu_tau / (rho * h**2)) ** 2
         ) ** -0.5
-        return tau * ufl.dot(ufl.grad(s.v) * a, residual)
+        terms = self._supg(s, tau, residual)
+        if self.config.element == "p1p1":
+            terms = terms - self._pspg(s, tau, residual) + self._lsic(s, tau)
+        return terms
+
+    def _supg(self, s: _WeakForm, tau, residual):
+        """SUPG: τ ((u − w)·∇)v · R. It adds the streamline diffusion ≈ ρ|u − w|h/2 that the
+        Galerkin form lacks where the cell Reynolds number is large, in particular in the cells
+        of an open inlet (docs/boundary-conditions.md). With P2 velocities the strong viscous
+        term is exact for Poiseuille flow, which stays a discrete solution."""
+        return tau * ufl.dot(ufl.grad(s.v) * (s.u - self.ale.w), residual)
+
+    def _pspg(self, s: _WeakForm, tau, residual):
+        """PSPG (subtracted, as the continuity term): (τ/ρ) ∇q · R (Hughes, Franca & Balestra
+        1986; Tezduyar 1992): a pressure Laplacian −(τ/ρ)(∇q, ∇p) that circumvents the inf-sup
+        condition equal-order P1–P1 fails, made consistent by the rest of R."""
+        return tau / self._rho * ufl.dot(ufl.grad(s.q), residual)
+
+    def _lsic(self, s: _WeakForm, tau):
+        """LSIC: ρ τ_C (∇·u)(∇·v) with τ_C = h²/(8 τ) (the VMS τ_C = (τ tr G)^(−1) with the
+        metric G = 4/h² I of a 2D cell; Bazilevs et al. 2007): least squares on the continuity
+        residual, which P1–P1 does not satisfy pointwise; zero on a solenoidal velocity."""
+        tau_c = s.h**2 / (8 * tau)
+        return self._rho * tau_c * ufl.div(s.u) * ufl.div(s.v)
 
     # ---- Dirichlet conditions
 
