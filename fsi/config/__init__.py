@@ -52,7 +52,11 @@ from fsi.config.rheology_section import (
     PowerLaw,
     Rheology,
 )
-from fsi.config.solver_settings import MAX_QUADRATURE_DEGREE, SolverSettings
+from fsi.config.solver_settings import (
+    MAX_QUADRATURE_DEGREE,
+    FluidSolverSettings,
+    SolverSettings,
+)
 from fsi.config.structure_section import (
     FlagMaterial,
     GeneralizedAlpha,
@@ -132,6 +136,7 @@ __all__ = [
     "Coupling",
     "MeshMotion",
     "Output",
+    "FluidSolverSettings",
     "SolverSettings",
     "MAX_QUADRATURE_DEGREE",
 ]

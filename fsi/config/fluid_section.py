@@ -13,7 +13,7 @@ from fsi.config.boundary_data import FORMULA_NAMES, time_function
 from fsi.config.outlet_section import BackflowForm, Outlet, TractionFreeOutlet
 from fsi.config.reader import checked, non_negative, positive
 from fsi.config.rheology_section import Newtonian, Rheology
-from fsi.config.solver_settings import SolverSettings, quadrature
+from fsi.config.solver_settings import FluidSolverSettings, quadrature
 
 
 @dataclass(frozen=True)
@@ -218,4 +218,4 @@ class Fluid:
     inflow_stabilization: float = non_negative(0.0)
     inflow_form: BackflowForm = "tangential_velocity"
     quadrature_degree: int = quadrature(4)
-    solver: SolverSettings = field(default_factory=SolverSettings)
+    solver: FluidSolverSettings = field(default_factory=FluidSolverSettings)

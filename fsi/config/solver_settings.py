@@ -49,3 +49,16 @@ class SolverSettings:
     jacobian_reuse_rate: float = open_interval(0.3, 0.0, 1.0)
     # Names and values are checked against an allow-list (check_petsc_options) in validate().
     petsc_options: dict[str, str | int | float] = field(default_factory=direct_solver_options)
+
+
+@dataclass(frozen=True)
+class FluidSolverSettings(SolverSettings):
+    """The fluid's solver settings: :class:`SolverSettings` and the ``linearization`` of each
+    time step. ``newton`` solves the step's nonlinear equations; ``extrapolated`` takes what
+    makes them nonlinear (the advecting velocity u − w, the viscosity μ(s(u)), the backflow
+    terms' u·n and the stabilization's τ) from the second-order extrapolation
+    u* = (1 + r) u^n − r u^{n−1}, r = Δt/Δt_prev (u^n on a first step), so that each step is one
+    linear (Oseen) problem: one Jacobian, one factorisation, one solve (Newton then converges in
+    one iteration). BDF2's second order is kept (tests/test_linearization.py)."""
+
+    linearization: Literal["newton", "extrapolated"] = "newton"

@@ -334,6 +334,14 @@ def _validate_solvers(case: Case) -> None:
             case.structure.time_integration.scheme,
         )
 
+    if case.time.scheme == "steady" and case.fluid.solver.linearization == "extrapolated":
+        raise ConfigError(
+            "",
+            "fluid.solver.linearization",
+            "'newton' when time.scheme is 'steady' (there are no past steps to extrapolate)",
+            case.fluid.solver.linearization,
+        )
+
     if case.coupling.max_relaxation < case.coupling.initial_relaxation:
         raise ConfigError(
             "",

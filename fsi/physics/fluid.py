@@ -197,6 +197,7 @@ class FluidSolver:
 
         self.t = constant(0.0)  # the time of the step being solved, for g(x, n, t) and f(x, t)
         self.bdf_weights = [constant(0.0) for _ in range(3)]
+        self.extrapolation_weights = [constant(1.0), constant(0.0)]
         self.rho = constant(fluid.density)
 
         self._check_tags()
@@ -256,6 +257,15 @@ class FluidSolver:
             return tuple(bdf_weights(2, dt, self.dt_previous))  # type: ignore[return-value]
         return (*bdf_weights(1, dt), 0.0)  # type: ignore[return-value]
 
+    def extrapolation(self, dt: float) -> tuple[float, float]:
+        """(e1, e2) of the extrapolation u* = e1 u^n + e2 u^{n−1} to the next step: second order,
+        (1 + r, −r) with r = dt/dt_prev, after a BDF2 step; u^n on a first step (and for backward
+        Euler, first order anyway). Used by ``fluid.solver.linearization: extrapolated``."""
+        if self.scheme == "bdf2" and self.accepted_steps > 0:
+            r = dt / self.dt_previous
+            return (1 + r, -r)
+        return (1.0, 0.0)
+
     def step(self, t: float, dt: float, forcing: Forcing | None = None) -> SolveResult:
         """Solve for (u, p) at time ``t`` = t_n + dt on the current mesh, Newton starting from
         the current (u, p) and stopping on the solver's tolerance or at ``forcing``. On failure
@@ -265,6 +275,8 @@ class FluidSolver:
         self._dt = dt
         for c, a in zip(self.bdf_weights, weights):
             c.value = a
+        for c, e in zip(self.extrapolation_weights, self.extrapolation(dt)):
+            c.value = e
         self.t.value = t
         for update in self._updates:
             update(t)

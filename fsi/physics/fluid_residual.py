@@ -152,11 +152,15 @@ class LumpedOutlet:
 
 @dataclass(frozen=True)
 class _WeakForm:
-    """The symbols the residual's terms share: the unknowns (u, p) = split(U), the test
-    functions (v, q), the viscosity μ(s(u)), the BDF derivative ∂u/∂t, the measures (with the
-    configured quadrature degree), the coordinate x, the outward normal n, the cell diameter h."""
+    """The symbols the residual's terms share: the unknowns (u, p) = split(U), the velocity
+    that advects and sets the viscosity (``advecting``: u itself, or with
+    ``fluid.solver.linearization: extrapolated`` the extrapolation u* of the accepted steps,
+    which makes the residual linear in (u, p)), the test functions (v, q), the viscosity
+    μ(s(advecting)), the BDF derivative ∂u/∂t, the measures (with the configured quadrature
+    degree), the coordinate x, the outward normal n, the cell diameter h."""
 
     u: ufl.core.expr.Expr
+    advecting: ufl.core.expr.Expr
     p: ufl.core.expr.Expr
     v: ufl.core.expr.Expr
     q: ufl.core.expr.Expr
@@ -196,7 +200,8 @@ class FluidUnknowns(Protocol):
     """What the residual reads from its solver (fsi.physics.fluid.FluidSolver): the mesh, its
     facet tags and communicator, the fluid's settings, time scheme, viscosity law and boundary
     conditions, the mixed space W with its velocity space V, the unknown U = (u, p), u^n and
-    u^{n−1}, the boundary and ALE mesh velocities, and the constants t, ρ and the BDF weights."""
+    u^{n−1}, the boundary and ALE mesh velocities, and the constants t, ρ, the BDF weights and
+    the weights (e1, e2) of the extrapolation u* = e1 u^n + e2 u^{n−1}."""
 
     mesh: dolfinx.mesh.Mesh
     facet_tags: dolfinx.mesh.MeshTags
@@ -215,6 +220,7 @@ class FluidUnknowns(Protocol):
     t: dolfinx.fem.Constant
     rho: dolfinx.fem.Constant
     bdf_weights: Sequence[dolfinx.fem.Constant]
+    extrapolation_weights: Sequence[dolfinx.fem.Constant]
 
 
 class FluidResidual:
@@ -236,6 +242,7 @@ class FluidResidual:
         self.W, self.V, self.U, self.u_n, self.u_nm1 = s.W, s.V, s.U, s.u_n, s.u_nm1
         self.boundary_velocity, self.ale = s.boundary_velocity, s.ale
         self.t, self._a, self._rho = s.t, s.bdf_weights, s.rho  # the solver's constants
+        self._extrapolation = s.extrapolation_weights
         self.bcs: list = []
         self.updates: list[Callable[[float], None]] = []
         self.lumped: list[LumpedOutlet] = []
@@ -289,12 +296,18 @@ class FluidResidual:
         u, p = ufl.split(self.U)
         v, q = ufl.TestFunctions(self.W)
         a0, a1, a2 = self._a
+        if cfg.solver.linearization == "extrapolated":
+            e1, e2 = self._extrapolation
+            advecting = e1 * self.u_n + e2 * self.u_nm1
+        else:
+            advecting = u
         return _WeakForm(
             u=u,
+            advecting=advecting,
             p=p,
             v=v,
             q=q,
-            mu=self.law.mu(rheology.shear_rate(u)),
+            mu=self.law.mu(rheology.shear_rate(advecting)),
             dudt=a0 * u + a1 * self.u_n + a2 * self.u_nm1,
             dx=ufl.Measure("dx", domain=mesh, metadata=metadata),
             ds=ufl.Measure("ds", domain=mesh, subdomain_data=self.facet_tags, metadata=metadata),
@@ -308,8 +321,9 @@ class FluidResidual:
         return self._rho * ufl.dot(s.dudt, s.v)
 
     def _convection(self, s: _WeakForm):
-        """ρ ((u − w)·∇)u · v: convection relative to the mesh velocity w (ALE)."""
-        return self._rho * ufl.dot(ufl.grad(s.u) * (s.u - self.ale.w), s.v)
+        """ρ ((a − w)·∇)u · v: convection relative to the mesh velocity w (ALE) by the
+        advecting velocity a (u, or its extrapolation u*: :class:`_WeakForm`)."""
+        return self._rho * ufl.dot(ufl.grad(s.u) * (s.advecting - self.ale.w), s.v)
 
     def _viscous_stress(self, s: _WeakForm):
         """2 μ(s(u)) D(u) : D(v), the viscous part of σ(u, p) : ∇v (rheology.cauchy_stress)."""
@@ -378,7 +392,7 @@ class FluidResidual:
         """u·n = 0 by Nitsche's method (consistency, symmetry and penalty γ μ/h terms) and the
         tangential part of the prescribed traction g."""
         u, v, n = s.u, s.v, s.n
-        sigma = rheology.cauchy_stress(u, s.p, self.law)
+        sigma = -s.p * ufl.Identity(len(u)) + 2 * s.mu * rheology.strain_rate(u)
         sigma_v = -s.q * ufl.Identity(len(u)) + 2 * s.mu * rheology.strain_rate(v)
         un, vn = ufl.dot(u, n), ufl.dot(v, n)
         terms = [
@@ -446,7 +460,7 @@ class FluidResidual:
         if form == "tangential":
             ell = BACKFLOW_LENGTH * s.h
             damped += ell**2 * ufl.inner(ufl.grad(s.u) * along, ufl.grad(s.v) * along)
-        inflow = ufl.min_value(ufl.dot(s.u, s.n), 0.0)
+        inflow = ufl.min_value(ufl.dot(s.advecting, s.n), 0.0)
         return -(beta / 2 * self._rho * inflow * damped * s.ds_of(tags))
 
     def _stabilization(self, s: _WeakForm, body_force: BodyForce | None):
@@ -460,18 +474,20 @@ class FluidResidual:
         weight of u^{n+1}, 1/Δt for backward Euler, 0 when steady; C the element's
         :data:`VISCOUS_CONSTANT`). τ takes u and μ(s(u)) of the last accepted step, so that it
         is a coefficient of the step, not a function of its unknown; a steady solve has no last
-        step and takes them from its unknown (Newton differentiates); R is the step's own."""
+        step and takes them from its unknown (Newton differentiates), the extrapolated
+        linearization from u*; R is the step's own (advected by u*, with μ(s(u*)), when
+        extrapolated)."""
         rho, w, u, h = self._rho, self.ale.w, s.u, s.h
         residual = (
             rho * s.dudt
-            + rho * ufl.grad(u) * (u - w)
+            + rho * ufl.grad(u) * (s.advecting - w)
             + ufl.grad(s.p)
             - ufl.div(2 * s.mu * rheology.strain_rate(u))
         )
         if body_force is not None:
             residual -= body_force(s.x, self.t)
-        if self.scheme == "steady":
-            u_tau, mu_tau = s.u, s.mu
+        if self.scheme == "steady" or self.config.solver.linearization == "extrapolated":
+            u_tau, mu_tau = s.advecting, s.mu
         else:
             u_tau, mu_tau = self.u_n, self.law.mu(rheology.shear_rate(self.u_n))
         a_tau = u_tau - w
@@ -490,7 +506,7 @@ class FluidResidual:
         Galerkin form lacks where the cell Reynolds number is large, in particular in the cells
         of an open inlet (docs/boundary-conditions.md). With P2 velocities the strong viscous
         term is exact for Poiseuille flow, which stays a discrete solution."""
-        return tau * ufl.dot(ufl.grad(s.v) * (s.u - self.ale.w), residual)
+        return tau * ufl.dot(ufl.grad(s.v) * (s.advecting - self.ale.w), residual)
 
     def _pspg(self, s: _WeakForm, tau, residual):
         """PSPG (subtracted, as the continuity term): (τ/ρ) ∇q · R (Hughes, Franca & Balestra
