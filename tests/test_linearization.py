@@ -12,6 +12,7 @@ from mpi4py import MPI
 
 import numpy as np
 import pytest
+from test_newton import gathered_by_position
 
 from fsi import cli, config
 from fsi.numerics.timestepping import steps
@@ -51,10 +52,8 @@ def nodal_velocity(stepper: steppers.RigidStepper) -> np.ndarray:
     partitioned independently."""
     V = stepper.solver.V
     owned = V.dofmap.index_map.size_local
-    x = np.round(V.tabulate_dof_coordinates()[:owned, :2], 12)
     u = stepper.solver.u.x.array.reshape(-1, 2)[:owned]
-    x, u = (np.concatenate(MPI.COMM_WORLD.allgather(a)) for a in (x, u))
-    return u[np.lexsort((x[:, 1], x[:, 0]))]
+    return gathered_by_position(MPI.COMM_WORLD, V.tabulate_dof_coordinates()[:owned], u)
 
 
 def distance(a: np.ndarray, b: np.ndarray) -> float:
