@@ -22,6 +22,10 @@ class Coupling:
     ``fluid_forcing``: from a step's second coupling iteration on, a fluid solve stops once it
     has reduced its initial residual by this factor (never looser than where the step's first
     solve stopped; fsi/coupled/partitioned.py); 0 solves each to the fluid's Newton tolerance.
+    ``geometry``: ``implicit`` moves the fluid mesh in every coupling iteration; ``explicit``
+    only in a step's first, to the predicted interface displacement, and keeps that mesh (and
+    its velocity) through the step's later iterations, where only the wall's velocity follows
+    the iterate (fsi/coupled/adapters.py, :class:`FluidInterface`).
     """
 
     acceleration: Literal["constant", "aitken", "iqn-ils"] = "aitken"
@@ -33,6 +37,7 @@ class Coupling:
     iqn_filter: float = positive(1.0e-2)  # 1e-8 kept stale columns: IQN diverged on the stenosis
     predictor: Literal["constant", "linear", "quadratic", "cubic"] = "linear"
     fluid_forcing: float = checked(0.0, lambda v: 0 <= v < 1, "a number in [0, 1)")
+    geometry: Literal["implicit", "explicit"] = "implicit"
 
 
 @dataclass(frozen=True)

@@ -92,6 +92,20 @@ class FluidInterface(_Adapter):
         warm_start: start each solve from the last iterate.
         forcing: the Newton forcing of a step's later solves, never looser than where its first
             stopped (:class:`fsi.numerics.newton.Forcing`; 0: every solve to the fluid's tolerance).
+        geometry: ``implicit``: every solve moves the mesh to its input (:meth:`move_mesh`);
+            ``explicit``: a step's first solve does, its later ones keep that mesh
+            (:meth:`hold_mesh`), and the accepted step moves it to the last input.
+
+    Geometry ``explicit`` (the geometry-convective explicit scheme of Badia, Quaini & Quarteroni
+    2008 and Crosetto et al. 2011): the fluid domain of a step is the extension of its first
+    input, the predictor's extrapolation, and stays so through the step's coupling iterations:
+    the fluid's matrix is the same in all of them, and with a linear (``extrapolated``) fluid and
+    ``jacobian_reuse: step`` it is factorised once per step. The wall's velocity still follows
+    each iterate x_k, u_Γ = a0 x_k + a1 d^n + a2 d^{n−1} (the BDF derivative of the interface
+    displacement, as with ``implicit``): the pressure stays implicitly coupled to the wall. It
+    differs from the mesh's own velocity w on Γ by a0 (x_k − x_0), so (u − w)·n ≠ 0 there by the
+    predictor's error. Once the step is accepted the mesh moves to the extension of the last
+    input, so the displacement history d^n, d^{n−1} is the same as with ``implicit``.
 
     Raises (collectively) :class:`fsi.physics.mesh_motion.MeshQualityError` when the extension
     would collapse a cell, and :class:`fsi.numerics.newton.SolveFailed` when the fluid step fails.
@@ -106,27 +120,62 @@ class FluidInterface(_Adapter):
         interface: tuple[Boundary, ...] = (Boundary.INTERFACE,),
         warm_start: bool = True,
         forcing: float = 0.0,
+        geometry: str = "implicit",
     ):
+        if geometry not in ("implicit", "explicit"):
+            raise ValueError(f"geometry must be 'implicit' or 'explicit', got {geometry!r}")
         super().__init__(fluid_solver, warm_start)
         self.motion, self.to_fluid, self.to_solid = motion, to_fluid, to_solid
         self.interface = tuple(int(b) for b in interface)
-        self.forcing = forcing
+        self.forcing, self.geometry = forcing, geometry
         self.first_residual = math.nan  # |F| where the step's first solve stopped
         self.eta = dolfinx.fem.Function(fluid_solver.V, name="interface_displacement")
         self.mesh_quality = 1.0  # min J/J_ref of the last mesh motion
+        # Explicit geometry: the step's mesh displacement and interface data (P1, motion's
+        # layout), the wall velocity set from them, and the last input.
+        space = fluid_solver.ale.space
+        self._held_d = dolfinx.fem.Function(space)
+        self._held_g = np.zeros_like(motion.g.x.array)
+        self._wall_velocity = dolfinx.fem.Function(space)
+        self._last_input: np.ndarray | None = None
+        if len(self._held_g) != len(self._held_d.x.array):
+            raise RuntimeError("the mesh motion's and the fluid mesh's P1 spaces differ")
 
-    def move_mesh(self, x: np.ndarray) -> None:
-        """η_Γ ← x (on the fluid's P2 interface nodes); d = extension of η_Γ's vertex values
-        (quality-checked before the mesh moves); mesh to X + d; boundary velocity u_Γ = w =
-        Σ_k a_k d^{n+1−k}, which the step then uses: the moving wall is material, ``(u − w)·n = 0``.
-        """
-        fluid = self.solver
+    def _set_interface(self, x: np.ndarray) -> None:
+        """η_Γ ← x (on the fluid's P2 interface nodes), and its vertex values as the mesh
+        motion's boundary data g."""
         self.to_fluid.set_dst(self.eta, self.to_fluid.transfer(np.asarray(x).reshape(-1, 2)))
         self.motion.set_boundary_function(self.eta)
+
+    def _extend(self, x: np.ndarray) -> None:
+        """d = the extension of x (quality-checked before the mesh moves); the mesh to X + d."""
+        self._set_interface(x)
         self.motion.solve()
         self.mesh_quality = self.motion.check_quality()
-        fluid.set_mesh_displacement(self.motion.d)
+        self.solver.set_mesh_displacement(self.motion.d)
+
+    def move_mesh(self, x: np.ndarray) -> None:
+        """η_Γ ← x; the mesh to X + d, d the extension of η_Γ's vertex values; boundary
+        velocity u_Γ = w = Σ_k a_k d^{n+1−k}, which the step then uses: the moving wall is
+        material, ``(u − w)·n = 0``."""
+        fluid = self.solver
+        self._extend(x)
         fluid.set_boundary_velocity(fluid.mesh_velocity(self.dt))
+        self._held_d.x.array[:] = fluid.ale.d.x.array
+        self._held_g[:] = self.motion.g.x.array
+
+    def hold_mesh(self, x: np.ndarray) -> None:
+        """Explicit geometry's later coupling iterations: the mesh back to X + d of the step's
+        first solve (restoring the step's start moved it) with its velocity w, and the wall's
+        velocity u_Γ = w + a0 (g(x) − g(x_0)) on the interface's vertices, g the vertex values
+        of η_Γ: the BDF derivative of the interface displacement x (class docstring)."""
+        fluid = self.solver
+        fluid.set_mesh_displacement(self._held_d)
+        w = fluid.mesh_velocity(self.dt)
+        self._set_interface(x)
+        a0 = fluid.time_weights(self.dt)[0]
+        self._wall_velocity.x.array[:] = w.x.array + a0 * (self.motion.g.x.array - self._held_g)
+        fluid.set_boundary_velocity(self._wall_velocity)
 
     def forces(self) -> np.ndarray:
         """The fluid's nodal forces on the structure as a solid interface vector (n, 2), N/m."""
@@ -134,7 +183,11 @@ class FluidInterface(_Adapter):
         return self.to_solid.transfer(values[self.to_solid.src_dofs])
 
     def _solve(self, interface_input: np.ndarray) -> SolveResult:
-        self.move_mesh(interface_input)
+        if self.geometry == "explicit" and self.solves > 1:
+            self.hold_mesh(interface_input)
+        else:
+            self.move_mesh(interface_input)
+        self._last_input = np.array(interface_input, dtype=float)
         forcing = None
         if self.forcing and self.solves > 1:
             forcing = Forcing(self.forcing, ceiling=self.first_residual)
@@ -145,6 +198,13 @@ class FluidInterface(_Adapter):
 
     def _output(self) -> np.ndarray:
         return self.forces()
+
+    def advance(self) -> None:
+        """Accept the last solve; with explicit geometry the mesh first moves to the extension of
+        the last input, where ``implicit`` left it (the next step's d^n)."""
+        if self.geometry == "explicit" and self.solves > 1:
+            self._extend(self._last_input)
+        super().advance()
 
 
 class SolidInterface(_Adapter):

@@ -95,7 +95,12 @@ def build_coupled(case: config.Case, comm: MPI.Comm = MPI.COMM_WORLD) -> Coupled
     ):
         raise RuntimeError("the solid's interface vector and the interface maps disagree")
     fluid_side = FluidInterface(
-        fluid_solver, motion, to_fluid, to_solid, forcing=case.coupling.fluid_forcing
+        fluid_solver,
+        motion,
+        to_fluid,
+        to_solid,
+        forcing=case.coupling.fluid_forcing,
+        geometry=case.coupling.geometry,
     )
     solid_side = SolidInterface(solid_solver)
     predictor = coupling.predictor_from_config(case.coupling)
