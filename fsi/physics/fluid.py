@@ -207,6 +207,10 @@ class FluidSolver:
         self.problem = _FluidProblem(residual.form, self.U, self._bcs, self.lumped)
         self.newton = Newton(self.comm, self.problem, self.config.solver, "fluid_")
         self._residual_vector = dolfinx.fem.Function(self.W)
+        # −R of the last step's solution, kept from before advance() (the residual needs the
+        # step's time history), and whether the step has been accepted since.
+        self._step_reaction: np.ndarray | None = None
+        self._advanced = False
 
     # ---- set-up
 
@@ -273,6 +277,7 @@ class FluidSolver:
         value before the step and the result says why; nothing non-finite is left behind."""
         weights = self.time_weights(dt)
         self._dt = dt
+        self._step_reaction, self._advanced = None, False
         for c, a in zip(self.bdf_weights, weights):
             c.value = a
         for c, e in zip(self.extrapolation_weights, self.extrapolation(dt)):
@@ -310,6 +315,7 @@ class FluidSolver:
         self.time = float(self.t.value)
         self.accepted_steps += 1
         self._mesh_velocity_given = False
+        self._advanced = True  # the step's reaction, if taken, stays what _reaction returns
 
     def save_state(self) -> FluidState:
         """Snapshot of the solution, the time history and the mesh (local arrays)."""
@@ -336,6 +342,7 @@ class FluidSolver:
         self.velocity_history.restore(s.u_n, s.u_nm1)
         self.ale.restore(s.d, s.d_n, s.d_nm1, s.w)  # and moves the mesh to X + d
         self._mesh_velocity_given = s.mesh_velocity_given
+        self._step_reaction, self._advanced = None, False
         self._sync_outputs()
         if guess is not None:  # U is only Newton's initial guess: u^n, u^{n−1} are separate
             self.U.x.array[:] = guess
@@ -375,7 +382,16 @@ class FluidSolver:
     # ---- forces
 
     def _reaction(self) -> np.ndarray:
-        """−R at every local W dof: the residual at the current solution, no Dirichlet rows."""
+        """−R at every local W dof: the residual at the current solution, no Dirichlet rows.
+        After :meth:`advance` it is the accepted step's, kept from a call before it: the
+        residual of a step needs that step's time history (u^n, u^{n−1}, the extrapolation),
+        which advance shifts."""
+        if self._advanced:
+            if self._step_reaction is None:
+                raise RuntimeError(
+                    "the fluid's forces of a step are taken between step() and advance()"
+                )
+            return self._step_reaction.copy()
         R = self._residual_vector
         b = compat.petsc_vector(R)
         with b.localForm() as local:
@@ -383,7 +399,8 @@ class FluidSolver:
         dolfinx.fem.petsc.assemble_vector(b, self.problem.L)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         R.x.scatter_forward()
-        return -R.x.array
+        self._step_reaction = -R.x.array
+        return self._step_reaction.copy()
 
     def _owned_nodes(self, tags: Sequence[int]) -> np.ndarray:
         fdim = self.mesh.topology.dim - 1
@@ -394,8 +411,9 @@ class FluidSolver:
         """Nodal forces the fluid exerts on the boundary ``tags`` (default: the :class:`Velocity`
         boundaries) from the variational residual: at node i, f_i = −R_i = −∫_Γ σ n φ_i ds for
         the discrete solution (n the fluid's outward normal), consistent with the discrete
-        momentum balance. Owned nodes only; gather them if needed. Call it after :meth:`step`
-        and before :meth:`advance` (the residual's inertia uses the step's time history)."""
+        momentum balance. Owned nodes only; gather them if needed. Take it after :meth:`step`:
+        before :meth:`advance`, or after it once it was taken before (the residual's inertia
+        uses the step's time history; :meth:`_reaction`)."""
         if tags is None:
             tags = [t for bc in self.boundaries if isinstance(bc, Velocity) for t in bc.tags]
         gdim = self.mesh.geometry.dim
