@@ -79,9 +79,10 @@ class NodalForces:
 
 
 class _FluidProblem(dolfinx.fem.petsc.NonlinearProblem):
-    """The fluid's nonlinear problem; with lumped outlets, each residual evaluation first sets
-    their pressures from the iterate, and each Jacobian gets their rank-one blocks
-    (:class:`LumpedOutlet`). Without them it is dolfinx's problem unchanged."""
+    """The fluid's nonlinear problem: dolfinx's, but each residual evaluation also keeps the
+    residual before its Dirichlet rows are set (:meth:`unconstrained_residual`, the nodal forces'
+    source), and with lumped outlets each residual evaluation first sets their pressures from
+    the iterate and each Jacobian gets their rank-one blocks (:class:`LumpedOutlet`)."""
 
     def __init__(
         self, F: ufl.Form, U: dolfinx.fem.Function, bcs: list, lumped: Sequence[LumpedOutlet]
@@ -89,11 +90,48 @@ class _FluidProblem(dolfinx.fem.petsc.NonlinearProblem):
         dU = ufl.TrialFunction(U.function_space)
         super().__init__(F, U, bcs, J=ufl.derivative(F, U, dU))
         self.lumped = tuple(lumped)
+        self.comm: MPI.Comm = U.function_space.mesh.comm
+        self._unconstrained = dolfinx.fem.Function(U.function_space)
+        self._evaluated_at: np.ndarray | None = None  # the iterate of the last residual
 
     def F(self, x: PETSc.Vec, b: PETSc.Vec) -> None:
+        """dolfinx's residual (Dirichlet rows x − g, lifted), keeping R(x) before the rows
+        are set."""
         for outlet in self.lumped:
             outlet.update(x)
-        super().F(x, b)
+        with b.localForm() as local:
+            local.set(0.0)
+        dolfinx.fem.petsc.assemble_vector(b, self.L)
+        with b.localForm() as source, compat.petsc_vector(self._unconstrained).localForm() as kept:
+            source.copy(kept)
+        self._finish_unconstrained()
+        with x.localForm() as local:
+            self._evaluated_at = local.array_r.copy()
+        dolfinx.fem.petsc.apply_lifting(b, [self.a], [self.bcs], [x], -1.0)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        dolfinx.fem.petsc.set_bc(b, self.bcs, x, -1.0)
+
+    def _finish_unconstrained(self) -> None:
+        vector = compat.petsc_vector(self._unconstrained)
+        vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        self._unconstrained.x.scatter_forward()
+
+    def unconstrained_residual(self, x: PETSc.Vec) -> np.ndarray:
+        """R(x) at every local dof (owned and ghost) with no Dirichlet row set: the last residual
+        evaluation's when it was at this very x on every rank (a converged solve's last), else
+        assembled now. Collective."""
+        with x.localForm() as local:
+            same = self._evaluated_at is not None and np.array_equal(
+                self._evaluated_at, local.array_r
+            )
+        if not self.comm.allreduce(same, op=MPI.LAND):
+            vector = compat.petsc_vector(self._unconstrained)
+            with vector.localForm() as local:
+                local.set(0.0)
+            dolfinx.fem.petsc.assemble_vector(vector, self.L)
+            self._finish_unconstrained()
+            self._evaluated_at = None
+        return self._unconstrained.x.array
 
     def J(self, x: PETSc.Vec, A: PETSc.Mat) -> None:
         super().J(x, A)
@@ -206,7 +244,6 @@ class FluidSolver:
         self._bcs, self._updates, self.lumped = residual.bcs, residual.updates, residual.lumped
         self.problem = _FluidProblem(residual.form, self.U, self._bcs, self.lumped)
         self.newton = Newton(self.comm, self.problem, self.config.solver, "fluid_")
-        self._residual_vector = dolfinx.fem.Function(self.W)
         # −R of the last step's solution, kept from before advance() (the residual needs the
         # step's time history), and whether the step has been accepted since.
         self._step_reaction: np.ndarray | None = None
@@ -392,14 +429,7 @@ class FluidSolver:
                     "the fluid's forces of a step are taken between step() and advance()"
                 )
             return self._step_reaction.copy()
-        R = self._residual_vector
-        b = compat.petsc_vector(R)
-        with b.localForm() as local:
-            local.set(0.0)
-        dolfinx.fem.petsc.assemble_vector(b, self.problem.L)
-        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        R.x.scatter_forward()
-        self._step_reaction = -R.x.array
+        self._step_reaction = -self.problem.unconstrained_residual(compat.petsc_vector(self.U))
         return self._step_reaction.copy()
 
     def _owned_nodes(self, tags: Sequence[int]) -> np.ndarray:
