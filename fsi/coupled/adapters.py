@@ -131,14 +131,12 @@ class FluidInterface(_Adapter):
         self.first_residual = math.nan  # |F| where the step's first solve stopped
         self.eta = dolfinx.fem.Function(fluid_solver.V, name="interface_displacement")
         self.mesh_quality = 1.0  # min J/J_ref of the last mesh motion
-        # Explicit geometry: the step's mesh displacement and interface data (P1, motion's
-        # layout), the wall velocity set from them, and the last input.
-        space = fluid_solver.ale.space
-        self._held_d = dolfinx.fem.Function(space)
+        # Explicit geometry: the interface data g of the step's first solve (P1, the motion's
+        # layout; its extension stays in motion.d until the step is accepted) and the wall
+        # velocity set from it.
         self._held_g = np.zeros_like(motion.g.x.array)
-        self._wall_velocity = dolfinx.fem.Function(space)
-        self._last_input: np.ndarray | None = None
-        if len(self._held_g) != len(self._held_d.x.array):
+        self._wall_velocity = dolfinx.fem.Function(fluid_solver.ale.space)
+        if len(self._held_g) != len(self._wall_velocity.x.array):
             raise RuntimeError("the mesh motion's and the fluid mesh's P1 spaces differ")
 
     def _set_interface(self, x: np.ndarray) -> None:
@@ -147,9 +145,9 @@ class FluidInterface(_Adapter):
         self.to_fluid.set_dst(self.eta, self.to_fluid.transfer(np.asarray(x).reshape(-1, 2)))
         self.motion.set_boundary_function(self.eta)
 
-    def _extend(self, x: np.ndarray) -> None:
-        """d = the extension of x (quality-checked before the mesh moves); the mesh to X + d."""
-        self._set_interface(x)
+    def _extend(self) -> None:
+        """d = the extension of the motion's boundary data g (quality-checked before the mesh
+        moves); the mesh to X + d."""
         self.motion.solve()
         self.mesh_quality = self.motion.check_quality()
         self.solver.set_mesh_displacement(self.motion.d)
@@ -159,18 +157,19 @@ class FluidInterface(_Adapter):
         velocity u_Γ = w = Σ_k a_k d^{n+1−k}, which the step then uses: the moving wall is
         material, ``(u − w)·n = 0``."""
         fluid = self.solver
-        self._extend(x)
+        self._set_interface(x)
+        self._extend()
         fluid.set_boundary_velocity(fluid.mesh_velocity(self.dt))
-        self._held_d.x.array[:] = fluid.ale.d.x.array
         self._held_g[:] = self.motion.g.x.array
 
     def hold_mesh(self, x: np.ndarray) -> None:
         """Explicit geometry's later coupling iterations: the mesh back to X + d of the step's
-        first solve (restoring the step's start moved it) with its velocity w, and the wall's
-        velocity u_Γ = w + a0 (g(x) − g(x_0)) on the interface's vertices, g the vertex values
-        of η_Γ: the BDF derivative of the interface displacement x (class docstring)."""
+        first solve (restoring the step's start moved it; the motion still holds that d) with its
+        velocity w, and the wall's velocity u_Γ = w + a0 (g(x) − g(x_0)) on the interface's
+        vertices, g the vertex values of η_Γ: the BDF derivative of the interface displacement x
+        (class docstring)."""
         fluid = self.solver
-        fluid.set_mesh_displacement(self._held_d)
+        fluid.set_mesh_displacement(self.motion.d)
         w = fluid.mesh_velocity(self.dt)
         self._set_interface(x)
         a0 = fluid.time_weights(self.dt)[0]
@@ -187,7 +186,6 @@ class FluidInterface(_Adapter):
             self.hold_mesh(interface_input)
         else:
             self.move_mesh(interface_input)
-        self._last_input = np.array(interface_input, dtype=float)
         forcing = None
         if self.forcing and self.solves > 1:
             forcing = Forcing(self.forcing, ceiling=self.first_residual)
@@ -201,9 +199,10 @@ class FluidInterface(_Adapter):
 
     def advance(self) -> None:
         """Accept the last solve; with explicit geometry the mesh first moves to the extension of
-        the last input, where ``implicit`` left it (the next step's d^n)."""
+        the last input (whose vertex values :meth:`hold_mesh` left in g), where ``implicit``
+        left it (the next step's d^n)."""
         if self.geometry == "explicit" and self.solves > 1:
-            self._extend(self._last_input)
+            self._extend()
         super().advance()
 
 

@@ -99,17 +99,23 @@ class _FluidProblem(dolfinx.fem.petsc.NonlinearProblem):
         are set."""
         for outlet in self.lumped:
             outlet.update(x)
-        with b.localForm() as local:
-            local.set(0.0)
-        dolfinx.fem.petsc.assemble_vector(b, self.L)
-        with b.localForm() as source, compat.petsc_vector(self._unconstrained).localForm() as kept:
-            source.copy(kept)
+        kept = self._assemble_unconstrained()
+        with kept.localForm() as source, b.localForm() as target:
+            source.copy(target)  # before the kept vector's ghost contributions are summed
         self._finish_unconstrained()
         with x.localForm() as local:
             self._evaluated_at = local.array_r.copy()
         dolfinx.fem.petsc.apply_lifting(b, [self.a], [self.bcs], [x], -1.0)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         dolfinx.fem.petsc.set_bc(b, self.bcs, x, -1.0)
+
+    def _assemble_unconstrained(self) -> PETSc.Vec:
+        """R(x) into the kept vector, each rank's own cells' contributions (ghosts unsummed)."""
+        vector = compat.petsc_vector(self._unconstrained)
+        with vector.localForm() as local:
+            local.set(0.0)
+        dolfinx.fem.petsc.assemble_vector(vector, self.L)
+        return vector
 
     def _finish_unconstrained(self) -> None:
         vector = compat.petsc_vector(self._unconstrained)
@@ -125,10 +131,7 @@ class _FluidProblem(dolfinx.fem.petsc.NonlinearProblem):
                 self._evaluated_at, local.array_r
             )
         if not self.comm.allreduce(same, op=MPI.LAND):
-            vector = compat.petsc_vector(self._unconstrained)
-            with vector.localForm() as local:
-                local.set(0.0)
-            dolfinx.fem.petsc.assemble_vector(vector, self.L)
+            self._assemble_unconstrained()
             self._finish_unconstrained()
             self._evaluated_at = None
         return self._unconstrained.x.array

@@ -103,18 +103,17 @@ def _solve(
     solver,
     step: Step,
     failure: Callable[[newton.SolveResult], str],
-    before_advance: Callable[[], object] | None = None,
-) -> newton.SolveResult:
-    """``solver``'s step to ``step.t``, committed (``advance``; ``before_advance()`` called
-    just before); if it did not converge, :class:`StepFailed` with the message
-    ``failure(result)``."""
+    measure: Callable[[], dict] | None = None,
+) -> tuple[newton.SolveResult, dict]:
+    """``solver``'s step to ``step.t``, committed (``advance``), and what ``measure()`` gives
+    just before it is (``{}`` without one); if it did not converge, :class:`StepFailed` with the
+    message ``failure(result)``."""
     result = solver.step(step.t, step.dt)
     if not result.converged:
         raise StepFailed(failure(result))
-    if before_advance is not None:
-        before_advance()
+    measured = measure() if measure is not None else {}
     solver.advance()
-    return result
+    return result, measured
 
 
 class _Checkpointed:
@@ -187,8 +186,12 @@ class RigidStepper(_Checkpointed):
     def step(self, step: Step) -> dict:
         solver = self.solver
         # Turek–Hron's forces before the step is accepted: its residual needs its time history.
-        forces = (lambda: solver.boundary_force(self.obstacle)) if self.turek_hron else None
-        result = _solve(solver, step, lambda failed: failed.reason, before_advance=forces)
+        forces = (
+            (lambda: dict(zip(("drag", "lift"), solver.boundary_force(self.obstacle))))
+            if self.turek_hron
+            else None
+        )
+        result, measured = _solve(solver, step, lambda failed: failed.reason, measure=forces)
         row = {
             "peak_velocity": metrics.peak_velocity(solver.u),
             "peak_pressure": metrics.peak_pressure(solver.p),
@@ -198,9 +201,8 @@ class RigidStepper(_Checkpointed):
             "newton_residual": result.residual,
             **self.outputs.update(),
             **self.time_errors.after_step(step.t),
+            **measured,
         }
-        if self.turek_hron:
-            row["drag"], row["lift"] = solver.boundary_force(self.obstacle)  # the step's, kept
         return row
 
     def describe(self, row: dict) -> str:
@@ -435,7 +437,7 @@ class StructureStepper(_Checkpointed):
 
     def step(self, step: Step) -> dict:
         s = self.solver
-        result = _solve(
+        result, _ = _solve(
             s,
             step,
             lambda failed: (
