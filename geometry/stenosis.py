@@ -2,9 +2,9 @@
 
 The lumen is ``0 <= x <= length``, ``0 <= y <= height``. A plaque side ("bottom" or "top")
 carries a vessel-wall layer of ``wall_thickness`` outside the lumen and a cosine-shaped plaque
-centred at ``x = length / 2`` (:func:`plaque_profile`): a lipid pool (:func:`lipid_profile`)
-under a fibrous cap. A side without plaque is the healthy, rigid wall Γw2 and carries no
-structure.
+centred at :func:`apex_x` (``length / 2`` unless ``stenosis_centre`` is set;
+:func:`plaque_profile`): a lipid pool (:func:`lipid_profile`) under a fibrous cap. A side
+without plaque is the healthy, rigid wall Γw2 and carries no structure.
 """
 
 from __future__ import annotations
@@ -45,6 +45,12 @@ class StenosisParameters(Protocol):
     cap_thickness: float
     lipid_length: float
     plaque_sides: Sequence[str]
+    stenosis_centre: float | None  # None: length / 2
+
+
+def apex_x(p: StenosisParameters) -> float:
+    """x of the plaque's apex (m): ``stenosis_centre``, or the middle of the segment."""
+    return p.length / 2 if p.stenosis_centre is None else p.stenosis_centre
 
 
 def plaque_height(p: StenosisParameters) -> float:
@@ -61,12 +67,10 @@ def plaque_profile(p: StenosisParameters, x: np.ndarray) -> np.ndarray:
     """Height of the fibrous-cap surface (the lumen boundary) above the wall at ``x``.
 
     ``s = A/2 (1 - cos(2π (x - x0) / l))`` on ``[x0, x0 + l]`` (0 elsewhere), centred at
-    ``length / 2``, with ``l = stenosis_length`` and ``A`` = :func:`plaque_height`
+    :func:`apex_x`, with ``l = stenosis_length`` and ``A`` = :func:`plaque_height`
     ``= stenosis_degree * height / number of plaque sides``.
     """
-    return _cosine_bump(
-        np.asarray(x, dtype=float), plaque_height(p), p.length / 2, p.stenosis_length
-    )
+    return _cosine_bump(np.asarray(x, dtype=float), plaque_height(p), apex_x(p), p.stenosis_length)
 
 
 def lipid_profile(p: StenosisParameters, x: np.ndarray) -> np.ndarray:
@@ -74,7 +78,7 @@ def lipid_profile(p: StenosisParameters, x: np.ndarray) -> np.ndarray:
     (:func:`plaque_profile`) with length ``lipid_length`` and amplitude ``A - cap_thickness``.
     """
     a = plaque_height(p) - p.cap_thickness
-    return _cosine_bump(np.asarray(x, dtype=float), a, p.length / 2, p.lipid_length)
+    return _cosine_bump(np.asarray(x, dtype=float), a, apex_x(p), p.lipid_length)
 
 
 def analytic_areas(p: StenosisParameters) -> dict[str, float]:
@@ -117,7 +121,7 @@ def min_cap_thickness(p: StenosisParameters, samples: int = 801) -> float:
     It is ``cap_thickness``, at the apex, as long as the lipid pool is short enough. Sampled
     densely (an odd count, so the apex is a sample); accurate to about 1e-8 m.
     """
-    xc = p.length / 2
+    xc = apex_x(p)
     x_lipid = np.linspace(xc - p.lipid_length / 2, xc + p.lipid_length / 2, samples)
     x_cap = np.linspace(xc - p.stenosis_length / 2, xc + p.stenosis_length / 2, 2 * samples)
     lipid = np.column_stack([x_lipid, lipid_profile(p, x_lipid)])
@@ -195,7 +199,7 @@ def _add_plaque_side(b: _Builder, side: str, left: int, right: int) -> list[int]
     """The plaque, lipid pool and vessel wall of ``side``, whose lumen corners are ``left`` and
     ``right``; returns the side's lumen curves from left to right."""
     p, geo, hs = b.p, b.geo, b.local_size
-    xc, l, l_lip = p.length / 2, p.stenosis_length, p.lipid_length
+    xc, l, l_lip = apex_x(p), p.stenosis_length, p.lipid_length
     A = plaque_height(p)
     a = A - p.cap_thickness
     p_x0, p_top, p_x3 = (

@@ -1,13 +1,19 @@
-"""docs/study.md and docs/figures/study_*.png from the run folders of scripts/reproduce_study.py.
+"""docs/study.md, docs/study_tables.csv, docs/study_runs/*.json and docs/figures/study_*.png from
+the run folders of scripts/reproduce_study.py.
 
-Every number in the document is read from the runs' metrics.csv, summary.json and field files
-when it is written; the verdicts on the study's findings (docs/model.md §6) are comparisons of those
-numbers, with the thresholds stated next to them. A run that is missing or unfinished shows as
-'–' (and is listed), so the document can be written at any stage.
+Each run folder is first reduced to a summary (:func:`summarise`): its provenance (git commit,
+ranks, command), the three peaks at the study's report times and the maxima the findings rest
+on. The summaries are committed (docs/study_runs/), and the tables, the CSV and the findings are
+made from them alone, so a reader can check every number without rerunning; only the figures
+read the run folders (metrics.csv and the field files). A run that is missing or unfinished
+shows as '–' (and is listed), so the document can be written at any stage; a summary already in
+docs/study_runs/ stands in for a run folder that is not there.
 """
 
 from __future__ import annotations
 
+import csv
+import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -16,12 +22,22 @@ import numpy as np
 
 from fsi.output import report
 
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "docs" / "reference" / "boujena2014_tables.csv"
+"""The study's Tables 1–3 as printed (120 values, SI units)."""
+
 TIMES = (0.01, 0.02, 0.05, 0.1, 0.8)
 QUANTITIES = [
     ("peak_velocity", "Table 1: peak velocity", "m/s", 1.0),
     ("peak_pressure", "Table 2: peak pressure", "Pa", 1.0),
     ("peak_displacement", "Table 3: peak displacement", "µm", 1.0e6),
 ]
+PAPER_QUANTITY = {
+    "velocity": "peak_velocity",
+    "pressure": "peak_pressure",
+    "displacement": "peak_displacement",
+}
+"""The reference file's quantity names → our metrics columns."""
 LABELS = {
     "fixed_newtonian": "fixed wall, Newtonian",
     "fixed_carreau": "fixed wall, Carreau",
@@ -57,6 +73,36 @@ form. The only numbers of the document not read from the runs: history, for
 :func:`changes_table`."""
 
 
+# --------------------------------------------------------------------------------------------
+# Run summaries: what the tables and findings are made from
+
+PULSE_WINDOW = 0.01
+"""s: the wall shear stress during the pulse (and the wall's first response) is its maximum up
+to this time."""
+
+
+def plaque_max(row: dict) -> float | None:
+    values = [row[c] for c in ("max_sss_cap", "max_sss_lipid") if c in row]
+    return max(values) if values else None
+
+
+def _pulse_wss(row: dict) -> float | None:
+    if row["t"] > PULSE_WINDOW or "max_wss" not in row:
+        return None
+    return max(abs(row["min_wss"]), abs(row["max_wss"]))
+
+
+MAXIMA = {
+    "max_sss": lambda r: r.get("max_sss"),
+    "plaque_sss": plaque_max,
+    "max_principal_cap": lambda r: r.get("max_principal_cap"),
+    "peak_displacement": lambda r: r.get("peak_displacement"),
+    "recirculation_length": lambda r: r.get("recirculation_length"),
+    "pulse_wss": _pulse_wss,
+}
+"""The maxima over the run that the findings compare: name → the row's value (None: not there)."""
+
+
 def load(folder: Path, runs) -> dict[str, report.Run]:
     """The runs there are (finished or not), by name."""
     loaded = {}
@@ -67,28 +113,71 @@ def load(folder: Path, runs) -> dict[str, report.Run]:
     return loaded
 
 
-def finished(run: report.Run | None) -> bool:
-    return run is not None and bool(run.rows) and abs(run.rows[-1]["t"] - 0.8) < 1e-9
+def summarise(run: report.Run) -> dict:
+    """The run's provenance, its three peaks at :data:`TIMES`, the :data:`MAXIMA` (value, time)
+    and, with field files, where its largest |σ₁₂| is."""
+    rows, info = run.rows, run.summary
+    its = [r["coupling_iterations"] for r in rows if "coupling_iterations" in r]
+    maxima = {}
+    for name, get in MAXIMA.items():
+        found = [(get(r), r["t"]) for r in rows if get(r) is not None]
+        if found:
+            maxima[name] = list(max(found, key=lambda p: p[0]))
+    command = info.get("command", "")
+    summary = {
+        "name": run.path.name,
+        "git": info.get("git"),
+        "dolfinx": info.get("dolfinx"),
+        "ranks": info.get("ranks"),
+        "config": Path(command.split()[2]).name if len(command.split()) > 2 else None,
+        "overrides": [s.split(" --")[0] for s in command.split(" --set ")[1:]],
+        "steps": len(rows),
+        "end_time_s": rows[-1]["t"] if rows else 0.0,
+        "finished": bool(rows) and abs(rows[-1]["t"] - 0.8) < 1e-9,
+        "wall_time_s": round(sum(r.get("wall_time_s", 0.0) for r in rows), 1),
+        "mean_coupling_iterations": sum(its) / len(its) if its else None,
+        "at": {
+            f"{t:g}": {column: report.value_at(rows, t, column) for column, *_ in QUANTITIES}
+            for t in TIMES
+        },
+        "maxima": maxima,
+    }
+    if "max_sss" in maxima and (run.path / "solid.xdmf").is_file():
+        x, y, region = largest_at(run, "sss", maxima["max_sss"][1])
+        summary["largest_sss_at"] = {"x": float(x), "y": float(y), "region": region}
+    return summary
 
 
-def value(run: report.Run | None, t: float, column: str) -> float | None:
-    return None if run is None else report.value_at(run.rows, t, column)
+def make_summaries(
+    runs: dict[str, report.Run], folder: Path, names: Sequence[str]
+) -> dict[str, dict]:
+    """Each named run's summary: made from its run folder (and written to ``folder``) if it is
+    loaded, else read from ``folder`` (the committed one) if there."""
+    folder.mkdir(parents=True, exist_ok=True)
+    out = {}
+    for name in names:
+        path = folder / f"{name}.json"
+        if name in runs:
+            out[name] = summarise(runs[name])
+            path.write_text(json.dumps(out[name], indent=1) + "\n")
+        elif path.is_file():
+            out[name] = json.loads(path.read_text())
+    return out
 
 
-def series_max(run: report.Run | None, column: str) -> tuple[float, float] | None:
-    """(max over the run, its time) of ``column``."""
-    if run is None:
-        return None
-    rows = [r for r in run.rows if column in r]
-    if not rows:
-        return None
-    best = max(rows, key=lambda r: r[column])
-    return best[column], best["t"]
+def at(summary: dict | None, t: float, column: str) -> float | None:
+    """``column`` at report time ``t`` (None: no such run, time or value)."""
+    return None if summary is None else summary["at"].get(f"{t:g}", {}).get(column)
 
 
-def plaque_max(row: dict) -> float | None:
-    values = [row[c] for c in ("max_sss_cap", "max_sss_lipid") if c in row]
-    return max(values) if values else None
+def peak(summary: dict | None, name: str) -> tuple[float, float] | None:
+    """(largest value, its time) of :data:`MAXIMA`'s ``name`` over the run, or None."""
+    found = None if summary is None else summary["maxima"].get(name)
+    return None if found is None else (found[0], found[1])
+
+
+def finished(summary: dict | None) -> bool:
+    return summary is not None and summary["finished"]
 
 
 def fmt(x: float | None, digits: int = 4) -> str:
@@ -102,27 +191,103 @@ def change(coarse: float | None, fine: float | None) -> str:
 
 
 # --------------------------------------------------------------------------------------------
-# Tables
+# The study's tables beside ours
 
 
-def peak_table(runs: dict, column: str, unit: str, scale: float) -> str:
-    head = "| t (s) | " + " | ".join(f"{LABELS[c]}: coarse | fine | change" for c in CONFIGS)
-    lines = [head + " |", "|---" * (1 + 3 * len(CONFIGS)) + "|"]
-    for t in TIMES:
-        cells = []
-        for c in CONFIGS:
-            coarse = value(runs.get(f"{c}_coarse"), t, column)
-            fine = value(runs.get(f"{c}_fine"), t, column)
-            cells += [
-                fmt(None if coarse is None else scale * coarse),
-                fmt(None if fine is None else scale * fine),
-                change(coarse, fine),
-            ]
-        lines.append(f"| {t:g} | " + " | ".join(cells) + " |")
+def paper_values(path: Path = PAPER) -> dict[tuple[str, float, str, str, str], float]:
+    """The study's printed values: (quantity, t, wall, fluid, mesh) → value (SI), in the file's
+    order."""
+    lines = [line for line in path.read_text().splitlines() if line and not line.startswith("#")]
+    return {
+        (r["quantity"], float(r["t_s"]), r["wall"], r["fluid"], r["mesh"]): float(r["value"])
+        for r in csv.DictReader(lines)
+    }
+
+
+def comparison_rows(summaries: dict[str, dict], paper: dict) -> list[dict]:
+    """One row per printed value: its key, the paper's value and ours (None: no run)."""
+    rows = []
+    for (quantity, t, wall, fluid, mesh), printed in paper.items():
+        ours = at(summaries.get(f"{wall}_{fluid}_{mesh}"), t, PAPER_QUANTITY[quantity])
+        rows.append(
+            dict(
+                quantity=quantity, t_s=t, wall=wall, fluid=fluid, mesh=mesh, paper=printed, fsi=ours
+            )
+        )
+    return rows
+
+
+def write_comparison_csv(rows: Sequence[dict], path: Path) -> Path:
+    """docs/study_tables.csv: ``quantity,t_s,wall,fluid,mesh,paper,fsi`` (SI; fsi empty where
+    there is no run)."""
+    with path.open("w", newline="") as f:
+        writer = csv.writer(f, lineterminator="\n")
+        writer.writerow(["quantity", "t_s", "wall", "fluid", "mesh", "paper", "fsi"])
+        for r in rows:
+            ours = "" if r["fsi"] is None else f"{r['fsi']:.6g}"
+            writer.writerow(
+                [
+                    r["quantity"],
+                    f"{r['t_s']:g}",
+                    r["wall"],
+                    r["fluid"],
+                    r["mesh"],
+                    f"{r['paper']:g}",
+                    ours,
+                ]
+            )
+    return path
+
+
+def difference(row: dict) -> float | None:
+    """(fsi − paper) / |paper|, or None."""
+    if row["fsi"] is None or row["paper"] == 0:
+        return None
+    return (row["fsi"] - row["paper"]) / abs(row["paper"])
+
+
+def paper_table(rows: Sequence[dict], quantity: str, scale: float) -> str:
+    """The study's values beside ours, per configuration and report time: paper | fsi |
+    difference on the coarse and the fine mesh."""
+    key = {
+        (r["wall"], r["fluid"], r["t_s"], r["mesh"]): r for r in rows if r["quantity"] == quantity
+    }
+    lines = [
+        "| configuration | t (s) | paper coarse | fsi coarse | difference | paper fine | fsi fine"
+        " | difference |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for c in CONFIGS:
+        wall, fluid = c.split("_")
+        for t in TIMES:
+            cells = []
+            for mesh in ("coarse", "fine"):
+                r = key[(wall, fluid, t, mesh)]
+                d = difference(r)
+                cells += [
+                    fmt(scale * r["paper"]),
+                    fmt(None if r["fsi"] is None else scale * r["fsi"]),
+                    "–" if d is None else f"{100 * d:+.0f} %",
+                ]
+            lines.append(f"| {LABELS[c]} | {t:g} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
-def changes_table(runs: dict, column: str, scale: float) -> str:
+def agreement(rows: Sequence[dict], quantity: str | None = None, limit: float = 0.1) -> str:
+    """How many of the printed values ours is within ``limit`` of (of those with a run)."""
+    chosen = [r for r in rows if quantity is None or r["quantity"] == quantity]
+    compared = [d for d in map(difference, chosen) if d is not None]
+    close = sum(abs(d) <= limit for d in compared)
+    return f"{close} of {len(chosen)} within {100 * limit:g} %" + (
+        "" if len(compared) == len(chosen) else f" ({len(chosen) - len(compared)} without a run)"
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Tables
+
+
+def changes_table(summaries: dict, column: str, scale: float) -> str:
     """The fine runs' peaks of ``column`` beside :data:`PREVIOUS_FINE`'s: before → now (change)."""
     lines = [
         "| t (s) | " + " | ".join(LABELS[c] for c in CONFIGS) + " |",
@@ -132,14 +297,14 @@ def changes_table(runs: dict, column: str, scale: float) -> str:
         cells = []
         for c in CONFIGS:
             before = PREVIOUS_FINE[column][c][k]
-            now = value(runs.get(f"{c}_fine"), t, column)
+            now = at(summaries.get(f"{c}_fine"), t, column)
             now = None if now is None else scale * now
             cells.append(f"{fmt(before)} → {fmt(now)} ({change(before, now)})")
         lines.append(f"| {t:g} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
-def printed_table(runs: dict) -> str:
+def printed_table(summaries: dict) -> str:
     lines = [
         "| t (s) | "
         + " | ".join(f"{LABELS[c]}: |u| (m/s), p (Pa), |η| (µm)" for c in CONFIGS)
@@ -149,32 +314,28 @@ def printed_table(runs: dict) -> str:
     for t in TIMES:
         cells = []
         for c in CONFIGS:
-            run = runs.get(f"{c}_coarse_printed")
-            u, p, d = (
-                value(run, t, k) for k in ("peak_velocity", "peak_pressure", "peak_displacement")
-            )
+            s = summaries.get(f"{c}_coarse_printed")
+            u, p, d = (at(s, t, k) for k in ("peak_velocity", "peak_pressure", "peak_displacement"))
             cells.append(f"{fmt(u)}, {fmt(p)}, {fmt(None if d is None else 1e6 * d)}")
         lines.append(f"| {t:g} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
-def effort_table(runs: dict, order: Sequence[str]) -> str:
+def effort_table(summaries: dict, order: Sequence[str]) -> str:
     lines = [
-        "| run | steps | simulated (s) | ranks | coupling its/step | wall time (s) |",
-        "|---|---|---|---|---|---|",
+        "| run | git | steps | simulated (s) | ranks | coupling its/step | wall time (s) |",
+        "|---|---|---|---|---|---|---|",
     ]
     for name in order:
-        run = runs.get(name)
-        if run is None:
-            lines.append(f"| {name} | not run | | | | |")
+        s = summaries.get(name)
+        if s is None:
+            lines.append(f"| {name} | not run | | | | | |")
             continue
-        its = [r["coupling_iterations"] for r in run.rows if "coupling_iterations" in r]
-        wall = sum(r.get("wall_time_s", 0.0) for r in run.rows)
-        state = "" if finished(run) else " (unfinished)"
+        state = "" if s["finished"] else " (unfinished)"
         lines.append(
-            f"| {name} | {len(run.rows)}{state} | {fmt(run.rows[-1]['t'] if run.rows else None)}"
-            f" | {run.summary.get('ranks', '–')} | {fmt(sum(its) / len(its) if its else None, 3)}"
-            f" | {wall:.0f} |"
+            f"| {name} | {(s['git'] or '–')[:7]} | {s['steps']}{state} | {fmt(s['end_time_s'])}"
+            f" | {s['ranks'] or '–'} | {fmt(s['mean_coupling_iterations'], 3)}"
+            f" | {s['wall_time_s']:.0f} |"
         )
     return "\n".join(lines)
 
@@ -222,7 +383,7 @@ def figure_sss(runs: dict, path: Path) -> Path:
     return path
 
 
-def figure_convergence(runs: dict, path: Path) -> Path:
+def figure_convergence(summaries: dict, path: Path) -> Path:
     """The coarse → fine change of the three peaks at the report times, per configuration."""
     plt = _pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), layout="constrained")
@@ -230,8 +391,8 @@ def figure_convergence(runs: dict, path: Path) -> Path:
         for k, c in enumerate(CONFIGS):
             pts = []
             for t in TIMES:
-                coarse = value(runs.get(f"{c}_coarse"), t, column)
-                fine = value(runs.get(f"{c}_fine"), t, column)
+                coarse = at(summaries.get(f"{c}_coarse"), t, column)
+                fine = at(summaries.get(f"{c}_fine"), t, column)
                 if coarse and fine is not None:
                     pts.append((t, 100 * (fine - coarse) / abs(coarse)))
             if pts:
@@ -252,13 +413,13 @@ RECIRCULATION_TIME = 0.1
 """Figure 9's time: the recirculation zone is developed (about 6 mm long in every run)."""
 
 
-def best(runs: dict, c: str) -> report.Run | None:
-    """The fine run of configuration ``c`` if it finished, else the coarse one."""
-    fine = runs.get(f"{c}_fine")
-    return fine if finished(fine) else runs.get(f"{c}_coarse")
+def best(runs: dict, summaries: dict, c: str) -> report.Run | None:
+    """The fine run folder of configuration ``c`` if that run finished, else the coarse one."""
+    fine = f"{c}_fine"
+    return runs.get(fine) if finished(summaries.get(fine)) else runs.get(f"{c}_coarse")
 
 
-def field_figures(runs: dict, figures: Path) -> list[tuple[str, Path]]:
+def field_figures(runs: dict, summaries: dict, figures: Path) -> list[tuple[str, Path]]:
     """Figures 7–9 from the field files (fsi/output/plot.py): σ₁₂ on the deformed structure of each
     configuration at the time of its largest SSS, the displacement ×100 as in the study (×10
     for the moving wall, whose 0.1–0.2 mm displacement ×100 would fold the 1 mm wall across the
@@ -268,25 +429,26 @@ def field_figures(runs: dict, figures: Path) -> list[tuple[str, Path]]:
 
     out = []
     for c in CONFIGS:
-        run = best(runs, c)
-        peak = series_max(run, "max_sss")
-        if peak is None:
+        run = best(runs, summaries, c)
+        if run is None or "largest_sss_at" not in summaries[run.path.name]:
             continue
+        largest = peak(summaries[run.path.name], "max_sss")
         warp = 10.0 if c.startswith("moving") else 100.0
         path = figures / f"study_sss_{c}.png"
-        plot.field_snapshot(run.path, "sss", peak[1], path, warp=warp)
-        x, y, region = largest_at(run, "sss", peak[1])
+        plot.field_snapshot(run.path, "sss", largest[1], path, warp=warp)
+        where = summaries[run.path.name]["largest_sss_at"]
+        x, y, region = where["x"], where["y"], where["region"]
         out.append(
             (
                 f"Figure {7 if c.startswith('fixed') else 8}: σ₁₂ on the structure, "
-                f"displacement ×{warp:g}, {LABELS[c]} ({run.path.name}), t = {peak[1]:.4g} s "
-                f"(its largest SSS, {peak[0]:.4g} Pa, in the {region} at x = {1e3 * x:.2f} "
+                f"displacement ×{warp:g}, {LABELS[c]} ({run.path.name}), t = {largest[1]:.4g} s "
+                f"(its largest SSS, {largest[0]:.4g} Pa, in the {region} at x = {1e3 * x:.2f} "
                 f"mm, y = {1e3 * y:.2f} mm)",
                 path,
             )
         )
     for c in ("fixed_newtonian", "moving_newtonian"):
-        run = best(runs, c)
+        run = best(runs, summaries, c)
         if run is None or run.rows[-1]["t"] < RECIRCULATION_TIME:
             continue
         path = figures / f"study_streamlines_{c}.png"
@@ -298,7 +460,7 @@ def field_figures(runs: dict, figures: Path) -> list[tuple[str, Path]]:
                 path,
             )
         )
-    wss = figure_wall_shear(runs, figures / "study_figure9_wss.png")
+    wss = figure_wall_shear(runs, summaries, figures / "study_figure9_wss.png")
     if wss is not None:
         out.append(
             (
@@ -334,7 +496,7 @@ def boundary_nodes(triangles: np.ndarray) -> np.ndarray:
     return np.unique(unique[count == 1])
 
 
-def figure_wall_shear(runs: dict, path: Path) -> Path | None:
+def figure_wall_shear(runs: dict, summaries: dict, path: Path) -> Path | None:
     """The signed wall shear stress along the lower wall (the plaque's side) against x, one
     line per configuration, at t = RECIRCULATION_TIME."""
     from fsi.output import plot
@@ -343,7 +505,7 @@ def figure_wall_shear(runs: dict, path: Path) -> Path | None:
     fig, ax = plt.subplots(figsize=(8, 3.6), layout="constrained")
     drawn = False
     for k, c in enumerate(CONFIGS):
-        run = best(runs, c)
+        run = best(runs, summaries, c)
         if run is None or run.rows[-1]["t"] < RECIRCULATION_TIME:
             continue
         snap = plot.read_field(run.path, "wall_shear_stress", RECIRCULATION_TIME)
@@ -381,29 +543,19 @@ def figure_wall_shear(runs: dict, path: Path) -> Path | None:
 PULSE_AMPLITUDE = 1200.0  # Pa, the shipped configs' peak inlet pressure (docs/model.md §2)
 
 
-def load_reason(newtonian: report.Run | None, carreau: report.Run | None) -> str:
+def load_reason(newtonian: dict | None, carreau: dict | None) -> str:
     """Why the rheology barely changes the structure's load: the wall shear stresses during
     the pulse against the inlet pressure."""
-
-    def pulse_wss(run):
-        values = [
-            max(abs(r["min_wss"]), abs(r["max_wss"]))
-            for r in run.rows
-            if r["t"] <= 0.01 and "max_wss" in r
-        ]
-        return max(values) if values else None
-
-    if newtonian is None or carreau is None:
-        return ""
-    wn, wc = pulse_wss(newtonian), pulse_wss(carreau)
+    wn, wc = peak(newtonian, "pulse_wss"), peak(carreau, "pulse_wss")
     if wn is None or wc is None:
         return ""
+    wn, wc = wn[0], wc[0]
     return (
         f" Why we differ: the structure is loaded by the blood's pressure and its "
         f"viscous traction; the pressure, up to {PULSE_AMPLITUDE:g} Pa during the 5 ms pulse, "
         "is set by the inlet and the same for both rheologies, while the largest wall shear "
-        f"stress in the first 10 ms is {wn:.3g} Pa (Newtonian) and {wc:.3g} Pa (Carreau): "
-        f"the viscous part differs by {abs(wn - wc):.2g} Pa, "
+        f"stress in the first {1e3 * PULSE_WINDOW:g} ms is {wn:.3g} Pa (Newtonian) and "
+        f"{wc:.3g} Pa (Carreau): the viscous part differs by {abs(wn - wc):.2g} Pa, "
         f"{100 * abs(wn - wc) / PULSE_AMPLITUDE:.2g} % of the pressure. At the shear rates "
         "of the pulse (hundreds per second) Carreau's viscosity is within about 10 % of the "
         "Newtonian 3.5 mPa·s, so the two runs load the wall alike. A study that finds a "
@@ -412,23 +564,23 @@ def load_reason(newtonian: report.Run | None, carreau: report.Run | None) -> str
     )
 
 
-def convergence_of_maxima(runs: dict) -> str:
+def convergence_of_maxima(summaries: dict) -> str:
     """The coarse → fine change of the structure's stress maxima, for each moving-wall
     configuration that has both runs finished."""
     parts = []
     for c in ("moving_newtonian", "moving_carreau"):
-        coarse, fine = runs.get(f"{c}_coarse"), runs.get(f"{c}_fine")
-        if not (finished(coarse) and finished(fine)):
+        pair = summaries.get(f"{c}_coarse"), summaries.get(f"{c}_fine")
+        if not all(map(finished, pair)):
             continue
-        values = {}
-        for label, get in (
-            ("whole structure", lambda r: r.get("max_sss")),
-            ("plaque", plaque_max),
-            ("cap's largest principal stress", lambda r: r.get("max_principal_cap")),
+        values = []
+        for label, name in (
+            ("whole structure", "max_sss"),
+            ("plaque", "plaque_sss"),
+            ("cap's largest principal stress", "max_principal_cap"),
         ):
-            pair = [max((get(r) or 0.0) for r in run.rows) for run in (coarse, fine)]
-            values[label] = f"{label} {pair[0]:.4g} → {pair[1]:.4g} Pa ({change(pair[0], pair[1])})"
-        parts.append(f"{LABELS[c]}, coarse → fine: " + "; ".join(values.values()))
+            coarse, fine = (peak(s, name)[0] for s in pair)
+            values.append(f"{label} {coarse:.4g} → {fine:.4g} Pa ({change(coarse, fine)})")
+        parts.append(f"{LABELS[c]}, coarse → fine: " + "; ".join(values))
     if not parts:
         return ""
     return (
@@ -437,29 +589,24 @@ def convergence_of_maxima(runs: dict) -> str:
     )
 
 
-def findings(runs: dict) -> list[str]:
+def findings(summaries: dict) -> list[str]:
     """The study's qualitative findings (docs/model.md §6), each with our numbers and a verdict.
     They compare configurations, so all on one mesh: the fine one once its four runs have
     finished, else the coarse one."""
-    level = "fine" if all(finished(runs.get(f"{c}_fine")) for c in CONFIGS) else "coarse"
+    level = "fine" if all(finished(summaries.get(f"{c}_fine")) for c in CONFIGS) else "coarse"
 
-    def pick(c: str) -> report.Run | None:
-        return runs.get(f"{c}_{level}")
+    def pick(c: str) -> dict | None:
+        return summaries.get(f"{c}_{level}")
 
-    def peak(c: str, column: str) -> float | None:
-        found = series_max(pick(c), column)
+    def largest(c: str, name: str) -> float | None:
+        found = peak(pick(c), name)
         return None if found is None else found[0]
 
     def mesh(c: str) -> str:
-        run = pick(c)
-        return "–" if run is None else run.path.name
-
-    def plaque_peak(c: str) -> float:
-        run = pick(c)
-        return max((plaque_max(r) or 0.0) for r in run.rows) if run else math.nan
+        return f"{c}_{level}" if pick(c) is not None else "–"
 
     out = []
-    fn, fc = peak("fixed_newtonian", "max_sss"), peak("fixed_carreau", "max_sss")
+    fn, fc = largest("fixed_newtonian", "max_sss"), largest("fixed_carreau", "max_sss")
     if fn and fc:
         ratio = fn / fc
         verdict = (
@@ -475,11 +622,9 @@ def findings(runs: dict) -> list[str]:
             f"({mesh('fixed_newtonian')}), Carreau {fc:.4g} Pa ({mesh('fixed_carreau')}); "
             f"ratio {ratio:.4f} — {verdict} (confirmed if 1 ≤ ratio ≤ 1.1)."
         )
-    mn, mc = peak("moving_newtonian", "max_sss"), peak("moving_carreau", "max_sss")
-    dn, dc = (
-        peak("moving_newtonian", "peak_displacement"),
-        peak("moving_carreau", "peak_displacement"),
-    )
+    mn, mc = largest("moving_newtonian", "max_sss"), largest("moving_carreau", "max_sss")
+    dn = largest("moving_newtonian", "peak_displacement")
+    dc = largest("moving_carreau", "peak_displacement")
     if mn and mc and dn and dc:
         ratio, dratio = mn / mc, dn / dc
         verdict = "confirmed" if ratio > 1.5 and dratio > 1.0 else "refuted"
@@ -489,30 +634,28 @@ def findings(runs: dict) -> list[str]:
             f"{mn:.4g} Pa, Carreau {mc:.4g} Pa (ratio {ratio:.4f}); largest displacement: "
             f"Newtonian {1e6 * dn:.4g} µm, Carreau {1e6 * dc:.4g} µm (ratio {dratio:.4f}) "
             f"— {verdict} (confirmed if the SSS ratio > 1.5 and the displacement ratio "
-            f"> 1). In the plaque alone: {plaque_peak('moving_newtonian'):.4g} Pa vs "
-            f"{plaque_peak('moving_carreau'):.4g} Pa ({mesh('moving_newtonian')}, "
+            f"> 1). In the plaque alone: {fmt(largest('moving_newtonian', 'plaque_sss'))} Pa "
+            f"vs {fmt(largest('moving_carreau', 'plaque_sss'))} Pa ({mesh('moving_newtonian')}, "
             f"{mesh('moving_carreau')})."
             + load_reason(pick("moving_newtonian"), pick("moving_carreau"))
         )
-    run = pick("moving_newtonian")
-    found = series_max(run, "max_sss")
-    if found is not None and (run.path / "solid.xdmf").is_file():
-        x, y, region = largest_at(run, "sss", found[1])
-        plaque = max((plaque_max(r) or 0.0) for r in run.rows)
-        if region == "wall":
-            out.append(
-                f"*Not a finding of the study, but needed to read Figure 6:* the moving "
-                f"wall's largest SSS ({found[0]:.4g} Pa at t = {found[1]:.4g} s, "
-                f"{run.path.name}) is in the vessel wall next to its clamped upstream "
-                f"end (x = {1e3 * x:.2f} mm, y = {1e3 * y:.2f} mm), where the held edge "
-                "meets the loaded lumen side. The elastic stress is singular at that "
-                "corner of the boundary conditions, so this maximum grows as the mesh is "
-                "refined and says nothing about the plaque; the plaque's largest SSS, "
-                f"{plaque:.4g} Pa, is the one to compare (Figure 6, left)."
-                + convergence_of_maxima(runs)
-            )
-    rf = [peak(c, "recirculation_length") for c in ("fixed_newtonian", "fixed_carreau")]
-    rm = [peak(c, "recirculation_length") for c in ("moving_newtonian", "moving_carreau")]
+    s = pick("moving_newtonian")
+    found = peak(s, "max_sss")
+    if found is not None and s.get("largest_sss_at", {}).get("region") == "wall":
+        x, y = s["largest_sss_at"]["x"], s["largest_sss_at"]["y"]
+        out.append(
+            f"*Not a finding of the study, but needed to read Figure 6:* the moving "
+            f"wall's largest SSS ({found[0]:.4g} Pa at t = {found[1]:.4g} s, "
+            f"{mesh('moving_newtonian')}) is in the vessel wall next to its clamped upstream "
+            f"end (x = {1e3 * x:.2f} mm, y = {1e3 * y:.2f} mm), where the held edge "
+            "meets the loaded lumen side. The elastic stress is singular at that "
+            "corner of the boundary conditions, so this maximum grows as the mesh is "
+            "refined and says nothing about the plaque; the plaque's largest SSS, "
+            f"{fmt(largest('moving_newtonian', 'plaque_sss'))} Pa, is the one to compare "
+            "(Figure 6, left)." + convergence_of_maxima(summaries)
+        )
+    rf = [largest(c, "recirculation_length") for c in ("fixed_newtonian", "fixed_carreau")]
+    rm = [largest(c, "recirculation_length") for c in ("moving_newtonian", "moving_carreau")]
     if all(rf + rm):
         spread = (max(rf + rm) - min(rf + rm)) / max(rf + rm)
         verdict = "confirmed" if spread < 0.1 else "refuted"
@@ -543,22 +686,36 @@ def write(folder: Path, study_runs, docs: Path) -> Path:
     figures.mkdir(parents=True, exist_ok=True)
     runs = load(folder, study_runs)
     names = [r.name for r in study_runs]
-    missing = [n for n in names if not finished(runs.get(n))]
+    summaries = make_summaries(runs, docs / "study_runs", names)
+    missing = [n for n in names if not finished(summaries.get(n))]
+    rows = comparison_rows(summaries, paper_values())
+    table_csv = write_comparison_csv(rows, docs / "study_tables.csv")
+    commits = sorted({s["git"][:7] for s in summaries.values() if s.get("git")})
     parts = [
         "# The study reproduced\n",
         "Generated by `scripts/reproduce_study.py` from the runs in "
-        f"`{_shown(folder)}/` (every number below is read from them, but the earlier "
-        "settings' in the section on what changed). The four "
-        "configurations of docs/model.md §4 on the coarse and the fine mesh, the whole heartbeat "
-        "(0.8 s), with the shipped configs' resolved schedule (0.25 ms steps to 50 ms, 1 ms "
-        "to 0.1 s, 5 ms to 0.8 s: docs/wall-damping.md), on 2 MPI ranks; and the study's "
-        "printed schedule (5 ms to 0.4 s, 10 ms to 0.8 s) on the coarse mesh.\n",
+        f"`{_shown(folder)}/`, through their summaries in `docs/study_runs/` (every number "
+        "below is read from them, but the earlier settings' in the section on what changed). "
+        "The four configurations of docs/model.md §4 on the coarse and the fine mesh, the whole "
+        "heartbeat (0.8 s), with the shipped configs' resolved schedule (0.25 ms steps to "
+        "50 ms, 1 ms to 0.1 s, 5 ms to 0.8 s: docs/wall-damping.md), on 2 MPI ranks; and the "
+        "study's printed schedule (5 ms to 0.4 s, 10 ms to 0.8 s) on the coarse mesh. "
+        f"Made with fsi at git {', '.join(commits) or '–'}.\n",
     ]
     if missing:
         parts.append("**Not finished yet** (shown as '–'): " + ", ".join(missing) + ".\n")
-    for column, title, unit, scale in QUANTITIES:
-        parts.append(f"## {title} ({unit})\n\n{peak_table(runs, column, unit, scale)}\n")
-    conv = figure_convergence(runs, figures / "study_mesh_convergence.png")
+    parts.append(
+        "## Tables 1–3 beside the study's\n\n"
+        f"The study's printed values (docs/reference/boujena2014_tables.csv) and ours, also "
+        f"in [`{table_csv.name}`]({table_csv.name}) (SI units); difference = (fsi − paper) / "
+        f"paper. fsi is within 10 % of the paper for {agreement(rows)} values.\n"
+    )
+    for (_, title, unit, scale), quantity in zip(QUANTITIES, PAPER_QUANTITY):
+        parts.append(
+            f"### {title} ({unit})\n\n{paper_table(rows, quantity, scale)}\n\n"
+            f"Within 10 % of the paper: {agreement(rows, quantity)}.\n"
+        )
+    conv = figure_convergence(summaries, figures / "study_mesh_convergence.png")
     parts.append(
         f"Mesh convergence: the coarse → fine change of each peak.\n\n"
         f"![mesh convergence](figures/{conv.name})\n"
@@ -573,7 +730,9 @@ def write(folder: Path, study_runs, docs: Path) -> Path:
         "backflow term. Before → now (change):\n"
     )
     for column, title, unit, scale in QUANTITIES:
-        parts.append(f"{title.split(': ')[1]} ({unit}):\n\n{changes_table(runs, column, scale)}\n")
+        parts.append(
+            f"{title.split(': ')[1]} ({unit}):\n\n{changes_table(summaries, column, scale)}\n"
+        )
     parts.append(
         "The inlet makes the whole change. Each setting reverted alone on the coarse fixed-wall "
         "Newtonian heartbeat (`fsi run configs/stenosis_fixed_newtonian.yaml --set ...`, "
@@ -598,7 +757,7 @@ def write(folder: Path, study_runs, docs: Path) -> Path:
         "## The study's printed schedule (coarse mesh)\n\n"
         "Its first step, 5 ms, is the whole inlet pulse, which is back to 0 at t = "
         "5 ms: the fluid's backward-Euler/BDF step sees P(5 ms) = 0 and the runs stay "
-        "at rest (docs/model.md §4).\n\n" + printed_table(runs) + "\n"
+        "at rest (docs/model.md §4).\n\n" + printed_table(summaries) + "\n"
     )
     fig6 = figure_sss(runs, figures / "study_figure6_sss.png")
     parts.append(
@@ -608,7 +767,7 @@ def write(folder: Path, study_runs, docs: Path) -> Path:
         "study plots it; right, the whole structure, whose moving-wall maximum sits at "
         "the wall's clamped end (see the findings).\n"
     )
-    fields = field_figures(runs, figures)
+    fields = field_figures(runs, summaries, figures)
     if fields:
         parts.append("## Figures 7–9: fields\n")
         for caption, path in fields:
@@ -617,7 +776,7 @@ def write(folder: Path, study_runs, docs: Path) -> Path:
         "## The study's findings, checked\n\n"
         "All on one mesh, as they compare configurations: the fine one once its four "
         "runs have finished, else the coarse one (the run is named beside its "
-        "numbers).\n\n" + "\n".join(f"- {f}" for f in findings(runs)) + "\n"
+        "numbers).\n\n" + "\n".join(f"- {f}" for f in findings(summaries)) + "\n"
     )
     parts.append(
         "## Wall time on this machine (2 cores)\n\n"
@@ -625,7 +784,7 @@ def write(folder: Path, study_runs, docs: Path) -> Path:
         "compilation), as measured: the 2 cores were at times shared with other jobs "
         "(tests, the other runs' start-up), which can slow a run several-fold, so "
         "these are upper bounds; #11's benchmarks time unloaded runs.\n\n"
-        + effort_table(runs, names)
+        + effort_table(summaries, names)
         + "\n"
     )
     path = docs / "study.md"

@@ -77,6 +77,7 @@ BAD = [
     ),
     ("time: {end: .nan}", "time.end", "a finite positive number (s), got nan"),
     ("geometry: {length: .inf}", "geometry.length", "a finite positive number (m), got inf"),
+    ("geometry: {stenosis_centre: .nan}", "geometry.stenosis_centre", "a finite number, got nan"),
     ("fluid: {rheology: {viscosity: .inf}}", "fluid.rheology.viscosity", "finite"),
     ("fluid: {rheology: {model: carreau, mu_0: .nan}}", "fluid.rheology.mu_0", "finite"),
     ("fluid: {density: -.inf}", "fluid.density", "got -inf"),

@@ -115,6 +115,25 @@ def test_plaque_on_the_top_or_both_sides(sides):
     assert s["measures"]["min_cap_thickness_m"] == pytest.approx(0.0005, rel=5e-3)
 
 
+def test_the_plaque_placed_upstream_in_a_longer_segment():
+    """``stenosis_centre`` moves the plaque: at 1 cm of a 4 cm segment (2 cm more downstream than
+    the study's) the areas are the cosine integrals, the apex is at x = 1 cm, and the plaque in
+    the middle given explicitly is the default mesh, vertex for vertex."""
+    case = config.from_dict({"geometry": {"length": 0.04, "stenosis_centre": 0.01}})
+    tagged = mesh.build(case)
+    s = mesh.summary(tagged, case)
+    for name, area in stenosis.analytic_areas(case.geometry).items():
+        assert s["area_m2"][name] == pytest.approx(area, rel=5e-3), name
+    assert s["measures"]["stenosis_degree"] == pytest.approx(0.5, rel=1e-12)
+    assert s["measures"]["min_cap_thickness_m"] == pytest.approx(0.0005, rel=5e-3)
+    interface = mesh.facet_segments(tagged, Boundary.INTERFACE).reshape(-1, 2)
+    apex = interface[np.argmax(interface[:, 1])]
+    assert apex[0] == pytest.approx(0.01, abs=1e-12)
+    middle = mesh.build(config.from_dict({"geometry": {"stenosis_centre": 0.01}}))
+    default = mesh.build(config.from_dict({}))
+    assert np.array_equal(middle.mesh.geometry.x, default.mesh.geometry.x)
+
+
 def test_channel_mesh():
     case = config.from_dict(
         reader.parse_yaml(

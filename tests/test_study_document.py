@@ -1,6 +1,8 @@
 """scripts/study_document.py: the verdicts on the study's findings and the tables of docs/study.md
-are comparisons of the runs' numbers (synthetic runs here, whose answers are known)."""
+are comparisons of the runs' numbers (synthetic runs here, whose answers are known), made from
+the runs' summaries; docs/study_tables.csv holds the study's 120 printed values."""
 
+import json
 import sys
 from pathlib import Path
 
@@ -38,8 +40,12 @@ def run(
     return report.Run(Path(name), config.Case(), rows, {"steps": len(rows)})
 
 
+def summaries(runs: dict) -> dict:
+    return {name: study_document.summarise(r) for name, r in runs.items()}
+
+
 def verdicts(runs: dict) -> list[str]:
-    return [f.split(" — ")[1].split(" (")[0] for f in study_document.findings(runs)]
+    return [f.split(" — ")[1].split(" (")[0] for f in study_document.findings(summaries(runs))]
 
 
 def test_the_study_s_findings_confirmed():
@@ -65,19 +71,37 @@ def test_the_study_s_findings_refuted():
 def test_the_findings_use_the_fine_mesh_once_its_four_runs_finished():
     coarse = {f"{c}_coarse": run(f"{c}_coarse", 300.0) for c in study_document.CONFIGS}
     fine = {f"{c}_fine": run(f"{c}_fine", 500.0) for c in study_document.CONFIGS}
-    assert "(fixed_newtonian_fine)" in study_document.findings({**coarse, **fine})[0]
+    assert "(fixed_newtonian_fine)" in study_document.findings(summaries({**coarse, **fine}))[0]
     fine["fixed_carreau_fine"] = run("fixed_carreau_fine", 500.0, end=0.1)  # unfinished
-    assert "(fixed_newtonian_coarse)" in study_document.findings({**coarse, **fine})[0]
+    assert "(fixed_newtonian_coarse)" in study_document.findings(summaries({**coarse, **fine}))[0]
 
 
-def test_the_peak_tables_give_coarse_fine_and_their_change():
-    runs = {
-        "fixed_newtonian_coarse": run("a", 1.0, displacement=2e-6),
-        "fixed_newtonian_fine": run("b", 1.0, displacement=3e-6),
-    }
-    table = study_document.peak_table(runs, "peak_displacement", "µm", 1e6)
-    row = next(line for line in table.splitlines() if line.startswith("| 0.01 |"))
-    assert row.startswith("| 0.01 | 2 | 3 | +50.0 % | – | – | – |")
+def test_the_paper_tables_set_each_printed_value_beside_the_run_s(tmp_path):
+    paper = study_document.paper_values()
+    assert len(paper) == 120  # 3 quantities x 5 times x 2 walls x 2 fluids x 2 meshes
+    runs = {"fixed_newtonian_coarse": run("fixed_newtonian_coarse", 1.0, displacement=2e-6)}
+    rows = study_document.comparison_rows(summaries(runs), paper)
+    key = ("displacement", 0.01, "fixed", "newtonian", "coarse")
+    row = next(
+        r for r in rows if (r["quantity"], r["t_s"], r["wall"], r["fluid"], r["mesh"]) == key
+    )
+    assert (row["paper"], row["fsi"]) == (paper[key], 2e-6)
+    assert study_document.difference(row) == pytest.approx(2e-6 / paper[key] - 1)
+    assert sum(r["fsi"] is not None for r in rows) == 15  # this run's 3 quantities x 5 times
+    table = study_document.paper_table(rows, "displacement", 1e6)
+    line = next(x for x in table.splitlines() if x.startswith("| fixed wall, Newtonian | 0.01 |"))
+    percent = f"{100 * (2e-6 / paper[key] - 1):+.0f} %"
+    assert line.split(" | ")[2:5] == [f"{1e6 * paper[key]:.4g}", "2", percent]
+    assert study_document.agreement(rows, "velocity").endswith("(35 without a run)")
+
+
+def test_the_summaries_stand_in_for_the_run_folders(tmp_path):
+    runs = {"fixed_newtonian_coarse": run("fixed_newtonian_coarse", 300.0, displacement=2e-6)}
+    made = study_document.make_summaries(runs, tmp_path, ["fixed_newtonian_coarse", "other"])
+    read = study_document.make_summaries({}, tmp_path, ["fixed_newtonian_coarse", "other"])
+    assert read == json.loads(json.dumps(made)) and list(read) == ["fixed_newtonian_coarse"]
+    assert study_document.peak(read["fixed_newtonian_coarse"], "max_sss") == (300.0, 0.0025)
+    assert study_document.at(read["fixed_newtonian_coarse"], 0.05, "peak_displacement") == 2e-6
 
 
 @pytest.mark.parametrize(

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from fsi.config.reader import at_least, open_interval, positive
+from fsi.config.reader import at_least, checked, open_interval, positive
 
 
 @dataclass(frozen=True)
@@ -28,6 +28,10 @@ class StenosisGeometry:
     cap_thickness: float = positive(0.0005, "m")
     lipid_length: float = positive(0.006, "m")
     plaque_sides: tuple[Literal["bottom", "top"], ...] = ("bottom",)
+    # x of the plaque's apex (m); null: length / 2, the study's plaque in the middle.
+    stenosis_centre: float | None = checked(
+        None, lambda v: v is None or v > 0, "a positive number, or null for length / 2", "m"
+    )
 
 
 @dataclass(frozen=True)

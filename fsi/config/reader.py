@@ -304,6 +304,8 @@ def _describe(tp: Any) -> str:
         return "a string"
     if tp is bool:
         return "true or false"
+    if tp is type(None):
+        return "null"
     if origin is Literal:
         return "one of " + ", ".join(repr(a) for a in typing.get_args(tp))
     if origin is tuple:
@@ -349,6 +351,10 @@ def build(tp: Any, value: Any, key: str) -> Any:
         if not isinstance(value, tp):
             raise ConfigError("", key, _describe(tp), value)
         return value
+    if tp is type(None):
+        if value is not None:
+            raise ConfigError("", key, "null", value)
+        return None
     raise TypeError(f"unsupported configuration type {tp!r} at {key}")
 
 

@@ -65,13 +65,23 @@ def _validate_geometry(case: Case) -> None:
 
 
 def _validate_stenosis(g: StenosisGeometry) -> None:
-    """Plaque sides once each; the stenosis inside the segment; the cap thinner than the
-    plaque and nowhere thinner than ``cap_thickness`` over the lipid pool."""
+    """Plaque sides once each; the stenosis (its length and its centre) inside the segment;
+    the cap thinner than the plaque and nowhere thinner than ``cap_thickness`` over the lipid
+    pool."""
     if len(set(g.plaque_sides)) != len(g.plaque_sides) or not g.plaque_sides:
         raise ConfigError(
             "", "geometry.plaque_sides", "'bottom', 'top' or both, once each", list(g.plaque_sides)
         )
     _refuse_not_shorter(g, "stenosis_length", than="length")
+    half = g.stenosis_length / 2
+    if not half < stenosis_geometry.apex_x(g) < g.length - half:
+        raise ConfigError(
+            "",
+            "geometry.stenosis_centre",
+            f"a plaque inside the segment: between stenosis_length / 2 = {half:g} m and length"
+            f" - stenosis_length / 2 = {g.length - half:g} m",
+            g.stenosis_centre,
+        )
     plaque = stenosis_geometry.plaque_height(g)
     if g.cap_thickness >= plaque:
         raise ConfigError(
