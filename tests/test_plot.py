@@ -377,3 +377,32 @@ def test_region_tags_get_one_colour_each_and_other_fields_a_continuous_map():
     assert (cmap, norm.vmin, norm.vmax) == ("RdBu_r", -3.0, 3.0)  # signed: zero in the middle
     cmap, norm = plot._colours(np.array([2.0, 2.0]), "velocity")
     assert (cmap, norm.vmin, norm.vmax) == ("viridis", 1.0, 3.0)  # never an empty range
+
+
+def test_a_colour_limit_caps_the_range_and_the_bar_says_so(run_dir, monkeypatch):
+    """A singular peak need not wash out the rest: ±limit for signed values, the top for
+    others (a limit beyond the values changes nothing); the bar gets an arrow at a cut end."""
+    _, norm = plot._colours(np.array([-1.0, 30.0]), "stress", limit=2.0)
+    assert (norm.vmin, norm.vmax) == (-2.0, 2.0)
+    _, norm = plot._colours(np.array([-1.0, 3.0]), "stress", limit=10.0)
+    assert (norm.vmin, norm.vmax) == (-3.0, 3.0)
+    _, norm = plot._colours(np.array([0.5, 30.0]), "velocity", limit=2.0)
+    assert (norm.vmin, norm.vmax) == (0.5, 2.0)
+    if MPI.COMM_WORLD.rank != 0:
+        return
+    import matplotlib.figure
+
+    extends = []
+    real = matplotlib.figure.Figure.colorbar
+    monkeypatch.setattr(
+        matplotlib.figure.Figure,
+        "colorbar",
+        lambda self, *a, **k: extends.append(k["extend"]) or real(self, *a, **k),
+    )
+    sss = plot.read_field(run_dir, "sss", 0.003, region="cap")
+    half = 0.5 * float(np.abs(sss.values).max())  # Pa; both signs reach beyond it
+    out = run_dir.parent / "capped.png"
+    mark = [(0.0, 0.0, "clamped corner")]
+    assert plot.field_snapshot(run_dir, "sss", 0.003, out, limit=half, marks=mark) == out
+    plot.field_snapshot(run_dir, "sss", 0.003, run_dir.parent / "full.png")
+    assert is_png(out) and extends[0] in ("both", "max", "min") and extends[1] == "neither"

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import os
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -438,16 +439,25 @@ def check_out(path: Path) -> None:
 
 
 def draw(
-    snapshot: Snapshot, path: Path, *, component: str | None = None, flow: Snapshot | None = None
+    snapshot: Snapshot,
+    path: Path,
+    *,
+    component: str | None = None,
+    flow: Snapshot | None = None,
+    limit: float | None = None,
+    marks: Sequence[tuple[float, float, str]] = (),
 ) -> Path:
     """Write ``path`` (PNG, PDF or SVG, by its suffix): the field as filled contours (node
     values shaded between the nodes, cell values flat) on the snapshot's coordinates in mm,
     equal aspect, with a colour bar labelled with the field and its unit and the :func:`title`;
     with ``flow`` (the fluid velocity on the same nodes, :func:`streamline_field`) its
     streamlines over it, the velocity interpolated linearly on a regular grid and masked outside
-    the fluid mesh. The file appears complete or not at all (written under another name, then
-    renamed). Raises :class:`PlotError` for a bad ``component`` or ``path`` before anything is
-    written, OSError if the file cannot be written."""
+    the fluid mesh. ``limit`` (the field's SI unit) caps the colour range at ±limit for a signed
+    field, at limit otherwise: larger values show in the end colour (the bar says so), so a
+    singular peak need not wash out the rest. ``marks``: points (x, y in m, as drawn) to mark
+    with a cross and a label. The file appears complete or not at all (written under another
+    name, then renamed). Raises :class:`PlotError` for a bad ``component`` or ``path`` before
+    anything is written, OSError if the file cannot be written."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -459,8 +469,8 @@ def draw(
     values, prefix = _component(snapshot, component)
     label, quantity = FIELDS.get(snapshot.name, (snapshot.name, ""))
     used = np.unique(snapshot.triangles)
-    values, shown, unit = _in_unit(snapshot, values, used, quantity)
-    cmap, norm = _colours(shown, quantity)
+    values, shown, unit, scale = _in_unit(snapshot, values, used, quantity)
+    cmap, norm = _colours(shown, quantity, None if limit is None else limit * scale)
 
     xy = snapshot.coordinates * 1e3  # mm
     triangulation = mtri.Triangulation(xy[:, 0], xy[:, 1], snapshot.triangles)
@@ -475,6 +485,9 @@ def draw(
         image = ax.tripcolor(triangulation, facecolors=values, cmap=cmap, norm=norm)
     if flow is not None:
         _streamlines(ax, flow, lo, hi)
+    for x, y, text in marks:
+        ax.plot(1e3 * x, 1e3 * y, "kx", ms=9, mew=2)
+        ax.annotate(text, (1e3 * x, 1e3 * y), xytext=(6, 6), textcoords="offset points", fontsize=8)
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_aspect("equal")
@@ -482,25 +495,26 @@ def draw(
     ax.set_ylabel("y (mm)")
     ax.set_title(title(snapshot), fontsize=9)
     bar_label = f"{prefix}{label}" + (f" ({unit})" if unit else "")
-    _colour_bar(fig, ax, image, bar_label, quantity, shown, wide=aspect < 0.6)
+    _colour_bar(fig, ax, image, bar_label, quantity, shown, wide=aspect < 0.6, norm=norm)
     save_figure(fig, path)
     return path
 
 
 def _in_unit(
     snapshot: Snapshot, values: np.ndarray, used: np.ndarray, quantity: str
-) -> tuple[np.ndarray, np.ndarray, str]:
+) -> tuple[np.ndarray, np.ndarray, str, float]:
     """``values`` and those shown (at the ``used`` nodes, or every cell) in a readable unit
-    (:func:`_unit` of the largest shown magnitude), and that unit's name."""
+    (:func:`_unit` of the largest shown magnitude), that unit's name and its factor."""
     shown = values[used] if snapshot.center == "node" else values
     unit, scale = _unit(quantity, float(np.max(np.abs(shown))) if len(shown) else 0.0)
-    return values * scale, shown * scale, unit
+    return values * scale, shown * scale, unit, scale
 
 
-def _colours(shown: np.ndarray, quantity: str):
+def _colours(shown: np.ndarray, quantity: str, limit: float | None = None):
     """The colour map and its normalization: for region tags one distinct colour per tag shown
     (a discrete bar); signed values symmetric about zero in ``RdBu_r``; else the values' range
-    in ``viridis``; never an empty range."""
+    in ``viridis``; never an empty range. ``limit`` (the shown values' unit) caps the range:
+    ±limit for signed values, the top otherwise."""
     from matplotlib import colors
 
     if quantity == "tag":
@@ -512,14 +526,23 @@ def _colours(shown: np.ndarray, quantity: str):
     cmap = "viridis"
     if low < 0.0 < high:  # signed: zero in the middle, white
         low, high, cmap = -max(-low, high), max(-low, high), "RdBu_r"
+        if limit is not None:
+            low, high = max(low, -limit), min(high, limit)
+    elif limit is not None:
+        high = min(high, limit)
     if low == high:
         low, high = low - 1.0, high + 1.0
     return cmap, colors.Normalize(low, high)
 
 
-def _colour_bar(fig, ax, image, label: str, quantity: str, shown: np.ndarray, wide: bool) -> None:
+def _colour_bar(
+    fig, ax, image, label: str, quantity: str, shown: np.ndarray, wide: bool, norm=None
+) -> None:
     """The colour bar of ``image``, labelled ``label``: below a ``wide`` picture, else on the
-    right; for region tags, a tick named after each region shown."""
+    right, with an arrow at an end whose range ``norm`` cut values off; for region tags, a tick
+    named after each region shown."""
+    below = norm is not None and quantity != "tag" and float(np.min(shown)) < norm.vmin
+    above = norm is not None and quantity != "tag" and float(np.max(shown)) > norm.vmax
     bar = fig.colorbar(
         image,
         ax=ax,
@@ -527,6 +550,9 @@ def _colour_bar(fig, ax, image, label: str, quantity: str, shown: np.ndarray, wi
         location="bottom" if wide else "right",
         shrink=0.6 if wide else 0.9,
         aspect=40 if wide else 20,
+        extend={(True, True): "both", (True, False): "min", (False, True): "max"}.get(
+            (below, above), "neither"
+        ),
     )
     if quantity == "tag":  # name the regions present
         tags = [int(tag) for tag in np.unique(np.rint(shown))]
@@ -586,10 +612,12 @@ def field_snapshot(
     region: str | None = None,
     streamlines: bool = False,
     component: str | None = None,
+    limit: float | None = None,
+    marks: Sequence[tuple[float, float, str]] = (),
 ) -> Path:
-    """:func:`read_field` then :func:`draw` (with the velocity's streamlines if asked):
-    writes ``path`` and returns it."""
+    """:func:`read_field` then :func:`draw` (with the velocity's streamlines if asked, the
+    colour range capped at ``limit``, the ``marks``): writes ``path`` and returns it."""
     check_out(Path(path))
     snapshot = read_field(run_dir, field, t, warp=warp, region=region)
     flow = streamline_field(snapshot) if streamlines else None
-    return draw(snapshot, path, component=component, flow=flow)
+    return draw(snapshot, path, component=component, flow=flow, limit=limit, marks=marks)
