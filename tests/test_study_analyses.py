@@ -40,8 +40,8 @@ def test_the_effective_length_is_the_integral_of_h_over_the_lumen():
     bump = np.where(
         np.abs(x - L / 2) <= l / 2, d / 2 * (1 - np.cos(2 * np.pi * (x - L / 4) / l)), 0
     )
-    integrate = getattr(np, "trapezoid", None) or np.trapz  # numpy 2 renamed it
-    numeric = integrate(1.0 / (1.0 - bump), x)
+    f = 1.0 / (1.0 - bump)
+    numeric = np.sum((f[1:] + f[:-1]) / 2 * np.diff(x))  # the trapezoidal rule
     assert study_analyses.effective_length(L, l, d) == pytest.approx(numeric, rel=1e-8)
     assert study_analyses.effective_length(L, l, d) == pytest.approx(L - l + l * math.sqrt(2))
 
