@@ -33,6 +33,10 @@ CASES = [
     "stenosis_moving_carreau",
 ]
 PRINTED_SCHEDULE = "time.schedule=[{until: 0.4, dt: 0.005}, {until: 0.8, dt: 0.01}]"
+HALVED_SCHEDULE = (
+    "time.schedule=[{until: 0.05, dt: 1.25e-4}, {until: 0.1, dt: 5.0e-4}, {until: 0.8, dt: 2.5e-3}]"
+)
+"""The shipped configs' schedule with every step halved."""
 MPI_ENV = {
     "OMPI_ALLOW_RUN_AS_ROOT": "1",
     "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
@@ -47,7 +51,7 @@ class StudyRun:
     (the case with further ``sets``, up to ``end``)."""
 
     case: str
-    level: str  # coarse | fine | finest
+    level: str  # coarse | medium | fine | finest
     schedule: str = "resolved"  # resolved (the config's) | printed (the study's)
     sets: tuple[str, ...] = ()
     label: str = ""
@@ -215,6 +219,26 @@ ANALYSES = {
         )
         for case in ("stenosis_fixed_newtonian", "stenosis_moving_newtonian")
         for extra in (0.01, 0.02)
+    ],
+    # Mesh and step convergence of the stress maxima the findings rest on (all reached by 12 ms):
+    # the medium and finest meshes beside the coarse and fine runs, and the fine mesh with
+    # every step halved.
+    "convergence": [
+        StudyRun(
+            case, level, label=f"convergence/{case.removeprefix('stenosis_')}_{level}", end=0.02
+        )
+        for case in ("stenosis_fixed_newtonian", "stenosis_moving_newtonian")
+        for level in ("medium", "finest")
+    ]
+    + [
+        StudyRun(
+            case,
+            "fine",
+            sets=(HALVED_SCHEDULE,),
+            label=f"convergence/{case.removeprefix('stenosis_')}_fine_dt_halved",
+            end=0.1,
+        )
+        for case in ("stenosis_fixed_newtonian", "stenosis_moving_newtonian")
     ],
 }
 """The runs that isolate the causes of the differences from the study (docs/study.md, one

@@ -897,6 +897,11 @@ def write(folder: Path, study_runs, docs: Path, analyses: dict | None = None) ->
         f"![mesh convergence](figures/{conv.name})\n"
     )
     parts.append(
+        "## Mesh and step convergence of the stress maxima\n\n"
+        + study_analyses.convergence(extra.get("convergence", {}), summaries)
+        + "\n"
+    )
+    parts.append(
         "## What the physiological-flow settings changed (fine mesh)\n\n"
         "The study configs now run SUPG, the study's own inlet (σ n = −h n, the velocity "
         "free to turn, β = 0.1 on the tangential velocity of inflow) and the outlet's "

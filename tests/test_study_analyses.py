@@ -99,3 +99,11 @@ def test_the_compliance_verdict_is_the_factor_two_it_states():
     near = _compliance_text({0.5: 1e-8, 0.7: 3.5e-8})
     assert "**A reading of the plaque's shape within a factor 2" in near
     assert "1.0e-05 (2 runs)" in near
+
+
+def test_richardson_recovers_the_limit_and_order_of_a_power_law():
+    """f(h) = 3 + 0.5 h² on h = 4, 2, 1: order 2, limit 3; a non-monotone sequence has none."""
+    order, limit = study_analyses.richardson(3 + 0.5 * 16, 3 + 0.5 * 4, 3 + 0.5)
+    assert order == pytest.approx(2.0) and limit == pytest.approx(3.0)
+    assert study_analyses.richardson(1.0, 2.0, 1.5) is None
+    assert study_analyses.richardson(1.0, 1.0, 1.0) is None
