@@ -1,17 +1,20 @@
 #!/usr/bin/env python3
 """Reproduce the study (docs/model.md §4, §6): its four configurations on the coarse and
 the fine mesh, the whole heartbeat, with the resolved schedule of the shipped configs, plus the
-study's printed schedule (5 ms to 0.4 s, 10 ms to 0.8 s) on the coarse mesh; then write
-docs/study.md and its figures from the runs.
+study's printed schedule (5 ms to 0.4 s, 10 ms to 0.8 s) on the coarse mesh; the runs of the
+:data:`ANALYSES` that isolate why fsi differs from the study's tables; then write docs/study.md,
+docs/study_tables.csv, the runs' summaries (docs/study_runs/) and the figures.
 
-    scripts/reproduce_study.py                  # run what is missing, then write docs/study.md
-    scripts/reproduce_study.py --only coarse    # the coarse runs only (a few minutes)
-    scripts/reproduce_study.py --document-only  # rewrite docs/study.md from the runs there are
+    scripts/reproduce_study.py                  # run what is missing, then write the document
+    scripts/reproduce_study.py --only coarse    # the study's coarse runs only (a few minutes)
+    scripts/reproduce_study.py --only analyses --analysis damping --ranks 1
+    scripts/reproduce_study.py --document-only  # rewrite the document from the runs there are
+                                                # (or their committed summaries)
 
 Finished runs (summary.json with the run's end time) are skipped, stopped ones (a checkpoint)
 resumed with ``--restart``; so the script can be stopped and run again at any point. Each run
 is ``mpirun -n RANKS fsi run configs/<case>.yaml --out RUNS/<name>`` (default 2 ranks, the
-machine's cores), one at a time.
+machine's cores), one at a time; a sweep is ``fsi sweep``, which skips its finished runs.
 """
 
 from __future__ import annotations
