@@ -210,7 +210,7 @@ ANALYSES = {
             label=f"degree/degree={d:g}",
             end=0.1,
         )
-        for d in (0.4, 0.45, 0.5, 0.55)
+        for d in (0.3, 0.35, 0.4, 0.45, 0.5, 0.55)
     ],
     # 6. The outlet 1 and 2 cm further downstream.
     "downstream": [
