@@ -151,6 +151,7 @@ def summarise(run: report.Run) -> dict:
             "inlet_open_boundary": case.fluid.inlet_open_boundary,
             "normal_flow": case.fluid.normal_flow,
             "end_s": case.time.end,
+            "inlet_amplitude": getattr(case.fluid.inlet, "amplitude", None),
         },
         "steps": len(rows),
         "end_time_s": rows[-1]["t"] if rows else 0.0,
@@ -746,10 +747,8 @@ def _recirculation_caveat(summaries: dict) -> str:
         f"The zones are long for the segment: {1e3 * found[0]:.3g} mm in a "
         f"{1e3 * g['length']:g} mm segment whose plaque ends {1e3 * room:g} mm before the "
         "outlet, so a zone that starts behind the "
-        "plaque runs into the outlet, and the outlet's condition may cut it short; the table "
-        "below the findings moves the outlet 1 and 2 cm further downstream (`geometry.length`, "
-        "`geometry.stenosis_centre: 0.01`; coarse mesh, `--only analyses --analysis "
-        "downstream`)."
+        "plaque runs into the outlet, and the outlet's condition may cut it short (the table "
+        "below the findings moves the outlet further downstream)."
     )
 
 
@@ -962,7 +961,14 @@ def write(folder: Path, study_runs, docs: Path, analyses: dict | None = None) ->
         "runs have finished, else the coarse one (the run is named beside its "
         "numbers).\n\n"
         + "\n".join(f"- {f}" for f in findings(summaries, paper))
-        + "\n\nThe recirculation zone with the outlet further downstream (the last finding):\n\n"
+        + "\n\nThe recirculation zone with the outlet further downstream (the last finding): "
+        "the fixed wall with the segment 1 and 2 cm longer downstream (`geometry.length`, "
+        "`geometry.stenosis_centre: 0.01`), its inlet pulse scaled by the blood column's "
+        "effective length so that the pulse's impulse moves the longer column as fast (a "
+        "pressure pulse into a longer column drives a slower flow; item 4 has the estimate); "
+        "the moving wall lengthened as it is becomes another wall (clamped further apart it is "
+        "far softer: its largest |η|), so it is not compared (`--only analyses --analysis "
+        "downstream`):\n\n"
         + study_analyses.downstream(extra.get("downstream", {}), summaries)
         + "\n"
     )
