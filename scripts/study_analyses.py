@@ -354,6 +354,8 @@ def pressure(inlet: Summaries, degree: Summaries, main: Summaries, paper: dict) 
             "study's.",
             _degree_bullet(degree, study[0], _paper(paper, "pressure", 0.01, "fixed", "coarse")),
             "",
+            stagnation(main, paper),
+            "",
             'The moving-wall cases\' "peak pressure" is max p over the fluid. While the '
             "ringing wall draws blood in, it is the small positive pressure left: "
             f"{moving['name'] if moving else '–'} has {fmt(ring[0.01], 3)} Pa at 10 ms, "
@@ -484,10 +486,35 @@ def _degree_bullet(degree: Summaries, study_decay: float, study_p10: float) -> s
             "So the decay is within what the unstated geometry moves, but the "
             f"{100 * (1 - max(p10) / study_p10):.0f}–{100 * (1 - min(p10) / study_p10):.0f} % "
             "lower pressure at 10 ms is not: neither the inlet nor the degree explains it, and "
-            "we have not isolated its cause."
+            "we have not isolated its cause (what is measured about it follows)."
             if inside(study_p10, p10) == "outside"
             else "Both lie within what the unstated geometry moves."
         )
+    )
+
+
+def stagnation(main: Summaries, paper: dict) -> str:
+    """Where the fixed wall's peak pressure sits at 10 ms, and the stagnation pressure of the
+    inflow there, ½ ρ (Q / H)²."""
+    s = main.get("fixed_newtonian_fine") or main.get("fixed_newtonian_coarse")
+    where = None if s is None else s.get("peak_pressure_at", {}).get("0.01")
+    q = at(s, 0.01, "inlet_flow_rate")
+    if where is None or q is None:
+        return ""
+    g = s["case"]["geometry"]
+    u = q / g["height"]
+    printed = _paper(paper, "pressure", 0.01, "fixed", "coarse")
+    faster = (printed / (0.5 * 1060 * u**2)) ** 0.5 - 1
+    return (
+        f"At 10 ms the peak pressure ({fmt(at(s, 0.01, 'peak_pressure'), 3)} Pa, {s['name']}) "
+        f"sits on the plaque's upstream flank (x = {1e3 * where[0]:.1f} mm, y = "
+        f"{1e3 * where[1]:.2f} mm; the plaque starts at x = "
+        f"{1e3 * (g['length'] / 2 - g['stenosis_length'] / 2):g} mm), where the oncoming blood "
+        f"is turned: the stagnation pressure of the mean inflow, ½ ρ (Q / H)² = "
+        f"{0.5 * 1060 * u**2:.3g} Pa (Q / H = {u:.3g} m/s), is of its size. The study's "
+        f"{printed:g} Pa would be that of a {100 * faster:.0f} % faster inflow; its "
+        "velocities (Table 1) are lower, not higher, so a faster inflow "
+        "is not the explanation either."
     )
 
 

@@ -167,7 +167,23 @@ def summarise(run: report.Run) -> dict:
     if summary["finished"] and "max_sss" in maxima and (run.path / "solid.xdmf").is_file():
         x, y, region = largest_at(run, "sss", maxima["max_sss"][1])
         summary["largest_sss_at"] = {"x": float(x), "y": float(y), "region": region}
+    if summary["finished"] and (run.path / "fields.xdmf").is_file() and case.time.end >= 0.01:
+        summary["peak_pressure_at"] = {f"{PRESSURE_TIME:g}": pressure_peak_at(run, PRESSURE_TIME)}
     return summary
+
+
+PRESSURE_TIME = 0.01
+"""s: where the peak pressure sits after the pulse is kept in the summary at this time."""
+
+
+def pressure_peak_at(run: report.Run, t: float) -> list[float]:
+    """Where the fluid's largest pressure is at time ``t`` (the node, reference coordinates
+    of the current mesh, m)."""
+    from fsi.output import plot
+
+    snapshot = plot.read_field(run.path, "pressure", t)
+    k = int(np.argmax(snapshot.values))
+    return [float(v) for v in snapshot.coordinates[k]]
 
 
 def make_summaries(
