@@ -14,7 +14,7 @@ import math
 from pathlib import Path
 
 from fsi.output import report
-from scripts.study_document import TIMES, at, fmt, make_summaries, peak
+from scripts.study_runs import TIMES, at, fmt, make_summaries, peak
 
 Summaries = dict[str, dict]
 

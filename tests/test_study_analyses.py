@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from scripts import study_analyses, study_document  # noqa: E402
+from scripts import study_analyses, study_runs  # noqa: E402
 
 
 def summary(at: dict[float, dict], degree: float = 0.5, **maxima) -> dict:
@@ -65,7 +65,7 @@ def test_the_matching_degree_interpolates_between_the_bracketing_runs():
 
 
 def test_a_wall_is_quasi_static_from_the_time_it_stays_near_the_run_without_inertia():
-    times = [t for t in study_document.TIMES if t <= 0.1]
+    times = [t for t in study_runs.TIMES if t <= 0.1]
     reference = summary({t: {"peak_displacement": 3e-6} for t in times})
     ringing = summary(
         dict(zip(times, [{"peak_displacement": d} for d in (8e-5, 4e-5, 3.5e-6, 3.2e-6)]))
@@ -79,7 +79,7 @@ def test_a_wall_is_quasi_static_from_the_time_it_stays_near_the_run_without_iner
 
 
 def _compliance_text(ratio_per_degree: dict[float, float]) -> str:
-    paper = study_document.paper_values()
+    paper = study_runs.paper_values()
     shape = {}
     for d, ratio in ratio_per_degree.items():
         for k, cap in enumerate((1e-4, 2e-4)):

@@ -12,7 +12,7 @@ from fsi import config
 from fsi.output import report
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from scripts import study_document  # noqa: E402
+from scripts import study_document, study_runs  # noqa: E402
 
 TIMES = [0.0025, 0.005, 0.01, 0.02, 0.05, 0.1, 0.8]
 
@@ -41,7 +41,7 @@ def run(
 
 
 def summaries(runs: dict) -> dict:
-    return {name: study_document.summarise(r) for name, r in runs.items()}
+    return {name: study_runs.summarise(r) for name, r in runs.items()}
 
 
 def verdicts(runs: dict) -> list[str]:
@@ -77,16 +77,16 @@ def test_the_findings_use_the_fine_mesh_once_its_four_runs_finished():
 
 
 def test_the_paper_tables_set_each_printed_value_beside_the_run_s(tmp_path):
-    paper = study_document.paper_values()
+    paper = study_runs.paper_values()
     assert len(paper) == 120  # 3 quantities x 5 times x 2 walls x 2 fluids x 2 meshes
     runs = {"fixed_newtonian_coarse": run("fixed_newtonian_coarse", 1.0, displacement=2e-6)}
-    rows = study_document.comparison_rows(summaries(runs), paper)
+    rows = study_runs.comparison_rows(summaries(runs), paper)
     key = ("displacement", 0.01, "fixed", "newtonian", "coarse")
     row = next(
         r for r in rows if (r["quantity"], r["t_s"], r["wall"], r["fluid"], r["mesh"]) == key
     )
     assert (row["paper"], row["fsi"]) == (paper[key], 2e-6)
-    assert study_document.difference(row) == pytest.approx(2e-6 / paper[key] - 1)
+    assert study_runs.difference(row) == pytest.approx(2e-6 / paper[key] - 1)
     assert sum(r["fsi"] is not None for r in rows) == 15  # this run's 3 quantities x 5 times
     table = study_document.paper_table(rows, "displacement", 1e6)
     line = next(x for x in table.splitlines() if x.startswith("| fixed wall, Newtonian | 0.01 |"))
@@ -97,15 +97,15 @@ def test_the_paper_tables_set_each_printed_value_beside_the_run_s(tmp_path):
 
 def test_the_summaries_stand_in_for_the_run_folders(tmp_path):
     runs = {"fixed_newtonian_coarse": run("fixed_newtonian_coarse", 300.0, displacement=2e-6)}
-    made = study_document.make_summaries(runs, tmp_path, ["fixed_newtonian_coarse", "other"])
-    read = study_document.make_summaries({}, tmp_path, ["fixed_newtonian_coarse", "other"])
+    made = study_runs.make_summaries(runs, tmp_path, ["fixed_newtonian_coarse", "other"])
+    read = study_runs.make_summaries({}, tmp_path, ["fixed_newtonian_coarse", "other"])
     assert read == json.loads(json.dumps(made)) and list(read) == ["fixed_newtonian_coarse"]
-    assert study_document.peak(read["fixed_newtonian_coarse"], "max_sss") == (300.0, 0.0025)
-    assert study_document.at(read["fixed_newtonian_coarse"], 0.05, "peak_displacement") == 2e-6
+    assert study_runs.peak(read["fixed_newtonian_coarse"], "max_sss") == (300.0, 0.0025)
+    assert study_runs.at(read["fixed_newtonian_coarse"], 0.05, "peak_displacement") == 2e-6
 
 
 @pytest.mark.parametrize(
     "coarse,fine,expected", [(2.0, 3.0, "+50.0 %"), (2.0, None, "–"), (0.0, 1.0, "–")]
 )
 def test_change(coarse, fine, expected):
-    assert study_document.change(coarse, fine) == expected
+    assert study_runs.change(coarse, fine) == expected

@@ -1,0 +1,263 @@
+"""The study's runs reduced to what docs/study.md is made from: a summary per run
+(:func:`summarise`: its provenance and case, the three peaks at the study's report times, the
+maxima the findings compare, where the largest stresses and pressure sit), written to and read
+back from docs/study_runs/, and the study's printed Tables 1–3
+(docs/reference/boujena2014_tables.csv) set beside them (:func:`comparison_rows`,
+docs/study_tables.csv). scripts/study_document.py and scripts/study_analyses.py build on it.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+import re
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from fsi.output import report
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "docs" / "reference" / "boujena2014_tables.csv"
+"""The study's Tables 1–3 as printed (120 values, SI units)."""
+
+TIMES = (0.01, 0.02, 0.05, 0.1, 0.8)
+QUANTITIES = [
+    ("peak_velocity", "Table 1: peak velocity", "m/s", 1.0),
+    ("peak_pressure", "Table 2: peak pressure", "Pa", 1.0),
+    ("peak_displacement", "Table 3: peak displacement", "µm", 1.0e6),
+]
+PAPER_QUANTITY = {
+    "velocity": "peak_velocity",
+    "pressure": "peak_pressure",
+    "displacement": "peak_displacement",
+}
+"""The reference file's quantity names → our metrics columns."""
+LABELS = {
+    "fixed_newtonian": "fixed wall, Newtonian",
+    "fixed_carreau": "fixed wall, Carreau",
+    "moving_newtonian": "moving wall, Newtonian",
+    "moving_carreau": "moving wall, Carreau",
+}
+CONFIGS = list(LABELS)
+
+PULSE_WINDOW = 0.01
+"""s: the wall shear stress during the pulse (and the wall's first response) is its maximum up
+to this time."""
+
+
+def plaque_max(row: dict) -> float | None:
+    values = [row[c] for c in ("max_sss_cap", "max_sss_lipid") if c in row]
+    return max(values) if values else None
+
+
+def _pulse_wss(row: dict) -> float | None:
+    if row["t"] > PULSE_WINDOW or "max_wss" not in row:
+        return None
+    return max(abs(row["min_wss"]), abs(row["max_wss"]))
+
+
+AT_COLUMNS = ("peak_velocity", "peak_pressure", "peak_displacement", "inlet_flow_rate")
+"""The columns a summary keeps at each of :data:`TIMES`."""
+
+MAXIMA = {
+    "peak_velocity": lambda r: r.get("peak_velocity"),
+    "peak_pressure": lambda r: r.get("peak_pressure"),
+    "max_sss": lambda r: r.get("max_sss"),
+    "plaque_sss": plaque_max,
+    "max_principal_cap": lambda r: r.get("max_principal_cap"),
+    "peak_displacement": lambda r: r.get("peak_displacement"),
+    "recirculation_length": lambda r: r.get("recirculation_length"),
+    "pulse_wss": _pulse_wss,
+}
+"""The maxima over the run that the findings compare: name → the row's value (None: not there)."""
+
+
+def load(folder: Path, runs) -> dict[str, report.Run]:
+    """The runs there are (finished or not), by name."""
+    loaded = {}
+    for run in runs:
+        path = folder / run.name
+        if (path / "metrics.csv").is_file():
+            loaded[run.name] = report.load_run(path)
+    return loaded
+
+
+def summarise(run: report.Run) -> dict:
+    """The run's provenance and case (the settings the analyses vary), its three peaks and
+    flow rate at :data:`TIMES`, the :data:`MAXIMA` (value, time) and, with field files, where
+    its largest |σ₁₂| is."""
+    rows, info, case = run.rows, run.summary, run.case
+    its = [r["coupling_iterations"] for r in rows if "coupling_iterations" in r]
+    maxima = {}
+    for name, get in MAXIMA.items():
+        found = [(get(r), r["t"]) for r in rows if get(r) is not None]
+        if found:
+            maxima[name] = list(max(found, key=lambda p: p[0]))
+    summary = {
+        "name": run.path.name,
+        "git": info.get("git"),
+        "dolfinx": info.get("dolfinx"),
+        "ranks": info.get("ranks"),
+        "command": re.sub(
+            r"\S*/(fsi/__main__\.py|configs/|results/)", r"\1", info.get("command", "")
+        ),
+        "case": {
+            "name": case.name,
+            "structure_mode": case.structure.mode,
+            "geometry": dataclasses.asdict(case.geometry),
+            "relaxation_time_s": case.structure.wall.viscous_relaxation_time,
+            "young_modulus": {
+                r: getattr(case.structure, r).young_modulus for r in ("wall", "cap", "lipid")
+            },
+            "support": dataclasses.asdict(case.structure.support),
+            "inlet_open_boundary": case.fluid.inlet_open_boundary,
+            "normal_flow": case.fluid.normal_flow,
+            "end_s": case.time.end,
+            "inlet_amplitude": getattr(case.fluid.inlet, "amplitude", None),
+        },
+        "steps": len(rows),
+        "end_time_s": rows[-1]["t"] if rows else 0.0,
+        "finished": bool(rows) and abs(rows[-1]["t"] - case.time.end) < 1e-9,
+        "wall_time_s": round(sum(r.get("wall_time_s", 0.0) for r in rows), 1),
+        "mean_coupling_iterations": sum(its) / len(its) if its else None,
+        "at": {
+            f"{t:g}": {column: report.value_at(rows, t, column) for column in AT_COLUMNS}
+            for t in TIMES
+        },
+        "maxima": maxima,
+    }
+    if summary["finished"] and "max_sss" in maxima and (run.path / "solid.xdmf").is_file():
+        x, y, region = largest_at(run, "sss", maxima["max_sss"][1])
+        summary["largest_sss_at"] = {"x": float(x), "y": float(y), "region": region}
+    if summary["finished"] and (run.path / "fields.xdmf").is_file() and case.time.end >= 0.01:
+        summary["peak_pressure_at"] = {f"{PRESSURE_TIME:g}": pressure_peak_at(run, PRESSURE_TIME)}
+    return summary
+
+
+PRESSURE_TIME = 0.01
+"""s: where the peak pressure sits after the pulse is kept in the summary at this time."""
+
+
+def pressure_peak_at(run: report.Run, t: float) -> list[float]:
+    """Where the fluid's largest pressure is at time ``t`` (the node, reference coordinates
+    of the current mesh, m)."""
+    from fsi.output import plot
+
+    snapshot = plot.read_field(run.path, "pressure", t)
+    k = int(np.argmax(snapshot.values))
+    return [float(v) for v in snapshot.coordinates[k]]
+
+
+def make_summaries(
+    runs: dict[str, report.Run], folder: Path, names: Sequence[str]
+) -> dict[str, dict]:
+    """Each named run's summary: made from its run folder (and written to ``folder``) if it is
+    loaded, else read from ``folder`` (the committed one) if there."""
+    out = {}
+    for name in names:
+        path = folder / f"{name}.json"
+        if name in runs:
+            out[name] = summarise(runs[name])
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(json.dumps(out[name], indent=1) + "\n")
+        elif path.is_file():
+            out[name] = json.loads(path.read_text())
+    return out
+
+
+def at(summary: dict | None, t: float, column: str) -> float | None:
+    """``column`` at report time ``t`` (None: no such run, time or value)."""
+    return None if summary is None else summary["at"].get(f"{t:g}", {}).get(column)
+
+
+def peak(summary: dict | None, name: str) -> tuple[float, float] | None:
+    """(largest value, its time) of :data:`MAXIMA`'s ``name`` over the run, or None."""
+    found = None if summary is None else summary["maxima"].get(name)
+    return None if found is None else (found[0], found[1])
+
+
+def finished(summary: dict | None) -> bool:
+    return summary is not None and summary["finished"]
+
+
+def fmt(x: float | None, digits: int = 4) -> str:
+    return "–" if x is None or not math.isfinite(x) else f"{x:.{digits}g}"
+
+
+def change(coarse: float | None, fine: float | None) -> str:
+    if coarse is None or fine is None or coarse == 0:
+        return "–"
+    return f"{100 * (fine - coarse) / abs(coarse):+.1f} %"
+
+
+# --------------------------------------------------------------------------------------------
+# The study's tables beside ours
+
+
+def paper_values(path: Path = PAPER) -> dict[tuple[str, float, str, str, str], float]:
+    """The study's printed values: (quantity, t, wall, fluid, mesh) → value (SI), in the file's
+    order."""
+    lines = [line for line in path.read_text().splitlines() if line and not line.startswith("#")]
+    return {
+        (r["quantity"], float(r["t_s"]), r["wall"], r["fluid"], r["mesh"]): float(r["value"])
+        for r in csv.DictReader(lines)
+    }
+
+
+def comparison_rows(summaries: dict[str, dict], paper: dict) -> list[dict]:
+    """One row per printed value: its key, the paper's value and ours (None: no run)."""
+    rows = []
+    for (quantity, t, wall, fluid, mesh), printed in paper.items():
+        ours = at(summaries.get(f"{wall}_{fluid}_{mesh}"), t, PAPER_QUANTITY[quantity])
+        rows.append(
+            dict(
+                quantity=quantity, t_s=t, wall=wall, fluid=fluid, mesh=mesh, paper=printed, fsi=ours
+            )
+        )
+    return rows
+
+
+def write_comparison_csv(rows: Sequence[dict], path: Path) -> Path:
+    """docs/study_tables.csv: ``quantity,t_s,wall,fluid,mesh,paper,fsi`` (SI; fsi empty where
+    there is no run)."""
+    with path.open("w", newline="") as f:
+        writer = csv.writer(f, lineterminator="\n")
+        writer.writerow(["quantity", "t_s", "wall", "fluid", "mesh", "paper", "fsi"])
+        for r in rows:
+            ours = "" if r["fsi"] is None else f"{r['fsi']:.6g}"
+            writer.writerow(
+                [
+                    r["quantity"],
+                    f"{r['t_s']:g}",
+                    r["wall"],
+                    r["fluid"],
+                    r["mesh"],
+                    f"{r['paper']:g}",
+                    ours,
+                ]
+            )
+    return path
+
+
+def difference(row: dict) -> float | None:
+    """(fsi − paper) / |paper|, or None."""
+    if row["fsi"] is None or row["paper"] == 0:
+        return None
+    return (row["fsi"] - row["paper"]) / abs(row["paper"])
+
+
+def largest_at(run: report.Run, field: str, t: float) -> tuple[float, float, str]:
+    """Where the cell field's largest |value| is at time t: the cell's centroid (reference
+    coordinates, m) and its region."""
+    from fsi.geometry.tags import Region
+    from fsi.output import plot
+
+    values = plot.read_field(run.path, field, t, warp=0.0)
+    regions = plot.read_field(run.path, "region", t, warp=0.0)
+    k = int(np.argmax(np.abs(values.values)))
+    centroid = values.coordinates[values.triangles[k]].mean(axis=0)
+    return centroid[0], centroid[1], Region(int(round(regions.values[k]))).label
