@@ -288,7 +288,7 @@ def figure_convergence(summaries: dict, path: Path) -> Path:
 
 
 RECIRCULATION_TIME = 0.1
-"""Figure 9's time: the recirculation zone is developed (about 6 mm long in every run)."""
+"""Figure 9's time: the recirculation zone is developed (its lengths are in the findings)."""
 
 
 def best(runs: dict, summaries: dict, c: str) -> report.Run | None:
