@@ -246,7 +246,7 @@ ANALYSES = {
     ],
     # Mesh and step convergence of the stress maxima the findings rest on (all reached by 12 ms):
     # the medium and finest meshes beside the coarse and fine runs, and the fine mesh with
-    # every step halved.
+    # every step halved, each to 20 ms.
     "convergence": [
         StudyRun(
             case, level, label=f"convergence/{case.removeprefix('stenosis_')}_{level}", end=0.02
@@ -260,7 +260,7 @@ ANALYSES = {
             "fine",
             sets=(HALVED_SCHEDULE,),
             label=f"convergence/{case.removeprefix('stenosis_')}_fine_dt_halved",
-            end=0.1,
+            end=0.02,
         )
         for case in ("stenosis_fixed_newtonian", "stenosis_moving_newtonian")
     ],

@@ -680,7 +680,7 @@ def convergence(runs: Summaries, main: Summaries) -> str:
             "The findings rest on the structure's stress maxima, all reached within 12 ms of the "
             "pulse. The fixed- and moving-wall Newtonian cases to 20 ms on the medium (one "
             "refinement of the coarse mesh) and finest (three) meshes, beside the coarse and "
-            "fine heartbeats, and the fine mesh with every step halved to 0.1 s "
+            "fine heartbeats, and the fine mesh with every step halved to 20 ms "
             "(`scripts/reproduce_study.py --only analyses --analysis convergence --ranks 2`); "
             "Richardson's extrapolation from medium, fine and finest (each half the element "
             "size of the one before):",
