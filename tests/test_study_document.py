@@ -2,6 +2,7 @@
 are comparisons of the runs' numbers (synthetic runs here, whose answers are known), made from
 the runs' summaries; docs/study_tables.csv holds the study's 120 printed values."""
 
+import csv
 import json
 import sys
 from pathlib import Path
@@ -102,6 +103,29 @@ def test_the_summaries_stand_in_for_the_run_folders(tmp_path):
     assert read == json.loads(json.dumps(made)) and list(read) == ["fixed_newtonian_coarse"]
     assert study_runs.peak(read["fixed_newtonian_coarse"], "max_sss") == (300.0, 0.0025)
     assert study_runs.at(read["fixed_newtonian_coarse"], 0.05, "peak_displacement") == 2e-6
+
+
+def test_the_committed_tables_hold_the_study_s_printed_values():
+    """docs/study_tables.csv, as scripts/reproduce_study.py wrote it: the reference file's 120
+    keys in its order, its values in the paper column, and an fsi value for each, read from the
+    committed summary of its run (docs/study_runs/)."""
+    root = Path(__file__).resolve().parents[1]
+    with (root / "docs" / "study_tables.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    paper = study_runs.paper_values()
+    keys = [(r["quantity"], float(r["t_s"]), r["wall"], r["fluid"], r["mesh"]) for r in rows]
+    assert keys == list(paper)
+    assert [float(r["paper"]) for r in rows] == list(paper.values())
+    assert all(r["fsi"] != "" and float(r["fsi"]) >= 0 for r in rows)
+    # ... each the value of the committed run summary it was made from
+    for r in rows:
+        summary = json.loads(
+            (
+                root / "docs" / "study_runs" / f"{r['wall']}_{r['fluid']}_{r['mesh']}.json"
+            ).read_text()
+        )
+        column = study_runs.PAPER_QUANTITY[r["quantity"]]
+        assert r["fsi"] == f"{study_runs.at(summary, float(r['t_s']), column):.6g}", r
 
 
 @pytest.mark.parametrize(
