@@ -100,6 +100,35 @@ def paper_table(rows: Sequence[dict], quantity: str, scale: float) -> str:
     return "\n".join(lines)
 
 
+def paper_mesh_changes(rows: Sequence[dict], quantity: str, limit: float = 0.1) -> str:
+    """Where the study's own coarse → fine change of a printed value exceeds ``limit``: there
+    its two meshes differ as much as a difference from it means, with ours beside."""
+    key = {
+        (r["wall"], r["fluid"], r["t_s"], r["mesh"]): r for r in rows if r["quantity"] == quantity
+    }
+    found = []
+    for c in CONFIGS:
+        wall, fluid = c.split("_")
+        for t in TIMES:
+            coarse, fine = key[(wall, fluid, t, "coarse")], key[(wall, fluid, t, "fine")]
+            if abs(fine["paper"] / coarse["paper"] - 1) > limit:
+                ours = (
+                    ""
+                    if coarse["fsi"] is None or fine["fsi"] is None
+                    else f", fsi {change(coarse['fsi'], fine['fsi'])}"
+                )
+                found.append(
+                    f"{LABELS[c]} at {t:g} s (study {change(coarse['paper'], fine['paper'])}{ours})"
+                )
+    if not found:
+        return ""
+    return (
+        f"The study's own values change by more than {100 * limit:g} % from its coarse to its "
+        "fine mesh at: " + "; ".join(found) + ". There a difference from either of its meshes "
+        "is within its own discretisation error."
+    )
+
+
 def agreement(rows: Sequence[dict], quantity: str | None = None, limit: float = 0.1) -> str:
     """How many of the printed values ours is within ``limit`` of: "k of n values" (and how
     many have no run)."""
@@ -706,6 +735,8 @@ def write(folder: Path, study_runs, docs: Path, analyses: dict | None = None) ->
             f"### {title} ({unit})\n\n{paper_table(rows, quantity, scale)}\n\n"
             f"fsi is within 10 % of the paper for {agreement(rows, quantity)}.\n"
         )
+        meshes = paper_mesh_changes(rows, quantity)
+        parts += [f"{meshes}\n"] if meshes else []
         parts += [f"{section}\n" for section in explain[quantity]]
     conv = figure_convergence(summaries, figures / "study_mesh_convergence.png")
     parts.append(
