@@ -14,7 +14,7 @@ import math
 from pathlib import Path
 
 from fsi.output import report
-from scripts.study_runs import TIMES, at, fmt, make_summaries, peak
+from scripts.study_runs import TIMES, at, finished, fmt, make_summaries, peak
 
 Summaries = dict[str, dict]
 
@@ -695,12 +695,14 @@ def convergence(runs: Summaries, main: Summaries) -> str:
             if all(values[k] is not None for k in ("medium", "fine", "finest")):
                 found = richardson(*(values[k][0] for k in ("medium", "fine", "finest")))
             if found is None:
-                cells += ["–", "–", "–"]
+                last = [values[k][0] for k in ("medium", "fine", "finest") if values[k]]
+                spread = f"medium–finest within {100 * (max(last) / min(last) - 1):.2f} %"
+                cells += ["not monotone", "–", spread if len(last) == 3 else "–"]
             else:
                 order, limit = found
                 off = values["finest"][0] / limit - 1
                 cells += [f"{order:.2f}", fmt(limit), f"{100 * off:+.2f} %"]
-            h, f = peak(halved, name), values["fine"]
+            h, f = peak(halved if finished(halved) else None, name), values["fine"]
             cells.append("–" if h is None or f is None else f"{100 * (h[0] / f[0] - 1):+.2f} %")
             lines.append(f"| {case.replace('_', ', ')} | {label} | " + " | ".join(cells) + " |")
     return "\n".join(
