@@ -508,7 +508,7 @@ def convergence_of_maxima(summaries: dict) -> str:
     )
 
 
-def _how_weak_ratio(summaries: dict, ratio: float) -> str:
+def _how_weak_ratio(summaries: dict, ratio: float, convergence: dict | None = None) -> str:
     """How the fixed wall's Newtonian/Carreau SSS ratio compares with the mesh's own effect on
     the same maxima."""
     changes = []
@@ -524,6 +524,12 @@ def _how_weak_ratio(summaries: dict, ratio: float) -> str:
         if changes
         else ""
     )
+    halved = peak((convergence or {}).get("convergence/fixed_newtonian_fine_dt_halved"), "max_sss")
+    fine = peak(summaries.get("fixed_newtonian_fine"), "max_sss")
+    if halved and fine:
+        mesh += (
+            f" and halving the step the Newtonian one by {100 * (halved[0] / fine[0] - 1):+.2f} %"
+        )
     return (
         f" How weak: the rheologies differ by {100 * abs(ratio - 1):.2f} %{mesh}, and the "
         'bounds 1 and 1.1 are ours (the study says only "slightly higher"); the sign of so '
@@ -574,7 +580,9 @@ def _recirculation_caveat(summaries: dict) -> str:
     )
 
 
-def findings(summaries: dict, paper: dict | None = None) -> list[str]:
+def findings(
+    summaries: dict, paper: dict | None = None, convergence: dict | None = None
+) -> list[str]:
     """The study's qualitative findings (docs/model.md §6), each with our numbers and a verdict.
     They compare configurations, so all on one mesh: the fine one once its four runs have
     finished, else the coarse one."""
@@ -606,7 +614,7 @@ def findings(summaries: dict, paper: dict | None = None) -> list[str]:
             f"slightly higher.** Largest SSS over the heartbeat: Newtonian {fn:.4g} Pa "
             f"({mesh('fixed_newtonian')}), Carreau {fc:.4g} Pa ({mesh('fixed_carreau')}); "
             f"ratio {ratio:.4f} — {verdict} (confirmed if 1 ≤ ratio ≤ 1.1)."
-            + _how_weak_ratio(summaries, ratio)
+            + _how_weak_ratio(summaries, ratio, convergence)
         )
     mn, mc = largest("moving_newtonian", "max_sss"), largest("moving_carreau", "max_sss")
     dn = largest("moving_newtonian", "peak_displacement")
@@ -809,7 +817,7 @@ def write(folder: Path, study_runs, docs: Path, analyses: dict | None = None) ->
         "All on one mesh, as they compare configurations: the fine one once its four "
         "runs have finished, else the coarse one (the run is named beside its "
         "numbers).\n\n"
-        + "\n".join(f"- {f}" for f in findings(summaries, paper))
+        + "\n".join(f"- {f}" for f in findings(summaries, paper, extra.get("convergence")))
         + "\n\nThe recirculation zone with the outlet further downstream (the last finding): "
         "the fixed wall with the segment 1 and 2 cm longer downstream (`geometry.length`, "
         "`geometry.stenosis_centre: 0.01`), its inlet pulse scaled by the blood column's "
