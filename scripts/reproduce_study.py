@@ -40,6 +40,8 @@ HALVED_SCHEDULE = (
     "time.schedule=[{until: 0.05, dt: 1.25e-4}, {until: 0.1, dt: 5.0e-4}, {until: 0.8, dt: 2.5e-3}]"
 )
 """The shipped configs' schedule with every step halved."""
+LARGE_STEPS = "time.schedule=[{until: 0.005, dt: 2.5e-4}, {until: 0.1, dt: 5.0e-3}]"
+"""The pulse resolved, then the study's 5 ms steps."""
 MPI_ENV = {
     "OMPI_ALLOW_RUN_AS_ROOT": "1",
     "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
@@ -205,6 +207,15 @@ ANALYSES = {
             label=f"inlet/{case.removeprefix('stenosis_')}_normal_flow",
         )
         for case in ("stenosis_fixed_newtonian", "stenosis_moving_newtonian")
+    ],
+    # 3. The time scheme and the study's 5 ms steps after the resolved pulse.
+    "steps": [
+        StudyRun("stenosis_fixed_newtonian", "coarse", sets=sets, label=f"steps/{name}", end=0.1)
+        for name, sets in (
+            ("backward_euler", ("time.scheme=backward_euler",)),
+            ("large_steps_bdf2", (LARGE_STEPS,)),
+            ("large_steps_backward_euler", (LARGE_STEPS, "time.scheme=backward_euler")),
+        )
     ],
     # 4. The stenosis degree behind the velocity.
     "degree": [
