@@ -387,9 +387,9 @@ def pressure(
         [
             "The study's peak pressure falls "
             f"{fmt(study[0], 2)}–{fmt(study[1], 2)}-fold from 10 ms to 0.1 s (coarse–fine), "
-            f"fsi's {fmt(ours[0], 2)}–{fmt(ours[1], 2)}-fold. Two settings isolate the "
-            "difference (coarse fixed-wall Newtonian runs, `--only analyses --analysis inlet "
-            "--analysis degree`):",
+            f"fsi's {fmt(ours[0], 2)}–{fmt(ours[1], 2)}-fold. The inlet, the time scheme and the "
+            "stenosis degree varied one at a time (coarse fixed-wall Newtonian runs, `--only "
+            "analyses --analysis inlet --analysis steps --analysis degree`):",
             "",
             "\n".join(lines),
             "",
