@@ -122,6 +122,18 @@ def _column(length: float, stenosis_length: float = 0.01, degree: float = 0.5) -
     return length - stenosis_length + stenosis_length / (1 - degree) ** 0.5
 
 
+def _plane_stress(nu: float = 0.45, moduli=(("wall", 4.0e6), ("cap", 1.6e6), ("lipid", 1.6e6))):
+    """The shipped regions' moduli as the plane-strain equivalent of plane stress (SVK)."""
+    return tuple(
+        s
+        for region, e in moduli
+        for s in (
+            f"structure.{region}.young_modulus={e * (1 + 2 * nu) / (1 + nu) ** 2:.6g}",
+            f"structure.{region}.poisson_ratio={nu / (1 + nu):.6g}",
+        )
+    )
+
+
 def _tau(tau: float) -> tuple[str, ...]:
     """Kelvin–Voigt relaxation time ``tau`` (s) in every structure region."""
     return tuple(f"structure.{r}.viscous_relaxation_time={tau:g}" for r in ("wall", "cap", "lipid"))
@@ -161,6 +173,17 @@ ANALYSES = {
             end=0.01,
         )
         for e in (1.6e5, 1.6e4)
+    ],
+    # ... and the 2D model read as plane stress: for St. Venant-Kirchhoff the same in-plane law as
+    # plane strain with nu' = nu / (1 + nu), E' = E (1 + 2 nu) / (1 + nu)^2.
+    "plane_stress": [
+        StudyRun(
+            case,
+            "coarse",
+            sets=_plane_stress(),
+            label=f"plane_stress/{case.removeprefix('stenosis_')}",
+        )
+        for case in ("stenosis_fixed_newtonian", "stenosis_moving_newtonian")
     ],
     # 2. The moving wall's damping: which relaxation time makes the wall quasi-static by 10 ms.
     "damping": [

@@ -116,3 +116,20 @@ def test_richardson_recovers_the_limit_and_order_of_a_power_law():
     assert order == pytest.approx(2.0) and limit == pytest.approx(3.0)
     assert study_analyses.richardson(1.0, 2.0, 1.5) is None
     assert study_analyses.richardson(1.0, 1.0, 1.0) is None
+
+
+def test_the_plane_stress_reading_is_plane_strain_with_the_equivalent_moduli():
+    """For St. Venant–Kirchhoff, Σ₃₃ = 0 eliminates E₃₃ exactly: the in-plane law is plane
+    strain's with λ* = 2λμ/(λ + 2μ) and the same μ, i.e. ν' = ν/(1 + ν), E' = E(1 + 2ν)/(1 + ν)²."""
+    from fsi.physics.materials import lame
+    from scripts import reproduce_study
+
+    sets = dict(s.split("=") for s in reproduce_study._plane_stress())
+    for region, e in (("wall", 4.0e6), ("cap", 1.6e6), ("lipid", 1.6e6)):
+        lam, mu = lame(e, 0.45)
+        lam2, mu2 = lame(
+            float(sets[f"structure.{region}.young_modulus"]),
+            float(sets[f"structure.{region}.poisson_ratio"]),
+        )
+        assert mu2 == pytest.approx(mu, rel=1e-5)
+        assert lam2 == pytest.approx(2 * lam * mu / (lam + 2 * mu), rel=1e-5)
