@@ -746,6 +746,7 @@ def write(folder: Path, study_runs, docs: Path, analyses: dict | None = None) ->
         meshes = paper_mesh_changes(rows, quantity)
         parts += [f"{meshes}\n"] if meshes else []
         parts += [f"{section}\n" for section in explain[quantity]]
+    parts.append("## Mesh and step convergence\n")
     conv = figure_convergence(summaries, figures / "study_mesh_convergence.png")
     parts.append(
         "Mesh convergence: the coarse → fine change of each peak at the report times, as a "
@@ -753,7 +754,7 @@ def write(folder: Path, study_runs, docs: Path, analyses: dict | None = None) ->
         f"![mesh convergence](figures/{conv.name})\n"
     )
     parts.append(
-        "## Mesh and step convergence of the stress maxima\n\n"
+        "Of the stress maxima:\n\n"
         + study_analyses.convergence(extra.get("convergence", {}), summaries)
         + "\n"
     )
