@@ -14,7 +14,19 @@ import math
 from pathlib import Path
 
 from fsi.output import report
-from scripts.study_runs import TIMES, at, finished, fmt, make_summaries, peak
+from scripts.study_runs import (
+    DENSITY,
+    PAPER_QUANTITY,
+    PULSE_AMPLITUDE,
+    PULSE_DURATION,
+    TIMES,
+    apex_x,
+    at,
+    finished,
+    fmt,
+    make_summaries,
+    peak,
+)
 
 Summaries = dict[str, dict]
 
@@ -55,12 +67,42 @@ def _ratio(s: dict | None, t: float) -> float | None:
     return None if d is None or not p else d / p
 
 
-def _paper(paper: dict, quantity: str, t: float, wall: str, mesh: str) -> float:
-    return paper[(quantity, t, wall, "newtonian", mesh)]
+def _paper(
+    paper: dict, quantity: str, t: float, wall: str, mesh: str, fluid: str = "newtonian"
+) -> float:
+    return paper[(quantity, t, wall, fluid, mesh)]
 
 
-def _paper_ratio(paper: dict, t: float, wall: str, mesh: str) -> float:
-    return _paper(paper, "displacement", t, wall, mesh) / _paper(paper, "pressure", t, wall, mesh)
+def _paper_ratio(paper: dict, t: float, wall: str, mesh: str, fluid: str = "newtonian") -> float:
+    """The study's peak |η| per Pa of peak pressure (m/Pa)."""
+    return _paper(paper, "displacement", t, wall, mesh, fluid) / _paper(
+        paper, "pressure", t, wall, mesh, fluid
+    )
+
+
+def _range_from_paper(
+    main: Summaries, paper: dict, quantity: str, t: float
+) -> tuple[float, float] | None:
+    """The smallest and largest (fsi − paper) / paper of ``quantity`` at ``t`` over the eight
+    runs of the study (None: a run missing)."""
+    column = PAPER_QUANTITY[quantity]
+    found = []
+    for wall in ("fixed", "moving"):
+        for fluid in ("newtonian", "carreau"):
+            for mesh in ("coarse", "fine"):
+                ours = at(main.get(f"{wall}_{fluid}_{mesh}"), t, column)
+                if ours is None:
+                    return None
+                found.append(ours / _paper(paper, quantity, t, wall, mesh, fluid) - 1)
+    return min(found), max(found)
+
+
+def _percent_range(found: tuple[float, float] | None) -> str:
+    """ "a–b %" of the magnitudes of a same-signed range."""
+    if found is None:
+        return "–"
+    lo, hi = sorted(abs(100 * x) for x in found)
+    return f"{lo:.0f}–{hi:.0f} %"
 
 
 def _um(x: float | None) -> str:
@@ -112,9 +154,23 @@ def compliance(
             best = (d, ratios[0], at(s, t, "peak_velocity"))
     fine = _ratio(main.get("fixed_newtonian_fine"), t)
     mesh_change = "" if fine is None else f"; fine mesh {100 * (fine / shipped - 1):+.1f} %"
+    printed = {
+        q: [
+            _paper(paper, q, t, "fixed", m, f)
+            for m in ("coarse", "fine")
+            for f in ("newtonian", "carreau")
+        ]
+        for q in ("displacement", "pressure")
+    }
+    swept = {
+        key: sorted({s["case"]["geometry"][key] for s in shape.values()})
+        for key in ("stenosis_degree", "cap_thickness", "lipid_length")
+    }
     text = [
-        "The study's fixed wall moves by 0.36–0.40 µm at 10 ms under a peak pressure of "
-        f"6.2–6.6 Pa: {fmt(1e6 * target, 2)} µm per Pa (coarse; "
+        f"The study's fixed wall moves by {_um(min(printed['displacement']))}–"
+        f"{_um(max(printed['displacement']))} µm at 10 ms under a peak pressure of "
+        f"{min(printed['pressure']):.2g}–{max(printed['pressure']):.2g} Pa: "
+        f"{fmt(1e6 * target, 2)} µm per Pa (coarse; "
         f"{fmt(1e6 * _paper_ratio(paper, t, 'fixed', 'fine'), 2)} fine), and "
         f"{fmt(1e6 * _paper_ratio(paper, 0.1, 'fixed', 'coarse'), 2)} µm/Pa at 0.1 s. fsi's "
         f"moves {fmt(1e6 * shipped, 2)} µm/Pa at 10 ms (fixed_newtonian_coarse{mesh_change}), "
@@ -127,14 +183,17 @@ def compliance(
         "pressure level.",
         "",
         "The study states neither the stenosis degree, nor the cap thickness, nor the lipid "
-        "pool's size (docs/model.md §1). `fsi sweep` of the three (degree 0.3–0.7 × cap "
-        "0.1, 0.2, 0.5 mm × lipid pool 4, 6 mm) on the coarse fixed-wall Newtonian case to "
-        "10 ms (`scripts/reproduce_study.py --only analyses --analysis compliance`):",
+        "pool's size (docs/model.md §1). `fsi sweep` of the three (degree "
+        f"{', '.join(f'{d:g}' for d in swept['stenosis_degree'])} × cap "
+        f"{', '.join(f'{1e3 * c:g}' for c in swept['cap_thickness'])} mm × lipid pool "
+        f"{', '.join(f'{1e3 * c:g}' for c in swept['lipid_length'])} mm) on the coarse "
+        "fixed-wall Newtonian case to 10 ms (`scripts/reproduce_study.py --only analyses "
+        "--analysis compliance`):",
         "",
         "\n".join(lines),
         "",
         "The cap and the lipid pool change nothing (the last column: the largest relative "
-        "spread of |η| / p over the six cap × lipid-pool combinations of a degree): the "
+        "spread of |η| / p over the cap × lipid-pool combinations of a degree): the "
         "study prints one modulus for the whole plaque (1.6 MPa, ν = 0.45), so the line "
         "between cap and lipid pool is not a material boundary, and only the plaque's outline "
         f"counts. The most compliant degree, {best[0]:g}, moves {fmt(1e6 * best[1], 2)} µm/Pa, "
@@ -270,8 +329,9 @@ def damping(
         + ".",
         "",
         "- **No relaxation time makes the wall quasi-static by 10 ms**: a small τ leaves it "
-        "ringing, a large one makes it creep back slowly from the pulse's 1.2 kPa (at "
-        f"{fmt(1e6 * c, 2)} µm/Pa, half a millimetre). τ of a few ms makes it quasi-static by "
+        "ringing, a large one makes it creep back slowly from the pulse's "
+        f"{PULSE_AMPLITUDE / 1e3:g} kPa (at {fmt(1e6 * c, 2)} µm/Pa, "
+        f"{1e3 * PULSE_AMPLITUDE * c:.2g} mm). τ of a few ms makes it quasi-static by "
         "20 ms. Measured arterial loss angles are about 15° and nearly independent of "
         "frequency (Bergel 1961, Avolio 1980: docs/wall-damping.md §3): ωτ ≈ 0.27 at the "
         f"{RING_HZ:g} Hz ring, τ ≈ {1e3 * 0.27 / omega:.2g} ms. The shipped 0.3 ms (8°) is of "
@@ -300,10 +360,7 @@ def _late_compliance(
             r = _ratio(main.get(f"moving_{fluid}_{mesh}"), t)
             if r is not None:
                 ours.append(r)
-            study.append(
-                paper[("displacement", t, "moving", fluid, mesh)]
-                / paper[("pressure", t, "moving", fluid, mesh)]
-            )
+            study.append(_paper_ratio(paper, t, "moving", mesh, fluid))
     if not ours:
         return ""
     return (
@@ -470,6 +527,17 @@ def pressure(
 # 4. Velocity: the calibration
 
 
+PULSE_IMPULSE = PULSE_AMPLITUDE * PULSE_DURATION / 2
+"""Pa s: the shipped inlet pulse's impulse, ∫ h dt = (A / 2) T."""
+
+
+def throat_mean(s: dict, t: float) -> float | None:
+    """The mean velocity through the throat at ``t``: flow rate / throat height (m/s)."""
+    g = s["case"]["geometry"]
+    q = at(s, t, "inlet_flow_rate")
+    return None if q is None else q / (g["height"] * (1 - g["stenosis_degree"]))
+
+
 def effective_length(length: float, stenosis_length: float, degree: float) -> float:
     """∫ H / h(x) dx over the lumen for one cosine plaque closing ``degree`` of H: the straight
     part plus l / sqrt(1 − degree) (the integral of 1 / (1 − d/2 (1 − cos θ)) over a
@@ -477,7 +545,9 @@ def effective_length(length: float, stenosis_length: float, degree: float) -> fl
     return length - stenosis_length + stenosis_length / math.sqrt(1 - degree)
 
 
-def rigid_column_velocity(s: dict, impulse: float, density: float) -> float:
+def rigid_column_velocity(
+    s: dict, impulse: float = PULSE_IMPULSE, density: float = DENSITY
+) -> float:
     """The mean throat velocity of a rigid blood column set moving by the inlet's impulse
     (Pa s): impulse / (ρ L_eff) / (1 − degree)."""
     g = s["case"]["geometry"]
@@ -485,11 +555,10 @@ def rigid_column_velocity(s: dict, impulse: float, density: float) -> float:
     return impulse / (density * effective_length(g["length"], g["stenosis_length"], d)) / (1 - d)
 
 
-def velocity(degree: Summaries, main: Summaries, paper: dict) -> str:
+def velocity(degree: Summaries) -> str:
     """The peak velocity at 10 ms against the stenosis degree: the rigid-column estimate of
     the mean throat velocity, the run's mean throat velocity (flow rate / throat height) and
-    its maximum, beside the study's."""
-    impulse, density = 1200.0 * 0.005 / 2, 1060.0  # the shipped pulse: (A/2) T; ρ_f
+    its maximum."""
     t = 0.01
     runs = sorted(degree.values(), key=lambda s: s["case"]["geometry"]["stenosis_degree"])
     lines = [
@@ -498,15 +567,12 @@ def velocity(degree: Summaries, main: Summaries, paper: dict) -> str:
         "|---|---|---|---|---|",
     ]
     for s in runs:
-        g = s["case"]["geometry"]
-        throat = g["height"] * (1 - g["stenosis_degree"])
-        q = at(s, t, "inlet_flow_rate")
-        mean = None if q is None else q / throat
-        u = at(s, t, "peak_velocity")
+        mean, u = throat_mean(s, t), at(s, t, "peak_velocity")
         ratio = None if not mean or u is None else u / mean
         lines.append(
-            f"| {g['stenosis_degree']:g} | {fmt(rigid_column_velocity(s, impulse, density), 3)} | "
-            f"{fmt(mean, 3)} | {fmt(u, 4)} | {fmt(ratio, 3)} |"
+            f"| {s['case']['geometry']['stenosis_degree']:g} | "
+            f"{fmt(rigid_column_velocity(s), 3)} | {fmt(mean, 3)} | {fmt(u, 4)} | "
+            f"{fmt(ratio, 3)} |"
         )
     return "\n".join(lines)
 
@@ -514,22 +580,20 @@ def velocity(degree: Summaries, main: Summaries, paper: dict) -> str:
 def velocity_text(degree: Summaries, inlet: Summaries, main: Summaries, paper: dict) -> str:
     """Item 4: the calibration of the stenosis degree, redone against the right quantity, and
     why the shipped degree stays."""
-    impulse, density = 1200.0 * 0.005 / 2, 1060.0
+    t = 0.01
     shipped = next(
         (s for s in degree.values() if s["case"]["geometry"]["stenosis_degree"] == 0.5), None
     )
-    if shipped is None or at(shipped, 0.01, "inlet_flow_rate") is None:
+    if shipped is None or throat_mean(shipped, t) is None:
         return "(runs missing)"
-    t = 0.01
-    g = shipped["case"]["geometry"]
-    estimate = rigid_column_velocity(shipped, impulse, density)
-    mean = at(shipped, t, "inlet_flow_rate") / (g["height"] * (1 - g["stenosis_degree"]))
-    u = at(shipped, t, "peak_velocity")
+    estimate = rigid_column_velocity(shipped)
+    mean, u = throat_mean(shipped, t), at(shipped, t, "peak_velocity")
+    above = _percent_range(_range_from_paper(main, paper, "velocity", t))
     targets = {m: _paper(paper, "velocity", t, "fixed", m) for m in ("coarse", "fine")}
     match = {m: matching_degree(degree, v) for m, v in targets.items()}
     return "\n".join(
         [
-            "fsi's peak velocity is 11–19 % above the study's at 10 ms. The stenosis degree "
+            f"fsi's peak velocity is {above} above the study's at 10 ms. The stenosis degree "
             "(50 %) was chosen by the model notes with a rigid-column estimate: just after the "
             "pulse the blood moves almost as a rigid column, whose mean velocity in the throat "
             "is the pulse's impulse (A/2) T over ρ L_eff, with L_eff = ∫ H / h dx = L − l + "
@@ -541,7 +605,7 @@ def velocity_text(degree: Summaries, inlet: Summaries, main: Summaries, paper: d
             f"{100 * (1 - mean / estimate):.0f} % below the rigid column (viscous losses), and "
             f"the maximum {u:.3f} m/s is {u / mean:.2f}× the mean (the jet's profile):",
             "",
-            velocity(degree, main, paper),
+            velocity(degree),
             "",
             "Against the right quantity, fsi's maximum equals the study's at a degree of "
             + " (coarse) and ".join(
@@ -551,7 +615,7 @@ def velocity_text(degree: Summaries, inlet: Summaries, main: Summaries, paper: d
             "study's Table 1 would fit a model parameter to the numbers the model is compared "
             "with, which this project does not do (docs/model.md §1: the study states no "
             "degree; 50 % is the model's stated default). The calibration is therefore not "
-            "redone; its mismatch of quantities is the cause of the +11–19 % at 10 ms, and the "
+            "redone; its mismatch of quantities is the cause of the difference at 10 ms, and the "
             "sweep gives how much the unstated degree moves every velocity in Table 1.",
             "",
             late_velocity(inlet, main, paper),
@@ -606,14 +670,15 @@ def stagnation(main: Summaries, paper: dict) -> str:
     g = s["case"]["geometry"]
     u = q / g["height"]
     printed = _paper(paper, "pressure", 0.01, "fixed", "coarse")
-    faster = (printed / (0.5 * 1060 * u**2)) ** 0.5 - 1
+    stagnation = 0.5 * DENSITY * u**2
+    faster = (printed / stagnation) ** 0.5 - 1
     return (
         f"At 10 ms the peak pressure ({fmt(at(s, 0.01, 'peak_pressure'), 3)} Pa, {s['name']}) "
         f"sits on the plaque's upstream flank (x = {1e3 * where[0]:.1f} mm, y = "
         f"{1e3 * where[1]:.2f} mm; the plaque starts at x = "
-        f"{1e3 * (g['length'] / 2 - g['stenosis_length'] / 2):g} mm), where the oncoming blood "
+        f"{1e3 * (apex_x(s) - g['stenosis_length'] / 2):g} mm), where the oncoming blood "
         f"is turned: the stagnation pressure of the mean inflow, ½ ρ (Q / H)² = "
-        f"{0.5 * 1060 * u**2:.3g} Pa (Q / H = {u:.3g} m/s), is of its size. The study's "
+        f"{stagnation:.3g} Pa (Q / H = {u:.3g} m/s), is of its size. The study's "
         f"{printed:g} Pa would be that of a {100 * faster:.0f} % faster inflow; its "
         "velocities (Table 1) are lower, not higher, so a faster inflow "
         "is not the explanation either."
@@ -636,7 +701,9 @@ def late_velocity(inlet: Summaries, main: Summaries, paper: dict) -> str:
             f"({100 * (normal / printed - 1):+.0f} %)"
         )
     return (
-        "At 0.8 s fsi's peak velocity is 26–36 % below the study's. The inlet isolates it "
+        f"At 0.8 s fsi's peak velocity is "
+        f"{_percent_range(_range_from_paper(main, paper, 'velocity', t))} below the study's. "
+        "The inlet isolates it "
         "(coarse Newtonian runs, `--analysis inlet`): "
         + "; ".join(rows)
         + ". The study's total-stress inlet, as fsi applies it, lets the velocity at the inlet "

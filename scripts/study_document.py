@@ -19,15 +19,17 @@ from pathlib import Path
 
 import numpy as np
 
-from fsi.output import report
+from fsi.output import plot, report
 from scripts import study_analyses
 from scripts.study_runs import (
     CONFIGS,
     LABELS,
     PAPER_QUANTITY,
+    PULSE_AMPLITUDE,
     PULSE_WINDOW,
     QUANTITIES,
     TIMES,
+    apex_x,
     at,
     change,
     comparison_rows,
@@ -70,15 +72,20 @@ form. The only numbers of the document not read from the runs: history, for
 
 
 # --------------------------------------------------------------------------------------------
-# Run summaries: what the tables and findings are made from
+# The study's tables beside ours
+
+
+def _by_key(rows: Sequence[dict], quantity: str) -> dict[tuple, dict]:
+    """The comparison rows of ``quantity`` by (wall, fluid, t, mesh)."""
+    return {
+        (r["wall"], r["fluid"], r["t_s"], r["mesh"]): r for r in rows if r["quantity"] == quantity
+    }
 
 
 def paper_table(rows: Sequence[dict], quantity: str, scale: float) -> str:
     """The study's values beside ours, per configuration and report time: paper | fsi |
     difference on the coarse and the fine mesh."""
-    key = {
-        (r["wall"], r["fluid"], r["t_s"], r["mesh"]): r for r in rows if r["quantity"] == quantity
-    }
+    key = _by_key(rows, quantity)
     lines = [
         "| configuration | t (s) | paper coarse | fsi coarse | difference | paper fine | fsi fine"
         " | difference |",
@@ -103,9 +110,7 @@ def paper_table(rows: Sequence[dict], quantity: str, scale: float) -> str:
 def paper_mesh_changes(rows: Sequence[dict], quantity: str, limit: float = 0.1) -> str:
     """Where the study's own coarse → fine change of a printed value exceeds ``limit``: there
     its two meshes differ as much as a difference from it means, with ours beside."""
-    key = {
-        (r["wall"], r["fluid"], r["t_s"], r["mesh"]): r for r in rows if r["quantity"] == quantity
-    }
+    key = _by_key(rows, quantity)
     found = []
     for c in CONFIGS:
         wall, fluid = c.split("_")
@@ -282,8 +287,7 @@ def figure_sss(runs: dict, path: Path) -> Path:
     axes[1, 0].set_ylabel("Carreau / Newtonian")
     axes[0, 1].legend(fontsize=7, ncol=2)
     axes[1, 1].legend(fontsize=7)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    plot.save_figure(fig, path, dpi=130)
     return path
 
 
@@ -312,8 +316,7 @@ def figure_convergence(summaries: dict, path: Path) -> Path:
         ax.grid(True, alpha=0.3)
     axes[0].set_ylabel("fine − coarse (% of the run's largest)")
     axes[-1].legend(fontsize=7)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    plot.save_figure(fig, path, dpi=130)
     return path
 
 
@@ -344,8 +347,6 @@ def field_figures(runs: dict, summaries: dict, figures: Path) -> list[tuple[str,
     saturated and is marked); the velocity's streamlines of the Carreau runs (the study's
     Figure 9 is Carreau) at t = RECIRCULATION_TIME, and the wall shear stress along the
     diseased wall."""
-    from fsi.output import plot
-
     out = []
     for c in sorted(CONFIGS, key=lambda c: FIGURE_OF_WALL[c.split("_")[0]]):
         wall = c.split("_")[0]
@@ -418,8 +419,6 @@ def boundary_nodes(triangles: np.ndarray) -> np.ndarray:
 def figure_wall_shear(runs: dict, summaries: dict, path: Path) -> Path | None:
     """The signed wall shear stress along the lower wall (the plaque's side) against x, one
     line per configuration, at t = RECIRCULATION_TIME."""
-    from fsi.output import plot
-
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 3.6), layout="constrained")
     drawn = False
@@ -450,16 +449,12 @@ def figure_wall_shear(runs: dict, summaries: dict, path: Path) -> Path | None:
     ax.set_ylabel("wall shear stress (Pa)")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    plot.save_figure(fig, path, dpi=130)
     return path
 
 
 # --------------------------------------------------------------------------------------------
 # Findings
-
-
-PULSE_AMPLITUDE = 1200.0  # Pa, the shipped configs' peak inlet pressure (docs/model.md §2)
 
 
 def load_reason(newtonian: dict | None, carreau: dict | None) -> str:
@@ -569,8 +564,7 @@ def _recirculation_caveat(summaries: dict) -> str:
     if found is None:
         return ""
     g = s["case"]["geometry"]
-    apex = g["length"] / 2 if g["stenosis_centre"] is None else g["stenosis_centre"]
-    room = g["length"] - apex - g["stenosis_length"] / 2
+    room = g["length"] - apex_x(s) - g["stenosis_length"] / 2
     return (
         f"The zones are long for the segment: {1e3 * found[0]:.3g} mm in a "
         f"{1e3 * g['length']:g} mm segment whose plaque ends {1e3 * room:g} mm before the "

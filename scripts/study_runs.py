@@ -15,6 +15,7 @@ import math
 import re
 from collections.abc import Sequence
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -43,6 +44,13 @@ LABELS = {
     "moving_carreau": "moving wall, Carreau",
 }
 CONFIGS = list(LABELS)
+
+PULSE_AMPLITUDE = 1200.0
+"""Pa: the shipped configs' peak inlet pressure, h = (A/2)(1 − cos 2πt/T) (docs/model.md §2)."""
+PULSE_DURATION = 0.005
+"""s: T, the shipped inlet pulse's length."""
+DENSITY = 1060.0
+"""kg/m³: the blood's density in the shipped study configs."""
 
 PULSE_WINDOW = 0.01
 """s: the wall shear stress during the pulse (and the wall's first response) is its maximum up
@@ -143,8 +151,8 @@ PRESSURE_TIME = 0.01
 
 
 def pressure_peak_at(run: report.Run, t: float) -> list[float]:
-    """Where the fluid's largest pressure is at time ``t`` (the node, reference coordinates
-    of the current mesh, m)."""
+    """Where the fluid's largest pressure is at time ``t``: its node's coordinates (m) as the
+    field file's drawing puts them (:func:`fsi.output.plot.read_field`'s default)."""
     from fsi.output import plot
 
     snapshot = plot.read_field(run.path, "pressure", t)
@@ -178,6 +186,13 @@ def peak(summary: dict | None, name: str) -> tuple[float, float] | None:
     """(largest value, its time) of :data:`MAXIMA`'s ``name`` over the run, or None."""
     found = None if summary is None else summary["maxima"].get(name)
     return None if found is None else (found[0], found[1])
+
+
+def apex_x(summary: dict) -> float:
+    """x of the run's plaque apex (m), by the geometry's own rule (geometry/stenosis.py)."""
+    from fsi.geometry import stenosis
+
+    return stenosis.apex_x(SimpleNamespace(**summary["case"]["geometry"]))
 
 
 def finished(summary: dict | None) -> bool:

@@ -22,8 +22,10 @@ def summary(at: dict[float, dict], degree: float = 0.5, **maxima) -> dict:
                 "height": 0.007,
                 "stenosis_length": 0.01,
                 "stenosis_degree": degree,
+                "cap_thickness": 0.0005,
+                "lipid_length": 0.006,
                 "stenosis_centre": None,
-            },  # fmt: skip
+            },
             "relaxation_time_s": 3e-4,
             "young_modulus": {"wall": 4e6, "cap": 1.6e6, "lipid": 1.6e6},
         },
