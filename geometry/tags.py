@@ -4,7 +4,8 @@ Names follow docs/model.md §1: ``interface`` is Γw1, ``rigid_wall`` Γw2, ``cl
 ``exterior`` ΓN. ``cap_lipid`` (fibrous cap | lipid pool) and ``plaque_base`` (plaque | vessel
 wall) are internal structure boundaries, tagged for measurements and the fixed-wall mode.
 In the Turek–Hron benchmark (geometry/turek_hron.py) ``interface`` is the flag's wetted surface,
-``clamped`` the flag–cylinder joint and ``obstacle`` the cylinder's wetted arc.
+``clamped`` the flag–cylinder joint and ``obstacle`` the cylinder's wetted arc. ``axis`` is a
+tube's axis (geometry/tube.py), where the radial velocity is 0.
 :func:`add_physical_groups` writes them into a gmsh model.
 """
 
@@ -38,6 +39,7 @@ class Boundary(IntEnum):
     CAP_LIPID = 17
     PLAQUE_BASE = 18
     OBSTACLE = 19  # Turek–Hron: the rigid cylinder's wetted surface
+    AXIS = 20  # a tube's axis r = 0 (axisymmetric), or its plane symmetry line
 
     @property
     def label(self) -> str:

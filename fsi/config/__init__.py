@@ -24,7 +24,9 @@ from fsi.config.domain import (
     Geometry,
     MeshSettings,
     StenosisGeometry,
+    TubeGeometry,
     TurekHronGeometry,
+    is_axisymmetric,
 )
 from fsi.config.fluid_section import (
     FLOW_RATE_INLETS,
@@ -91,7 +93,9 @@ __all__ = [
     "Geometry",
     "StenosisGeometry",
     "ChannelGeometry",
+    "TubeGeometry",
     "TurekHronGeometry",
+    "is_axisymmetric",
     "MESH_LEVELS",
     "MeshSettings",
     # fluid

@@ -1,7 +1,8 @@
 """The ``geometry`` and ``mesh`` sections of a case: the domain and how finely gmsh meshes it.
 
 ``geometry.kind`` picks one of :class:`StenosisGeometry` (the study's artery),
-:class:`ChannelGeometry` (verification) and :class:`TurekHronGeometry` (the benchmark); the
+:class:`ChannelGeometry` (verification), :class:`TubeGeometry` (a straight vessel, axisymmetric)
+and :class:`TurekHronGeometry` (the benchmark); the
 builders that read these sections are in ``geometry/`` and :mod:`fsi.physics.mesh`. The checks
 that involve several keys (the plaque inside the segment, the flag inside the channel) are in
 :mod:`fsi.config.validation`.
@@ -44,6 +45,21 @@ class ChannelGeometry:
 
 
 @dataclass(frozen=True)
+class TubeGeometry:
+    """A straight vessel (geometry/tube.py): the lumen ``[0, length] × [0, radius]`` with the axis
+    (or, plane, the symmetry line) at y = 0 and a wall of ``wall_thickness`` outside it, clamped
+    at both ends. ``axisymmetric`` (the default): the meridian half-plane of a circular tube
+    (docs/axisymmetric.md); false: half of a plane channel of height 2 radius, symmetric about
+    y = 0."""
+
+    kind: Literal["tube"] = "tube"
+    length: float = positive(0.05, "m")
+    radius: float = positive(0.005, "m")
+    wall_thickness: float = positive(0.001, "m")
+    axisymmetric: bool = True
+
+
+@dataclass(frozen=True)
 class TurekHronGeometry:
     """The Turek–Hron benchmark (Turek & Hron 2006, geometry/turek_hron.py): a
     channel ``[0, length] × [0, height]``, a rigid cylinder and an elastic flag of
@@ -59,7 +75,12 @@ class TurekHronGeometry:
     flag_thickness: float = positive(0.02, "m")
 
 
-Geometry = StenosisGeometry | ChannelGeometry | TurekHronGeometry
+Geometry = StenosisGeometry | ChannelGeometry | TubeGeometry | TurekHronGeometry
+
+
+def is_axisymmetric(geometry: Geometry) -> bool:
+    """Whether ``geometry`` is the meridian half-plane of a body of revolution."""
+    return bool(getattr(geometry, "axisymmetric", False))
 
 
 MESH_LEVELS = {"coarse": 0, "medium": 1, "fine": 2, "finest": 3}

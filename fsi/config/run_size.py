@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 from fsi.geometry import stenosis as stenosis_geometry
+from fsi.geometry import tube as tube_geometry
 from fsi.geometry import turek_hron as turek_hron_geometry
 
 
@@ -62,6 +63,8 @@ def estimated_cells(case) -> float:
         per_size2 = (total - fine_area) / size / size + fine_area / local / local
     elif g.kind == "turek_hron":
         per_size2 = _turek_hron_cells_area(g, size, local)
+    elif g.kind == "tube":
+        per_size2 = tube_geometry.analytic_areas(g)["total"] / size / size
     else:
         per_size2 = g.length * g.height / size / size
     return per_size2 / TRIANGLE_AREA * 4.0**m.refinements

@@ -10,7 +10,7 @@ import math
 
 from fsi.config.boundary_data import FormulaError, periodic, sample_times, time_function
 from fsi.config.case import Case, heartbeat_period, run_time
-from fsi.config.domain import StenosisGeometry, TurekHronGeometry
+from fsi.config.domain import StenosisGeometry, TubeGeometry, TurekHronGeometry
 from fsi.config.fluid_section import (
     FLOW_RATE_INLETS,
     TABLE_INLETS,
@@ -55,6 +55,17 @@ def _validate_geometry(case: Case) -> None:
     elif isinstance(g, TurekHronGeometry):
         # Any structure mode: 'rigid' is the CFD benchmark, the others make the flag elastic.
         _validate_turek_hron(g)
+    elif isinstance(g, TubeGeometry):
+        # 'rigid' is a rigid pipe; the wall is the whole structure, so nothing would move
+        # with 'fixed_wall' (which holds the vessel wall and lets the plaque move).
+        if case.structure.mode == "fixed_wall":
+            raise ConfigError(
+                "",
+                "structure.mode",
+                "'rigid' or 'moving_wall' for geometry.kind 'tube' (it has no plaque:"
+                " 'fixed_wall' would hold all of its structure)",
+                case.structure.mode,
+            )
     elif case.structure.mode != "rigid":
         raise ConfigError(
             "",

@@ -23,8 +23,8 @@ import numpy as np
 import ufl
 
 from fsi import compat
-from fsi.config import Case, ChannelGeometry, StenosisGeometry, TurekHronGeometry
-from fsi.geometry import channel, stenosis, turek_hron
+from fsi.config import Case, ChannelGeometry, StenosisGeometry, TubeGeometry, TurekHronGeometry
+from fsi.geometry import channel, stenosis, tube, turek_hron
 from fsi.geometry.tags import Boundary, Region
 
 log = logging.getLogger(__name__)
@@ -141,6 +141,8 @@ def _build_model(case: Case) -> None:
         stenosis.build(g, size=m.size, local_size=m.local_size)
     elif isinstance(g, ChannelGeometry):
         channel.build(g, size=m.size)
+    elif isinstance(g, TubeGeometry):
+        tube.build(g, size=m.size)
     elif isinstance(g, TurekHronGeometry):
         turek_hron.build(g, size=m.size, local_size=m.local_size)
     else:  # pragma: no cover - the config admits no other kind
@@ -149,9 +151,12 @@ def _build_model(case: Case) -> None:
 
 def geometry_module(case: Case):
     """The module of geometry/ that builds the case's geometry."""
-    return {StenosisGeometry: stenosis, ChannelGeometry: channel, TurekHronGeometry: turek_hron}[
-        type(case.geometry)
-    ]
+    return {
+        StenosisGeometry: stenosis,
+        ChannelGeometry: channel,
+        TubeGeometry: tube,
+        TurekHronGeometry: turek_hron,
+    }[type(case.geometry)]
 
 
 def extract(tagged: TaggedMesh, *regions: Region):

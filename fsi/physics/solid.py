@@ -28,7 +28,7 @@ import numpy as np
 import ufl
 
 from fsi import compat
-from fsi.config import Case, Material, SolverSettings, StenosisGeometry
+from fsi.config import Case, Material, SolverSettings, StenosisGeometry, TubeGeometry
 from fsi.geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 from fsi.numerics.newton import Newton, SolveResult, petsc_options
 from fsi.numerics.timestepping import NewmarkFamily, structural_scheme
@@ -49,7 +49,9 @@ DisplacementValue = Callable[[np.ndarray, float], np.ndarray]
 
 def structure_regions(case: Case) -> tuple[Region, ...]:
     """The regions that make up the structure of ``case``'s geometry."""
-    return STRUCTURE_REGIONS if isinstance(case.geometry, StenosisGeometry) else (Region.FLAG,)
+    if isinstance(case.geometry, StenosisGeometry):
+        return STRUCTURE_REGIONS
+    return (Region.WALL,) if isinstance(case.geometry, TubeGeometry) else (Region.FLAG,)
 
 
 def structure_mesh(tagged: TaggedMesh, regions: Sequence[Region]) -> TaggedMesh:
@@ -141,7 +143,7 @@ def boundary_conditions(
         dirichlet += (HoldRegions((Region.WALL,)),)
     support = None
     if s.support.stiffness > 0 or s.support.damping > 0:
-        if stenosis:
+        if stenosis or isinstance(case.geometry, TubeGeometry):
             support = Support(s.support.stiffness, s.support.damping, (Boundary.EXTERIOR,))
         else:
             log.warning(
