@@ -115,10 +115,11 @@ FlowProfile = Literal["parabolic", "womersley"]
 
 @dataclass(frozen=True)
 class InletFlowRate:
-    """Velocity inflow of volume flow rate Q(t) (m²/s per unit depth, positive into the domain),
-    a formula in t, along the inward normal: ``profile`` ``parabolic`` u = Q 6 s (H − s)/H³ (s
-    the distance along the inlet of width H) or ``womersley`` (the plane Womersley profile of
-    each harmonic; needs ``period``); Q ramped by (1 − cos(π t / ramp_time))/2 for
+    """Velocity inflow of volume flow rate Q(t) (m²/s per unit depth, positive into the domain;
+    m³/s when ``geometry.axisymmetric``), a formula in t, along the inward normal: ``profile``
+    ``parabolic`` u = Q 6 s (H − s)/H³ (s the distance along the inlet of width H; a pipe's
+    2 Q (1 − r²/R²)/(π R²)) or ``womersley`` (the plane, or pipe, Womersley profile of each
+    harmonic; needs ``period``); Q ramped by (1 − cos(π t / ramp_time))/2 for
     t < ramp_time. With ``period`` T > 0, Q(t) = Q(t mod T)."""
 
     kind: Literal["flow_rate"] = "flow_rate"

@@ -77,7 +77,12 @@ def build_coupled(case: config.Case, comm: MPI.Comm = MPI.COMM_WORLD) -> Coupled
         case.fluid, mesh.geometry_module(case).BOUNDARIES, moving_interface=True
     )
     fluid_solver = fluid.FluidSolver(
-        fluid_mesh.mesh, fluid_mesh.facet_tags, case.fluid, boundaries, scheme=case.time.scheme
+        fluid_mesh.mesh,
+        fluid_mesh.facet_tags,
+        case.fluid,
+        boundaries,
+        scheme=case.time.scheme,
+        axisymmetric=config.is_axisymmetric(case.geometry),
     )
     # Built before the mesh ever moves: both keep the reference coordinates X.
     motion = MeshMotion(fluid_mesh, case.mesh_motion, moving=(Boundary.INTERFACE,))

@@ -25,6 +25,7 @@ import ufl
 
 from fsi import compat
 from fsi.physics import rheology
+from fsi.physics.coordinates import Coordinates
 
 
 def _owned_blocks(u: dolfinx.fem.Function) -> np.ndarray:
@@ -78,13 +79,28 @@ class WallFlow:
     law: rheology.ViscosityLaw
     facet_tags: dolfinx.mesh.MeshTags
     tags: Sequence[int]
+    coordinates: Coordinates | None = None  # None: plane
 
     @property
     def mesh(self) -> dolfinx.mesh.Mesh:
         return self.u.function_space.mesh
 
+    @property
+    def _axisymmetric(self) -> bool:
+        return self.coordinates is not None and self.coordinates.axisymmetric
+
+    def shear_rate(self) -> ufl.core.expr.Expr:
+        """s(u) as a UFL expression (with the hoop strain rate when axisymmetric)."""
+        if self._axisymmetric:
+            return rheology.shear_rate_of(self.coordinates.strain_rate(self.u))
+        return rheology.shear_rate(self.u)
+
     def stress(self) -> ufl.core.expr.Expr:
-        """σ(u, p) as a UFL expression."""
+        """σ(u, p) as a UFL expression: in the meridian plane when axisymmetric (the in-plane
+        block, which is all a traction σ n with n in that plane reads), μ of the full s(u)."""
+        if self._axisymmetric:
+            mu = self.law.mu(self.shear_rate())
+            return -self.p * ufl.Identity(2) + 2 * mu * rheology.strain_rate(self.u)
         return rheology.cauchy_stress(self.u, self.p, self.law)
 
     def measure(self, quadrature_degree: int) -> ufl.Measure:
@@ -410,18 +426,34 @@ def boundary_measure(
 # Flow rates
 
 
+def weighted_boundary_measure(
+    mesh: dolfinx.mesh.Mesh,
+    facet_tags: dolfinx.mesh.MeshTags,
+    tags: Sequence[int],
+    quadrature_degree: int,
+    coordinates: Coordinates | None,
+):
+    """:func:`boundary_measure`, weighted by 2π r when ``coordinates`` are axisymmetric (one
+    quadrature degree more for the factor r): the integrals are over the body's surface."""
+    if coordinates is None or not coordinates.axisymmetric:
+        return boundary_measure(mesh, facet_tags, tags, quadrature_degree)
+    return coordinates.measure(boundary_measure(mesh, facet_tags, tags, quadrature_degree + 1))
+
+
 def flow_rate_form(
     u: dolfinx.fem.Function,
     facet_tags: dolfinx.mesh.MeshTags,
     tags: Sequence[int],
     quadrature_degree: int = 2,
+    coordinates: Coordinates | None = None,
 ) -> dolfinx.fem.Form:
     """The compiled form ∫_Γ u·n ds over the facets ``tags`` of ``u``'s mesh (n the outward
-    unit normal), for :func:`total`: compile it once, assemble it every step (it reads the
-    mesh's current coordinates, so it follows a moving mesh). The default degree 2 integrates
-    a P2 velocity exactly on straight facets (n is constant)."""
+    unit normal; ∫_Γ u·n 2π r ds when ``coordinates`` are axisymmetric), for :func:`total`:
+    compile it once, assemble it every step (it reads the mesh's current coordinates, so it
+    follows a moving mesh). The default degree 2 integrates a P2 velocity exactly on straight
+    facets (n is constant), and 3 its product with r."""
     mesh = u.function_space.mesh
-    measure = boundary_measure(mesh, facet_tags, tags, quadrature_degree)
+    measure = weighted_boundary_measure(mesh, facet_tags, tags, quadrature_degree, coordinates)
     return dolfinx.fem.form(ufl.dot(u, ufl.FacetNormal(mesh)) * measure)
 
 
@@ -437,13 +469,14 @@ def flow_rate(
     tags: Sequence[int],
     sign: float = 1.0,
     quadrature_degree: int = 2,
+    coordinates: Coordinates | None = None,
 ) -> float:
     """Q = sign ∫_Γ u·n ds over the facets ``tags`` of ``u``'s mesh, n the outward unit normal:
-    the volume flow rate per unit depth (m²/s) through Γ, on the mesh as it is now (moved or
-    not). ``sign`` = +1 counts outflow as positive (an outlet), −1 inflow (an inlet), so that
+    the volume flow rate per unit depth (m²/s) through Γ (m³/s, ∫_Γ u·n 2π r ds, when
+    ``coordinates`` are axisymmetric), on the mesh as it is now (moved or not). ``sign`` = +1 counts outflow as positive (an outlet), −1 inflow (an inlet), so that
     Q_in = −∫_inlet u·n ds and Q_out = ∫_outlet u·n ds are both positive downstream. Compiles
     the form at every call: a loop keeps :func:`flow_rate_form` instead."""
-    form = flow_rate_form(u, facet_tags, tags, quadrature_degree)
+    form = flow_rate_form(u, facet_tags, tags, quadrature_degree, coordinates)
     return sign * total(form, u.function_space.mesh.comm)
 
 
@@ -453,7 +486,8 @@ def flow_rate(
 
 class BoundaryMean:
     """The mean of a scalar ``f`` over the facets ``tags`` of its mesh,
-    f̄ = ∫_Γ f ds / ∫_Γ 1 ds (in 2D the length average; the area average of a 3D boundary), on
+    f̄ = ∫_Γ f ds / ∫_Γ 1 ds (in 2D the length average; the area average of a 3D boundary, and
+    of an axisymmetric one with ``coordinates``: ∫_Γ f 2π r ds / ∫_Γ 2π r ds), on
     the mesh as it is when :meth:`value` is called (the forms are compiled once and read the
     current coordinates, so the mean follows a moving mesh). The default degree 2 integrates a
     P1 or P2 ``f`` exactly on straight facets."""
@@ -464,10 +498,11 @@ class BoundaryMean:
         facet_tags: dolfinx.mesh.MeshTags,
         tags: Sequence[int],
         quadrature_degree: int = 2,
+        coordinates: Coordinates | None = None,
     ):
         mesh = f.function_space.mesh
         self.comm = mesh.comm
-        measure = boundary_measure(mesh, facet_tags, tags, quadrature_degree)
+        measure = weighted_boundary_measure(mesh, facet_tags, tags, quadrature_degree, coordinates)
         self._integral = dolfinx.fem.form(f * measure)
         one = dolfinx.fem.Constant(mesh, PETSc.ScalarType(1.0))
         self._size = dolfinx.fem.form(one * measure)
@@ -499,7 +534,7 @@ class FluidFields:
         self.shear_rate = dolfinx.fem.Function(cells, name="shear_rate")
         self.viscosity = dolfinx.fem.Function(cells, name="viscosity")
         points = compat.interpolation_points(cells)
-        s = rheology.shear_rate(flow.u)
+        s = flow.shear_rate()
         mu = flow.law.mu(s)
         self._expressions = [(self.shear_rate, dolfinx.fem.Expression(s, points))]
         if isinstance(mu, ufl.constantvalue.ConstantValue):  # Newtonian: set once

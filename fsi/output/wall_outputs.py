@@ -64,19 +64,25 @@ class FluidOutputs:
             for column, tag, sign in zip(
                 FLOW_COLUMNS, (Boundary.INLET, Boundary.OUTLET), (-1.0, 1.0)
             ):
-                form = metrics.flow_rate_form(solver.u, solver.facet_tags, [tag])
+                form = metrics.flow_rate_form(
+                    solver.u, solver.facet_tags, [tag], coordinates=solver.coordinates
+                )
                 self.flow_rates[column] = (form, sign)
             for column, tag in zip(
                 PRESSURE_COLUMNS, (Boundary.INLET, Boundary.OUTLET), strict=True
             ):
-                self.pressures[column] = metrics.BoundaryMean(solver.p, solver.facet_tags, [tag])
+                self.pressures[column] = metrics.BoundaryMean(
+                    solver.p, solver.facet_tags, [tag], coordinates=solver.coordinates
+                )
         self.columns = (
             (WALL_COLUMNS if self.lumen else [])
             + list(self.flow_rates)
             + list(self.pressures)
             + list(solver.outlet_values())
         )
-        flow = metrics.WallFlow(solver.u, solver.p, solver.law, solver.facet_tags, self.walls)
+        flow = metrics.WallFlow(
+            solver.u, solver.p, solver.law, solver.facet_tags, self.walls, solver.coordinates
+        )
         self.derived = metrics.FluidFields(flow)
         self.sampler = metrics.WallSampler(flow)
         # Steady runs: each step an independent solution, counted with its end value.

@@ -31,6 +31,7 @@ from fsi import compat, config
 from fsi.numerics.newton import Forcing, Newton, SolveResult
 from fsi.numerics.timestepping import BdfHistory, bdf_weights
 from fsi.physics import rheology
+from fsi.physics.coordinates import Coordinates
 from fsi.physics.fluid_boundaries import BoundaryCondition, Velocity, as_tags, facets_of
 from fsi.physics.fluid_residual import BodyForce, FluidResidual, LumpedOutlet
 from fsi.physics.mesh_motion import AleMesh
@@ -190,6 +191,8 @@ class FluidSolver:
             :func:`fsi.physics.fluid_boundaries.boundary_conditions`); others are traction-free.
         scheme: ``backward_euler``, ``bdf2`` (backward Euler on the first step) or ``steady``.
         body_force: optional f(x, t).
+        axisymmetric: the mesh is the meridian half-plane of a body of revolution
+            (fsi/physics/coordinates.py; its integrals, forces and flow rates are the body's).
     """
 
     def __init__(
@@ -200,6 +203,7 @@ class FluidSolver:
         boundaries: Sequence[BoundaryCondition],
         scheme: Scheme = "bdf2",
         body_force: BodyForce | None = None,
+        axisymmetric: bool = False,
     ):
         if scheme not in ("backward_euler", "bdf2", "steady"):
             raise ValueError(f"unknown time scheme {scheme!r}")
@@ -226,6 +230,7 @@ class FluidSolver:
         self.velocity_history = BdfHistory(self.u.x.array, self.u_n.x.array, self.u_nm1.x.array)
         self.boundary_velocity = dolfinx.fem.Function(self.V, name="boundary_velocity")
         self.ale = AleMesh(mesh)
+        self.coordinates = Coordinates(mesh, axisymmetric)
 
         self.time = 0.0
         self.dt_previous: float | None = None

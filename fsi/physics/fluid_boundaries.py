@@ -1,7 +1,7 @@
 """The fluid's boundary conditions as data, and the boundary data they need.
 
 One small frozen class per kind (:class:`NoSlip`, :class:`Velocity`, :class:`Inflow`,
-:class:`Outflow`, :class:`Slip`, :class:`Traction`), a case's set of them
+:class:`Outflow`, :class:`Slip`, :class:`Traction`, :class:`Axis`), a case's set of them
 (:func:`boundary_conditions`, :func:`walls`), the inlet's pressure P(t)
 (:func:`inlet_pressure`), the Turek–Hron inflow ramp and the parabolic inflow profile on a
 straight inlet. :class:`fsi.physics.fluid_residual.FluidResidual` turns each condition into its
@@ -127,7 +127,18 @@ class Traction:
         object.__setattr__(self, "tags", as_tags(self.tags))
 
 
-BoundaryCondition = NoSlip | Velocity | Inflow | Outflow | Slip | Traction
+@dataclass(frozen=True)
+class Axis:
+    """u_r = 0 on ``tags``: the axis of an axisymmetric domain, or a plane symmetry line
+    y = const (the velocity's y component is 0, the traction along the line is 0)."""
+
+    tags: tuple[int, ...]
+
+    def __post_init__(self):
+        object.__setattr__(self, "tags", as_tags(self.tags))
+
+
+BoundaryCondition = NoSlip | Velocity | Inflow | Outflow | Slip | Traction | Axis
 
 
 def walls(boundaries: Sequence[Boundary], moving_interface: bool = False) -> tuple[Boundary, ...]:
@@ -147,7 +158,7 @@ def boundary_conditions(
 ) -> tuple[BoundaryCondition, ...]:
     """The fluid's boundary conditions in every mode (docs/model.md, Fluid), for a geometry with
     ``boundaries``: the configured inlet, the configured outlet, u = ∂η/∂t on the interface if
-    it moves (a coupled run), no-slip on the :func:`walls`."""
+    it moves (a coupled run), no-slip on the :func:`walls`, u_r = 0 on a tube's axis."""
     inlet = Inflow(Boundary.INLET, fluid.inlet, fluid.inflow_stabilization, fluid.inflow_form)
     outlet = Outflow(
         Boundary.OUTLET,
@@ -156,7 +167,8 @@ def boundary_conditions(
         fluid.outlet.backflow_form,
     )
     moving = (Velocity(Boundary.INTERFACE),) if moving_interface else ()
-    return (inlet, outlet, *moving, NoSlip(walls(boundaries, moving_interface)))
+    axis = (Axis(Boundary.AXIS),) if Boundary.AXIS in boundaries else ()
+    return (inlet, outlet, *moving, NoSlip(walls(boundaries, moving_interface)), *axis)
 
 
 def inlet_pressure(spec: config.Inlet) -> Callable[[float], float]:
@@ -247,23 +259,38 @@ class InletFrame:
         their first two columns (x, y)), clipped to [0, H]."""
         return np.clip((x[:, :2] - self.start) @ self.tangent, 0, self.width)
 
+    def radius(self, x: np.ndarray) -> np.ndarray:
+        """r (m), the distance from the axis y = 0 of the points ``x`` (an axisymmetric inlet
+        from the axis to the wall: ``width`` is the pipe's radius), clipped to [0, H]."""
+        return np.clip(x[:, 1], 0, self.width)
 
-def parabolic_profile(frame: InletFrame, mean_velocity: float):
-    """The interpolation function of :func:`~fsi.physics.inflow_profiles.parabola` of mean
-    velocity Ū (m/s) times the inward normal on the inlet ``frame``."""
+
+def parabolic_profile(frame: InletFrame, mean_velocity: float, axisymmetric: bool = False):
+    """The interpolation function of :func:`~fsi.physics.inflow_profiles.parabola` (a pipe's
+    :func:`~fsi.physics.inflow_profiles.pipe_parabola` when ``axisymmetric``) of mean velocity
+    Ū (m/s) times the inward normal on the inlet ``frame``."""
 
     def profile(xx):
-        values = inflow_profiles.parabola(frame.distance(xx.T), frame.width, mean_velocity)
+        if axisymmetric:
+            r = frame.radius(xx.T)
+            values = inflow_profiles.pipe_parabola(r, frame.width, mean_velocity)
+        else:
+            values = inflow_profiles.parabola(frame.distance(xx.T), frame.width, mean_velocity)
         return np.outer(frame.normal, values)
 
     return profile
 
 
-def parabolic_values(V: dolfinx.fem.FunctionSpace, spec: config.ParabolicInflow, frame: InletFrame):
+def parabolic_values(
+    V: dolfinx.fem.FunctionSpace,
+    spec: config.ParabolicInflow,
+    frame: InletFrame,
+    axisymmetric: bool = False,
+):
     """The function of t giving the ``parabolic_velocity`` inlet's array in V's layout
     (constant: the parabola times −n, interpolated into V)."""
     shape = dolfinx.fem.Function(V)
-    shape.interpolate(parabolic_profile(frame, spec.mean_velocity))
+    shape.interpolate(parabolic_profile(frame, spec.mean_velocity, axisymmetric))
     return lambda t: shape.x.array
 
 
@@ -274,14 +301,17 @@ def flow_rate_values(
     frame: InletFrame,
     density: float,
     viscosity: float | None,
+    axisymmetric: bool = False,
 ):
     """The function of t giving a flow-rate inlet's velocity array in V's layout: the
     :class:`~fsi.physics.inflow_profiles.FlowRateProfile` speed (m/s) times −n at the inlet's
     ``nodes``, 0 elsewhere; ``density`` (kg/m³) and ``viscosity`` (Pa s) shape a
-    ``womersley`` profile (None for ``parabolic``)."""
-    s = frame.distance(V.tabulate_dof_coordinates()[nodes])
+    ``womersley`` profile (None for ``parabolic``); ``axisymmetric``: a pipe's profiles, Q in
+    m³/s."""
+    x = V.tabulate_dof_coordinates()[nodes]
+    s = frame.radius(x) if axisymmetric else frame.distance(x)
     speed = inflow_profiles.FlowRateProfile(
-        inlet_flow_rate(spec), s, frame.width, spec.period, density, viscosity
+        inlet_flow_rate(spec), s, frame.width, spec.period, density, viscosity, axisymmetric
     )
     index_map, bs = V.dofmap.index_map, V.dofmap.index_map_bs
     array = np.zeros((index_map.size_local + index_map.num_ghosts) * bs)

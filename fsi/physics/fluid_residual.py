@@ -5,7 +5,8 @@
     ρ (Σ_k a_k u^{n+1−k}, v) + ρ (((u − w)·∇)u, v) + (2 μ D(u), D(v)) − (p, ∇·v) − (q, ∇·u)
         − (f, v) − ⟨σ n, v⟩_natural [+ SUPG (+ PSPG, LSIC for P1–P1)] = 0,
 
-one method per term, and turns each boundary condition (fsi/physics/fluid_boundaries.py) into
+one method per term, in plane or axisymmetric coordinates (fsi/physics/coordinates.py: there
+the integrals carry 2π r, and D, ∇· and the shear rate the hoop part u_r/r), and turns each boundary condition (fsi/physics/fluid_boundaries.py) into
 its Dirichlet conditions and boundary terms. :class:`LumpedOutlet` is an outlet whose pressure
 comes from its flow rate through a lumped model (fsi/physics/outlets.py).
 """
@@ -27,8 +28,10 @@ import ufl
 from fsi import config
 from fsi.config.rheology_section import womersley_viscosity
 from fsi.physics import outlets, rheology
+from fsi.physics.coordinates import Coordinates
 from fsi.physics.fluid_boundaries import (
     BoundaryCondition,
+    Axis,
     Inflow,
     InletFrame,
     NoSlip,
@@ -157,7 +160,8 @@ class _WeakForm:
     ``fluid.solver.linearization: extrapolated`` the extrapolation u* of the accepted steps,
     which makes the residual linear in (u, p)), the test functions (v, q), the viscosity
     μ(s(advecting)), the BDF derivative ∂u/∂t, the measures (with the configured quadrature
-    degree), the coordinate x, the outward normal n, the cell diameter h."""
+    degree, weighted by 2π r when axisymmetric), the coordinate x, the outward normal n, the
+    cell diameter h, and the coordinate system (``coords``: the hoop parts of D and ∇·)."""
 
     u: ufl.core.expr.Expr
     advecting: ufl.core.expr.Expr
@@ -171,6 +175,7 @@ class _WeakForm:
     x: ufl.core.expr.Expr
     n: ufl.core.expr.Expr
     h: ufl.core.expr.Expr
+    coords: Coordinates
 
     def ds_of(self, tags: Sequence[int]) -> ufl.Measure:
         """The boundary measure over the facets of ``tags``."""
@@ -200,8 +205,9 @@ class FluidUnknowns(Protocol):
     """What the residual reads from its solver (fsi.physics.fluid.FluidSolver): the mesh, its
     facet tags and communicator, the fluid's settings, time scheme, viscosity law and boundary
     conditions, the mixed space W with its velocity space V, the unknown U = (u, p), u^n and
-    u^{n−1}, the boundary and ALE mesh velocities, and the constants t, ρ, the BDF weights and
-    the weights (e1, e2) of the extrapolation u* = e1 u^n + e2 u^{n−1}."""
+    u^{n−1}, the boundary and ALE mesh velocities, the coordinate system (plane or
+    axisymmetric), and the constants t, ρ, the BDF weights and the weights (e1, e2) of the
+    extrapolation u* = e1 u^n + e2 u^{n−1}."""
 
     mesh: dolfinx.mesh.Mesh
     facet_tags: dolfinx.mesh.MeshTags
@@ -217,6 +223,7 @@ class FluidUnknowns(Protocol):
     u_nm1: dolfinx.fem.Function
     boundary_velocity: dolfinx.fem.Function
     ale: Any
+    coordinates: Coordinates
     t: dolfinx.fem.Constant
     rho: dolfinx.fem.Constant
     bdf_weights: Sequence[dolfinx.fem.Constant]
@@ -241,6 +248,7 @@ class FluidResidual:
         self.boundaries = s.boundaries
         self.W, self.V, self.U, self.u_n, self.u_nm1 = s.W, s.V, s.U, s.u_n, s.u_nm1
         self.boundary_velocity, self.ale = s.boundary_velocity, s.ale
+        self.coordinates = s.coordinates
         self.t, self._a, self._rho = s.t, s.bdf_weights, s.rho  # the solver's constants
         self._extrapolation = s.extrapolation_weights
         self.bcs: list = []
@@ -301,19 +309,23 @@ class FluidResidual:
             advecting = e1 * self.u_n + e2 * self.u_nm1
         else:
             advecting = u
+        coords = self.coordinates
         return _WeakForm(
             u=u,
             advecting=advecting,
             p=p,
             v=v,
             q=q,
-            mu=self.law.mu(rheology.shear_rate(advecting)),
+            mu=self.law.mu(rheology.shear_rate_of(coords.strain_rate(advecting))),
             dudt=a0 * u + a1 * self.u_n + a2 * self.u_nm1,
-            dx=ufl.Measure("dx", domain=mesh, metadata=metadata),
-            ds=ufl.Measure("ds", domain=mesh, subdomain_data=self.facet_tags, metadata=metadata),
+            dx=coords.measure(ufl.Measure("dx", domain=mesh, metadata=metadata)),
+            ds=coords.measure(
+                ufl.Measure("ds", domain=mesh, subdomain_data=self.facet_tags, metadata=metadata)
+            ),
             x=ufl.SpatialCoordinate(mesh),
             n=ufl.FacetNormal(mesh),
             h=ufl.CellDiameter(mesh),
+            coords=coords,
         )
 
     def _inertia(self, s: _WeakForm):
@@ -327,22 +339,34 @@ class FluidResidual:
 
     def _viscous_stress(self, s: _WeakForm):
         """2 μ(s(u)) D(u) : D(v), the viscous part of σ(u, p) : ∇v (rheology.cauchy_stress)."""
-        D = rheology.strain_rate
+        D = s.coords.strain_rate
         return 2 * s.mu * ufl.inner(D(s.u), D(s.v))
 
     def _pressure(self, s: _WeakForm):
         """p ∇·v, the pressure part of σ(u, p) : ∇v (subtracted)."""
-        return s.p * ufl.div(s.v)
+        return s.p * s.coords.div(s.v)
 
     def _continuity(self, s: _WeakForm):
         """q ∇·u (subtracted: the symmetric saddle-point form)."""
-        return s.q * ufl.div(s.u)
+        return s.q * s.coords.div(s.u)
 
     def _body_force(self, s: _WeakForm, body_force: BodyForce):
         """f(x, t) · v (subtracted)."""
         return ufl.dot(body_force(s.x, self.t), s.v)
 
     # ---- boundary terms: one function per kind of condition (BOUNDARY_KINDS)
+
+    def _axis(self, bc: Axis, s: _WeakForm) -> _Contribution:
+        """u_r = 0 on the axis (or the plane symmetry line): the radial component alone; the
+        axial one is free, its traction 0 (the symmetry)."""
+        component = self.W.sub(0).sub(1)
+        dofs = dolfinx.fem.locate_dofs_topological(
+            component, self.mesh.topology.dim - 1, facets_of(self.facet_tags, bc.tags)
+        )
+        zero = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(0.0))
+        return _Contribution(
+            dirichlet=[(_PRESCRIBED, dolfinx.fem.dirichletbc(zero, dofs, component))]
+        )
 
     def _no_slip(self, bc: NoSlip, s: _WeakForm) -> _Contribution:
         """u = 0, applied last so that walls win at the corners they share."""
@@ -413,6 +437,7 @@ class FluidResidual:
         return _Contribution([-(ufl.dot(bc.traction(s.x, s.n, self.t), s.v) * s.ds_of(bc.tags))])
 
     BOUNDARY_KINDS: dict[type, Callable] = {
+        Axis: _axis,
         NoSlip: _no_slip,
         Velocity: _velocity,
         Inflow: _inflow,
@@ -482,14 +507,15 @@ class FluidResidual:
             rho * s.dudt
             + rho * ufl.grad(u) * (s.advecting - w)
             + ufl.grad(s.p)
-            - ufl.div(2 * s.mu * rheology.strain_rate(u))
+            - s.coords.div_symmetric(2 * s.mu * rheology.strain_rate(u), hoop=self._hoop(s))
         )
         if body_force is not None:
             residual -= body_force(s.x, self.t)
         if self.scheme == "steady" or self.config.solver.linearization == "extrapolated":
             u_tau, mu_tau = s.advecting, s.mu
         else:
-            u_tau, mu_tau = self.u_n, self.law.mu(rheology.shear_rate(self.u_n))
+            shear_n = rheology.shear_rate_of(s.coords.strain_rate(self.u_n))
+            u_tau, mu_tau = self.u_n, self.law.mu(shear_n)
         a_tau = u_tau - w
         speed = ufl.sqrt(ufl.dot(a_tau, a_tau) + SUPG_SPEED_FLOOR**2)
         viscous = VISCOUS_CONSTANT[self.config.element]
@@ -500,6 +526,11 @@ class FluidResidual:
         if self.config.element == "p1p1":
             terms = terms - self._pspg(s, tau, residual) + self._lsic(s, tau)
         return terms
+
+    @staticmethod
+    def _hoop(s: _WeakForm):
+        """The hoop viscous stress 2 μ u_r/r (axisymmetric; None in the plane)."""
+        return 2 * s.mu * s.u[1] / s.coords.r if s.coords.axisymmetric else None
 
     def _supg(self, s: _WeakForm, tau, residual):
         """SUPG: τ ((u − w)·∇)v · R. It adds the streamline diffusion ≈ ρ|u − w|h/2 that the
@@ -519,7 +550,7 @@ class FluidResidual:
         metric G = 4/h² I of a 2D cell; Bazilevs et al. 2007): least squares on the continuity
         residual, which P1–P1 does not satisfy pointwise; zero on a solenoidal velocity."""
         tau_c = s.h**2 / (8 * tau)
-        return self._rho * tau_c * ufl.div(s.u) * ufl.div(s.v)
+        return self._rho * tau_c * s.coords.div(s.u) * s.coords.div(s.v)
 
     # ---- Dirichlet conditions
 
@@ -544,22 +575,26 @@ class FluidResidual:
 
     def _velocity_inflow(self, bc: Inflow):
         """u = ramp(t) g(s, t) (−n) on a straight inlet of width H (s along it, n its outward
-        normal): ``parabolic_velocity`` g = 1.5 Ū 4 s (H − s)/H², or a flow-rate inlet's
+        normal): ``parabolic_velocity`` g = 1.5 Ū 4 s (H − s)/H² (a pipe's 2 Ū (1 − r²/R²)
+        when axisymmetric), or a flow-rate inlet's
         :class:`~fsi.physics.inflow_profiles.FlowRateProfile`; the ramp (1 − cos(π t/T_r))/2
         for t < T_r (none when steady)."""
         spec = bc.spec
         points = boundary_points(self.mesh, self.facet_tags, bc.tags, self.comm)
         frame = InletFrame.of(points, self.mesh, self.comm)
         inflow = dolfinx.fem.Function(self.V, name="inflow")
+        axisymmetric = self.coordinates.axisymmetric
         if isinstance(spec, config.ParabolicInflow):
-            values = parabolic_values(self.V, spec, frame)
+            values = parabolic_values(self.V, spec, frame, axisymmetric)
         else:
             nodes = dolfinx.fem.locate_dofs_topological(
                 self.V, self.mesh.topology.dim - 1, facets_of(self.facet_tags, bc.tags)
             )
             womersley = spec.profile == "womersley"
             viscosity = womersley_viscosity(self.config.rheology) if womersley else None
-            values = flow_rate_values(self.V, nodes, spec, frame, self.config.density, viscosity)
+            values = flow_rate_values(
+                self.V, nodes, spec, frame, self.config.density, viscosity, axisymmetric
+            )
 
         ramped = self.scheme != "steady" and spec.ramp_time > 0
 

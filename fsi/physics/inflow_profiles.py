@@ -1,6 +1,8 @@
-"""Velocity profiles across a straight inlet of width H (numpy only): the Poiseuille parabola
-(:func:`parabola`), the plane Womersley profile of one harmonic (:func:`womersley`), and the
-inflow speed of a flow-rate inlet (:class:`FlowRateProfile`; docs/boundary-conditions.md).
+"""Velocity profiles across a straight inlet of width H (numpy and scipy.special): the
+Poiseuille parabola (:func:`parabola`), the plane Womersley profile of one harmonic
+(:func:`womersley`), their pipe counterparts across an axisymmetric inlet of radius R
+(:func:`pipe_parabola`, :func:`pipe_womersley`), and the inflow speed of a flow-rate inlet
+(:class:`FlowRateProfile`; docs/boundary-conditions.md, docs/axisymmetric.md).
 """
 
 from __future__ import annotations
@@ -8,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+import scipy.special
 
 from fsi.config.boundary_data import HARMONIC_SAMPLES, sample_times
 
@@ -48,6 +51,34 @@ def womersley(s, width: float, omega: float, rho: float, mu: float) -> np.ndarra
     return (1 - ratio) / (width - 2 / alpha * tanh)
 
 
+def pipe_parabola(r, radius: float, mean_velocity: float):
+    """2 Ū (1 − r²/R²) (m/s): Poiseuille's pipe profile of mean velocity Ū (``mean_velocity``,
+    m/s; flow rate Ū π R²) at the radius ``r`` (m) of a pipe of radius R."""
+    r = np.asarray(r, dtype=float)
+    return 2 * mean_velocity * (1 - (r / radius) ** 2)
+
+
+def pipe_womersley(r, radius: float, omega: float, rho: float, mu: float) -> np.ndarray:
+    """φ(r), the complex Womersley pipe profile of unit flux (∫_0^R φ 2π r dr = 1, 1/m²) at the
+    radius ``r`` (m) of a pipe of radius R, for the angular frequency ω (1/s), density ρ and
+    viscosity μ: with β² = i ω ρ/μ and I₀, I₁ the modified Bessel functions,
+
+        φ(r) = (1 − I₀(β r)/I₀(β R)) / (π R² (1 − 2 I₁(β R)/(β R I₀(β R)))),
+
+    the solution of i ω ρ φ − μ (φ'' + φ'/r) = G (a constant) with φ(R) = 0, φ'(0) = 0. The
+    ratios use the scaled Bessel functions (ive: I_ν(z) e^{−|Re z|}), so no overflow at any
+    β R; ω = 0 (|β| R < :data:`SMALL_ALPHA`): the parabola 2 (1 − r²/R²)/(π R²)."""
+    r = np.asarray(r, dtype=float)
+    area = np.pi * radius**2
+    beta = np.sqrt(1j * omega * rho / mu)
+    if abs(beta) * radius < SMALL_ALPHA:
+        return pipe_parabola(r, radius, 1 / area).astype(complex)
+    i0 = scipy.special.ive(0, beta * radius)
+    ratio = scipy.special.ive(0, beta * r) / i0 * np.exp(beta.real * (r - radius))
+    flux = 1 - 2 * scipy.special.ive(1, beta * radius) / (beta * radius * i0)
+    return (1 - ratio) / (area * flux)
+
+
 def harmonics(flow_rate: Callable[[float], float], period: float) -> np.ndarray:
     """Q̂_k, k = 0 … :data:`HARMONICS`: Q(t) ≈ Q̂_0 + Σ_k 2 Re(Q̂_k e^{i k ω t}), ω = 2π/T,
     from the FFT of Q at :func:`sample_times`."""
@@ -67,7 +98,10 @@ class FlowRateProfile:
 
     φ_k = :func:`womersley` at k ω, Q̂_k = :func:`harmonics`, K = :data:`HARMONICS`: the
     Womersley solution Re Σ Q̂_k φ_k e^{ikωt} of the band-limited Q, whose flux is Q(t) exactly
-    (∫ φ_k − φ_0 = 0; Q's harmonics beyond K ride on the parabola)."""
+    (∫ φ_k − φ_0 = 0; Q's harmonics beyond K ride on the parabola).
+
+    ``axisymmetric``: the inlet is a pipe's cross-section, ``s`` the radii and ``width`` the
+    radius R, Q in m³/s: φ_0 = 2 (1 − r²/R²)/(π R²) and φ_k = :func:`pipe_womersley`."""
 
     def __init__(
         self,
@@ -77,9 +111,16 @@ class FlowRateProfile:
         period: float = 0.0,
         rho: float = 0.0,
         mu: float | None = None,
+        axisymmetric: bool = False,
     ):
         self.flow_rate = flow_rate
-        self.parabola = parabola(np.asarray(s, dtype=float), width, 1 / width)
+        s = np.asarray(s, dtype=float)
+        if axisymmetric:
+            self.parabola = pipe_parabola(s, width, 1 / (np.pi * width**2))
+            unit_flux = pipe_womersley
+        else:
+            self.parabola = parabola(s, width, 1 / width)
+            unit_flux = womersley
         self.omega = 0.0
         self.modes = np.zeros((0, len(self.parabola)), dtype=complex)
         if mu is not None:
@@ -87,7 +128,7 @@ class FlowRateProfile:
             q = harmonics(flow_rate, period)
             self.modes = np.array(
                 [
-                    2 * q[k] * (womersley(s, width, k * self.omega, rho, mu) - self.parabola)
+                    2 * q[k] * (unit_flux(s, width, k * self.omega, rho, mu) - self.parabola)
                     for k in range(1, len(q))
                 ]
             )

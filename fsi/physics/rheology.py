@@ -25,7 +25,12 @@ def strain_rate(u) -> ufl.core.expr.Expr:
 
 def shear_rate(u, epsilon: float = SHEAR_RATE_EPSILON) -> ufl.core.expr.Expr:
     """s(u) = sqrt(2 D(u):D(u) + ε²) (1/s), the regularised shear rate (ε: SHEAR_RATE_EPSILON)."""
-    D = strain_rate(u)
+    return shear_rate_of(strain_rate(u), epsilon)
+
+
+def shear_rate_of(D, epsilon: float = SHEAR_RATE_EPSILON) -> ufl.core.expr.Expr:
+    """s = sqrt(2 D:D + ε²) (1/s) of a strain rate ``D`` (1/s): with the hoop strain rate
+    u_r/r when axisymmetric (fsi.physics.coordinates.Coordinates.strain_rate)."""
     return ufl.sqrt(2 * ufl.inner(D, D) + epsilon**2)
 
 

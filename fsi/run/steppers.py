@@ -160,6 +160,7 @@ class RigidStepper(_Checkpointed):
             case.fluid,
             fluid_boundaries(case),
             scheme=case.time.scheme,
+            axisymmetric=config.is_axisymmetric(case.geometry),
         )
         self.obstacle = [
             b
