@@ -202,7 +202,7 @@ def test_a_flow_rate_inlet_carries_its_flow_rate_through_the_pipe():
     """A steady parabolic flow-rate inlet of Q = 2e-6 m³/s (a carotid's mean) in the rigid pipe
     (ρ = 1, steady): the velocity everywhere is the pipe's Poiseuille flow 2 Q/(π R²) (1 − r²/R²)
     to 1e-10 of its peak, and the outlet's flow rate is Q (m³/s) to 1e-9."""
-    Q, mu = 2e-6, 0.0035
+    Q = 2e-6
     section = study_fluid(
         "newtonian",
         density=1.0,

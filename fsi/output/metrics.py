@@ -473,9 +473,10 @@ def flow_rate(
 ) -> float:
     """Q = sign ∫_Γ u·n ds over the facets ``tags`` of ``u``'s mesh, n the outward unit normal:
     the volume flow rate per unit depth (m²/s) through Γ (m³/s, ∫_Γ u·n 2π r ds, when
-    ``coordinates`` are axisymmetric), on the mesh as it is now (moved or not). ``sign`` = +1 counts outflow as positive (an outlet), −1 inflow (an inlet), so that
-    Q_in = −∫_inlet u·n ds and Q_out = ∫_outlet u·n ds are both positive downstream. Compiles
-    the form at every call: a loop keeps :func:`flow_rate_form` instead."""
+    ``coordinates`` are axisymmetric), on the mesh as it is now (moved or not). ``sign`` = +1
+    counts outflow as positive (an outlet), −1 inflow (an inlet), so that Q_in = −∫_inlet u·n ds
+    and Q_out = ∫_outlet u·n ds are both positive downstream. Compiles the form at every call: a
+    loop keeps :func:`flow_rate_form` instead."""
     form = flow_rate_form(u, facet_tags, tags, quadrature_degree, coordinates)
     return sign * total(form, u.function_space.mesh.comm)
 

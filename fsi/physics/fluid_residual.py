@@ -6,8 +6,9 @@
         − (f, v) − ⟨σ n, v⟩_natural [+ SUPG (+ PSPG, LSIC for P1–P1)] = 0,
 
 one method per term, in plane or axisymmetric coordinates (fsi/physics/coordinates.py: there
-the integrals carry 2π r, and D, ∇· and the shear rate the hoop part u_r/r), and turns each boundary condition (fsi/physics/fluid_boundaries.py) into
-its Dirichlet conditions and boundary terms. :class:`LumpedOutlet` is an outlet whose pressure
+the integrals carry 2π r, and D, ∇· and the shear rate the hoop part u_r/r), and turns each
+boundary condition (fsi/physics/fluid_boundaries.py) into its Dirichlet conditions and boundary
+terms. :class:`LumpedOutlet` is an outlet whose pressure
 comes from its flow rate through a lumped model (fsi/physics/outlets.py).
 """
 
@@ -30,8 +31,8 @@ from fsi.config.rheology_section import womersley_viscosity
 from fsi.physics import outlets, rheology
 from fsi.physics.coordinates import Coordinates
 from fsi.physics.fluid_boundaries import (
-    BoundaryCondition,
     Axis,
+    BoundaryCondition,
     Inflow,
     InletFrame,
     NoSlip,
