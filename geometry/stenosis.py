@@ -1,10 +1,13 @@
 """The stenosed artery of docs/model.md §1: lumen, vessel wall, lipid pool, fibrous cap.
 
-The lumen is ``0 <= x <= length``, ``0 <= y <= height``. A plaque side ("bottom" or "top")
-carries a vessel-wall layer of ``wall_thickness`` outside the lumen and a cosine-shaped plaque
-centred at :func:`apex_x` (``length / 2`` unless ``stenosis_centre`` is set;
-:func:`plaque_profile`): a lipid pool (:func:`lipid_profile`) under a fibrous cap. A side
-without plaque is the healthy, rigid wall Γw2 and carries no structure.
+The lumen is ``0 <= x <= length``, ``0 <= y <= height``. A plaque side ("bottom" or "top",
+:func:`sides`) carries a vessel-wall layer of ``wall_thickness`` outside the lumen and a
+cosine-shaped plaque centred at :func:`apex_x` (``length / 2`` unless ``stenosis_centre`` is
+set; :func:`plaque_profile`): a lipid pool (:func:`lipid_profile`) under a fibrous cap. A side
+without plaque is the healthy, rigid wall Γw2 and carries no structure. Axisymmetric
+(``axisymmetric``): the meridian half-plane of a circular vessel, whose bottom side y = 0 is
+the axis (tag ``axis``) and whose top side carries the plaque, a concentric ring; ``height`` is
+the lumen's radius.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ import numpy as np
 
 from fsi.geometry.tags import Boundary, Region, add_physical_groups
 
-# The tags this builder writes (mesh.json reports these).
+# The tags this builder writes (mesh.json reports these; :func:`boundaries` of a geometry).
 REGIONS = (Region.FLUID, Region.WALL, Region.CAP, Region.LIPID)
 BOUNDARIES = (
     Boundary.INLET,
@@ -31,11 +34,13 @@ BOUNDARIES = (
 )
 
 SIDES = ("bottom", "top")
+AXIS_SIDE = "bottom"  # the axis y = 0 of an axisymmetric stenosis
 
 
 class StenosisParameters(Protocol):
     """The stenosis's dimensions (m; fsi.config.StenosisGeometry): ``stenosis_degree`` the
-    fraction of ``height`` the plaques close, ``plaque_sides`` of :data:`SIDES`."""
+    fraction of ``height`` the plaques close, ``plaque_sides`` of :data:`SIDES` (None: bottom),
+    ``axisymmetric`` the meridian half-plane of a circular vessel."""
 
     length: float
     height: float
@@ -44,8 +49,25 @@ class StenosisParameters(Protocol):
     stenosis_degree: float
     cap_thickness: float
     lipid_length: float
-    plaque_sides: Sequence[str]
+    plaque_sides: Sequence[str] | None  # None: ("bottom",)
     stenosis_centre: float | None  # None: length / 2
+    axisymmetric: bool
+
+
+def sides(p: StenosisParameters) -> tuple[str, ...]:
+    """The sides that carry a plaque: ``plaque_sides`` (``("bottom",)`` when None) in the plane;
+    the top, the vessel's wall, when axisymmetric (the bottom is the axis)."""
+    if p.axisymmetric:
+        return ("top",)
+    return tuple(p.plaque_sides) if p.plaque_sides is not None else ("bottom",)
+
+
+def boundaries(p: StenosisParameters) -> tuple[Boundary, ...]:
+    """The boundary tags of the mesh: :data:`BOUNDARIES`, with ``axis`` for the rigid wall when
+    axisymmetric (the bottom side is the axis, the top carries the plaque)."""
+    if not p.axisymmetric:
+        return BOUNDARIES
+    return tuple(Boundary.AXIS if b == Boundary.RIGID_WALL else b for b in BOUNDARIES)
 
 
 def apex_x(p: StenosisParameters) -> float:
@@ -55,7 +77,7 @@ def apex_x(p: StenosisParameters) -> float:
 
 def plaque_height(p: StenosisParameters) -> float:
     """Apex height ``A`` of each plaque above its wall."""
-    return p.stenosis_degree * p.height / len(p.plaque_sides)
+    return p.stenosis_degree * p.height / len(sides(p))
 
 
 def _cosine_bump(x: np.ndarray, amplitude: float, centre: float, length: float) -> np.ndarray:
@@ -83,7 +105,7 @@ def lipid_profile(p: StenosisParameters, x: np.ndarray) -> np.ndarray:
 
 def analytic_areas(p: StenosisParameters) -> dict[str, float]:
     """Exact region areas (m²): a cosine bump of amplitude ``A``, length ``l`` has area A l / 2."""
-    n = len(p.plaque_sides)
+    n = len(sides(p))
     plaque = plaque_height(p) * p.stenosis_length / 2
     lipid = (plaque_height(p) - p.cap_thickness) * p.lipid_length / 2
     areas = {
@@ -159,9 +181,10 @@ def build(p: StenosisParameters, size: float, local_size: float, spline_points: 
     for side in SIDES:
         left, right = b.point(side, 0.0, 0.0, size), b.point(side, p.length, 0.0, size)
         corners[side] = (left, right)
-        if side not in p.plaque_sides:
+        if side not in sides(p):
             lumen_chain[side] = [b.geo.addLine(left, right)]
-            b.groups[Boundary.RIGID_WALL].extend(lumen_chain[side])
+            plain = Boundary.AXIS if p.axisymmetric and side == AXIS_SIDE else Boundary.RIGID_WALL
+            b.groups[plain].extend(lumen_chain[side])
         else:
             lumen_chain[side] = _add_plaque_side(b, side, left, right)
     _add_lumen(b, lumen_chain, corners)

@@ -106,6 +106,12 @@ BAD = [
     ("mesh: {level: ultra}", "mesh.level", "'fine'"),
     ("geometry: {kind: channel}", "structure.mode", "'rigid'"),
     ("geometry: {kind: tube}\nstructure: {mode: fixed_wall}", "structure.mode", "'moving_wall'"),
+    (
+        "geometry: {axisymmetric: true, plaque_sides: [bottom]}",
+        "geometry.plaque_sides",
+        "no plaque_sides with geometry.axisymmetric",
+    ),
+    ("geometry: {axisymmetric: true, stenosis_degree: 1.0}", "geometry.stenosis_degree", "1.0"),
     ("geometry: {kind: tube, radius: 0}", "geometry.radius", "positive"),
     ("geometry: {kind: tube, axisymmetric: 1}", "geometry.axisymmetric", "true or false"),
     (

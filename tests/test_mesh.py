@@ -115,6 +115,24 @@ def test_plaque_on_the_top_or_both_sides(sides):
     assert s["measures"]["min_cap_thickness_m"] == pytest.approx(0.0005, rel=5e-3)
 
 
+def test_the_axisymmetric_stenosis_is_a_ring_on_the_wall_above_the_axis():
+    """``axisymmetric``: the bottom side is the axis (tag ``axis``, no rigid wall), the plaque a
+    ring on the top wall closing ``stenosis_degree`` of the radius (``height``), the meridian
+    areas the plane one-sided plaque's (the top's mirror of the default)."""
+    case = config.from_dict({"geometry": {"axisymmetric": True, "height": 0.0035}})
+    tagged = mesh.build(case)
+    s = mesh.summary(tagged, case)
+    assert s["facets"]["axis"] > 0 and "rigid_wall" not in s["facets"]
+    for name, area in stenosis.analytic_areas(case.geometry).items():
+        assert s["area_m2"][name] == pytest.approx(area, rel=5e-3), name
+    assert s["measures"]["stenosis_degree"] == pytest.approx(0.5, rel=1e-12)
+    assert s["measures"]["min_cap_thickness_m"] == pytest.approx(0.0005, rel=5e-3)
+    axis = mesh.facet_segments(tagged, Boundary.AXIS)
+    assert np.abs(axis[:, :, 1]).max() == 0.0
+    interface = mesh.facet_segments(tagged, Boundary.INTERFACE).reshape(-1, 2)
+    assert interface[:, 1].min() == pytest.approx(0.0035 / 2, rel=1e-9)  # the apex, r = R/2
+
+
 def test_the_plaque_placed_upstream_in_a_longer_segment():
     """``stenosis_centre`` moves the plaque: at 1 cm of a 4 cm segment (2 cm more downstream than
     the study's) the areas are the cosine integrals, the apex is at x = 1 cm, and the plaque in

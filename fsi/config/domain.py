@@ -28,11 +28,15 @@ class StenosisGeometry:
     stenosis_degree: float = open_interval(0.5, 0.0, 1.0)
     cap_thickness: float = positive(0.0005, "m")
     lipid_length: float = positive(0.006, "m")
-    plaque_sides: tuple[Literal["bottom", "top"], ...] = ("bottom",)
+    # Where the plaques sit; null: [bottom]. Not with axisymmetric (the plaque is a ring).
+    plaque_sides: tuple[Literal["bottom", "top"], ...] | None = None
     # x of the plaque's apex (m); null: length / 2, the study's plaque in the middle.
     stenosis_centre: float | None = checked(
         None, lambda v: v is None or v > 0, "a positive number, or null for length / 2", "m"
     )
+    # The meridian half-plane of a circular vessel (docs/axisymmetric.md): y = 0 the axis,
+    # height the lumen's radius, the plaque a concentric ring of cap and lipid.
+    axisymmetric: bool = False
 
 
 @dataclass(frozen=True)

@@ -398,6 +398,9 @@ def _build_union(tp: Any, value: Any, key: str) -> Any:
         return _build_tagged(options, value, key)
     if float in options and not _finite(value):
         raise ConfigError("", key, "a finite number", value)
+    others = [o for o in options if o is not type(None)]
+    if isinstance(value, list) and len(others) == 1 and typing.get_origin(others[0]) is tuple:
+        return build(others[0], value, key)  # an optional list: its item's own message
     for option in options:
         try:
             return build(option, value, key)

@@ -59,7 +59,9 @@ def estimated_cells(case) -> float:
     size, local = m.size, min(m.local_size, m.size)
     if g.kind == "stenosis":
         total = stenosis_geometry.analytic_areas(g)["total"]
-        fine_area = len(g.plaque_sides) * stenosis_geometry.plaque_height(g) * g.stenosis_length
+        fine_area = (
+            len(stenosis_geometry.sides(g)) * stenosis_geometry.plaque_height(g) * g.stenosis_length
+        )
         per_size2 = (total - fine_area) / size / size + fine_area / local / local
     elif g.kind == "turek_hron":
         per_size2 = _turek_hron_cells_area(g, size, local)

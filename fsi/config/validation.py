@@ -79,9 +79,18 @@ def _validate_stenosis(g: StenosisGeometry) -> None:
     """Plaque sides once each; the stenosis (its length and its centre) inside the segment;
     the cap thinner than the plaque and nowhere thinner than ``cap_thickness`` over the lipid
     pool."""
-    if len(set(g.plaque_sides)) != len(g.plaque_sides) or not g.plaque_sides:
+    if g.axisymmetric and g.plaque_sides is not None:
         raise ConfigError(
-            "", "geometry.plaque_sides", "'bottom', 'top' or both, once each", list(g.plaque_sides)
+            "",
+            "geometry.plaque_sides",
+            "no plaque_sides with geometry.axisymmetric (the plaque is a concentric ring on the"
+            " vessel's wall; the bottom side is the axis)",
+            list(g.plaque_sides),
+        )
+    sides = stenosis_geometry.sides(g)
+    if len(set(sides)) != len(sides) or not sides:
+        raise ConfigError(
+            "", "geometry.plaque_sides", "'bottom', 'top' or both, once each", list(sides)
         )
     _refuse_not_shorter(g, "stenosis_length", than="length")
     half = g.stenosis_length / 2

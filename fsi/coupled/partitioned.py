@@ -74,7 +74,7 @@ def build_coupled(case: config.Case, comm: MPI.Comm = MPI.COMM_WORLD) -> Coupled
     whole = mesh.build(case, comm)
     fluid_mesh = mesh.restrict(whole, Region.FLUID)
     boundaries = fluid_boundaries.boundary_conditions(
-        case.fluid, mesh.geometry_module(case).BOUNDARIES, moving_interface=True
+        case.fluid, mesh.boundaries(case), moving_interface=True
     )
     fluid_solver = fluid.FluidSolver(
         fluid_mesh.mesh,

@@ -53,7 +53,7 @@ class FluidOutputs:
 
     def __init__(self, case: config.Case, solver: fluid.FluidSolver):
         self.solver = solver
-        boundaries = mesh.geometry_module(case).BOUNDARIES
+        boundaries = mesh.boundaries(case)
         self.walls = list(walls(boundaries))
         self.lumen = not isinstance(case.geometry, config.TurekHronGeometry)
         # column → (∫ u·n ds over the boundary, compiled once; the sign that makes it positive

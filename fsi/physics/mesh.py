@@ -159,6 +159,14 @@ def geometry_module(case: Case):
     }[type(case.geometry)]
 
 
+def boundaries(case: Case) -> tuple[Boundary, ...]:
+    """The boundary tags of the case's mesh (the geometry module's ``BOUNDARIES``; an
+    axisymmetric stenosis has the axis in place of the rigid wall)."""
+    if isinstance(case.geometry, StenosisGeometry):
+        return stenosis.boundaries(case.geometry)
+    return geometry_module(case).BOUNDARIES
+
+
 def extract(tagged: TaggedMesh, *regions: Region):
     """The submesh of ``regions`` (e.g. the fluid, or wall + cap + lipid), its parent-cell map."""
     return compat.create_submesh(tagged.mesh, tagged.mesh.topology.dim, tagged.cells(*regions))
@@ -271,8 +279,7 @@ def summary(tagged: TaggedMesh, case: Case) -> dict:
     areas = {r.label: area(dx(int(r))) for r in builder.REGIONS}
     areas["total"] = area(dx)
     facets = {
-        b.label: comm.allreduce(_owned_count(tagged.facets(b), facet_map))
-        for b in builder.BOUNDARIES
+        b.label: comm.allreduce(_owned_count(tagged.facets(b), facet_map)) for b in boundaries(case)
     }
     result = {"cells": cells, "area_m2": areas, "facets": facets}
     if isinstance(case.geometry, StenosisGeometry):
@@ -323,11 +330,8 @@ def stenosis_measures(tagged: TaggedMesh, g: StenosisGeometry) -> dict:
     interface = facet_segments(tagged, Boundary.INTERFACE)
     y = interface[:, :, 1].ravel()
     # With plaque on both sides each is lower than half the lumen; with one, all is that side's.
-    split = (
-        g.height / 2
-        if len(g.plaque_sides) == 2
-        else (np.inf if "bottom" in g.plaque_sides else -np.inf)
-    )
+    sides = stenosis.sides(g)
+    split = g.height / 2 if len(sides) == 2 else (np.inf if "bottom" in sides else -np.inf)
     bottom = y[y < split].max(initial=0.0)
     top = (g.height - y[y >= split]).max(initial=0.0)
     lipid_vertices = facet_segments(tagged, Boundary.CAP_LIPID).reshape(-1, 2)

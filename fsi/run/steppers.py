@@ -142,9 +142,7 @@ class _Checkpointed:
 def fluid_boundaries(case: config.Case) -> tuple:
     """Rigid structure: the configured inlet and outlet, no-slip on every wall
     (fsi.physics.fluid_boundaries.boundary_conditions)."""
-    return boundary_conditions(
-        case.fluid, mesh.geometry_module(case).BOUNDARIES, moving_interface=False
-    )
+    return boundary_conditions(case.fluid, mesh.boundaries(case), moving_interface=False)
 
 
 class RigidStepper(_Checkpointed):
@@ -163,9 +161,7 @@ class RigidStepper(_Checkpointed):
             axisymmetric=config.is_axisymmetric(case.geometry),
         )
         self.obstacle = [
-            b
-            for b in (Boundary.OBSTACLE, Boundary.INTERFACE)
-            if b in mesh.geometry_module(case).BOUNDARIES
+            b for b in (Boundary.OBSTACLE, Boundary.INTERFACE) if b in mesh.boundaries(case)
         ]
         self.turek_hron = isinstance(case.geometry, config.TurekHronGeometry)
         self.outputs = FluidOutputs(case, self.solver)
