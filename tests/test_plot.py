@@ -406,3 +406,22 @@ def test_a_colour_limit_caps_the_range_and_the_bar_says_so(run_dir, monkeypatch)
     assert plot.field_snapshot(run_dir, "sss", 0.003, out, limit=half, marks=mark) == out
     plot.field_snapshot(run_dir, "sss", 0.003, run_dir.parent / "full.png")
     assert is_png(out) and extends[0] in ("both", "max", "min") and extends[1] == "neither"
+
+
+def test_an_axisymmetric_run_is_drawn_in_z_and_r(run_dir, shared_tmp):
+    """The axes are the meridian plane's z and r for an axisymmetric run (its config.yaml),
+    x and y for a plane one, and for a folder without a readable configuration."""
+    assert plot.axis_labels(run_dir) == ("x (mm)", "y (mm)")
+    comm = MPI.COMM_WORLD
+    if comm.rank == 0:
+        for name, text in {
+            "tube": "geometry: {kind: tube}\nstructure: {mode: rigid}\n",
+            "ring": "geometry: {axisymmetric: true}\n",
+            "broken": "geometry: [",
+        }.items():
+            (shared_tmp / name).mkdir()
+            (shared_tmp / name / "config.yaml").write_text(text)
+    comm.barrier()
+    assert plot.axis_labels(shared_tmp / "tube") == ("z (mm)", "r (mm)")
+    assert plot.axis_labels(shared_tmp / "ring") == ("z (mm)", "r (mm)")
+    assert plot.axis_labels(shared_tmp / "broken") == ("x (mm)", "y (mm)")

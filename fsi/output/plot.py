@@ -401,6 +401,19 @@ def streamline_field(snapshot: Snapshot) -> Snapshot:
     return read_field(snapshot.run_dir, "velocity", snapshot.time, warp=snapshot.warp)
 
 
+def axis_labels(run_dir: Path) -> tuple[str, str]:
+    """The picture's axis labels: ``z (mm)``, ``r (mm)`` for an axisymmetric run (its
+    ``config.yaml`` says so: docs/axisymmetric.md), ``x (mm)``, ``y (mm)`` otherwise (also when
+    the run folder has no readable configuration)."""
+    from fsi import config
+
+    try:
+        axisymmetric = config.is_axisymmetric(config.load(Path(run_dir) / "config.yaml").geometry)
+    except (config.ConfigError, OSError):
+        axisymmetric = False
+    return ("z (mm)", "r (mm)") if axisymmetric else ("x (mm)", "y (mm)")
+
+
 def title(snapshot: Snapshot) -> str:
     """The run, the field and the stored time (and the requested one if it differs by more
     than half a step)."""
@@ -491,8 +504,9 @@ def draw(
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_aspect("equal")
-    ax.set_xlabel("x (mm)")
-    ax.set_ylabel("y (mm)")
+    xlabel, ylabel = axis_labels(snapshot.run_dir)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
     ax.set_title(title(snapshot), fontsize=9)
     bar_label = f"{prefix}{label}" + (f" ({unit})" if unit else "")
     _colour_bar(fig, ax, image, bar_label, quantity, shown, wide=aspect < 0.6, norm=norm)
