@@ -21,7 +21,7 @@ import numpy as np
 
 from fsi import config
 from fsi.coupled import coupling, partitioned
-from fsi.geometry import turek_hron
+from fsi.geometry import tube, turek_hron
 from fsi.geometry.tags import Boundary, Region
 from fsi.numerics import newton
 from fsi.numerics.timestepping import Step
@@ -236,7 +236,9 @@ class CoupledStepper(_Checkpointed):
     """Dirichlet–Neumann iterations per step (fsi/coupled/partitioned.py), then the study's metrics:
     peaks of |u| and p over the fluid, of |η| over the structure, and the largest |σ₁₂| (SSS).
     The Turek–Hron cases add the benchmark's ``drag`` and ``lift`` (N/m, over the cylinder and
-    the flag, on the deformed mesh) and the displacement ``ux_A``, ``uy_A`` (m) of point A."""
+    the flag, on the deformed mesh) and the displacement ``ux_A``, ``uy_A`` (m) of point A; a
+    tube the axial and radial displacement ``uz_A``, ``ur_A`` (m) of its inner wall at
+    mid-length (the elastic-tube benchmarks' point A)."""
 
     def __init__(self, case: config.Case, comm: MPI.Comm):
         self.problem = partitioned.build_coupled(case, comm)
@@ -245,6 +247,9 @@ class CoupledStepper(_Checkpointed):
             turek_hron.point_a(case.geometry)
             if isinstance(case.geometry, config.TurekHronGeometry)
             else None
+        )
+        self.tube_point = (
+            tube.point_a(case.geometry) if isinstance(case.geometry, config.TubeGeometry) else None
         )
         self.outputs = FluidOutputs(case, self.problem.fluid)
         # Before the mesh ever moves: the checkpoint keys are reference coordinates.
@@ -271,6 +276,7 @@ class CoupledStepper(_Checkpointed):
             + stress_columns(problem.solid)
             + self.outputs.columns
             + (["drag", "lift", "ux_A", "uy_A"] if self.point_a else [])
+            + (["uz_A", "ur_A"] if self.tube_point else [])
             + self.time_errors.columns
         )
         self.iterations: list[int] = []
@@ -310,6 +316,8 @@ class CoupledStepper(_Checkpointed):
             if self.point_a
             else {"peak_wall_displacement": problem.solid.max_displacement([Region.WALL])}
         )
+        if self.tube_point:
+            row["uz_A"], row["ur_A"] = metrics.nodal_value(problem.solid.eta, self.tube_point)
         return {
             **row,
             **self.outputs.update(),
