@@ -3,10 +3,11 @@
 
 y = 0 is the axis of an axisymmetric tube (the meridian half-plane, docs/axisymmetric.md) or,
 plane, the symmetry line of a channel of height 2 radius. :func:`point_a`, the inner wall at
-mid-length where the elastic-tube benchmarks report the displacement, is a mesh vertex. Tags: ``fluid``, ``wall``; ``inlet``
-(x = 0) and ``outlet`` (x = length) across the lumen, ``axis`` (y = 0), ``interface`` (the lumen
-surface y = radius), ``clamped`` (the wall's two ends) and ``exterior`` (y = radius +
-wall_thickness).
+mid-length where the elastic-tube benchmarks report the displacement, is a mesh vertex.
+
+Tags: ``fluid``, ``wall``; ``inlet`` (x = 0) and ``outlet`` (x = length) across the lumen,
+``axis`` (y = 0), ``interface`` (the lumen surface y = radius), ``clamped`` (the wall's two
+ends) and ``exterior`` (y = radius + wall_thickness).
 """
 
 from __future__ import annotations
