@@ -3,8 +3,11 @@
 Laws of the 2D plane-strain setting of docs/model.md (Structure), in ``F = I + ∇η`` (2×2; the
 out-of-plane stretch is 1): :class:`StVenantKirchhoff` (the study's law) and :class:`NeoHookean`,
 which linearise to Hooke's law with the same ``λ, μ`` (:func:`lame`), and the viscous
-:class:`KelvinVoigt` stress added to either. The parameters may be numbers,
-:class:`dolfinx.fem.Constant` or DG0 fields (per-region values): the laws only build UFL.
+:class:`KelvinVoigt` stress added to either. The same laws take the 3×3 F of an axisymmetric
+structure (the hoop stretch ``F_θθ = 1 + η_r/r``, fsi/physics/solid_residual.py) as they are:
+every identity, trace and the neo-Hookean energy's ``d`` follow ``F.ufl_shape``, so they are
+then the 3D laws. The parameters may be numbers, :class:`dolfinx.fem.Constant` or DG0 fields
+(per-region values): the laws only build UFL.
 """
 
 from __future__ import annotations
@@ -34,7 +37,8 @@ def green_lagrange(F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
 
 @runtime_checkable
 class HyperelasticLaw(Protocol):
-    """A hyperelastic law in terms of the (plane-strain, 2×2) deformation gradient ``F``."""
+    """A hyperelastic law in terms of the deformation gradient ``F``: 2×2 (plane strain) or
+    3×3 (axisymmetric, 3D)."""
 
     name: str
 
@@ -43,16 +47,18 @@ class HyperelasticLaw(Protocol):
         ...
 
     def second_piola(self, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
-        """Second Piola–Kirchhoff stress ``Σ = ∂W/∂E`` (2×2, in-plane)."""
+        """Second Piola–Kirchhoff stress ``Σ = ∂W/∂E`` (the shape of F)."""
         ...
 
     def second_piola_zz(self, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
-        """The out-of-plane component ``Σ₃₃`` that keeps the plane-strain constraint."""
+        """The out-of-plane component ``Σ₃₃`` that keeps the plane-strain constraint (2×2 F
+        only)."""
         ...
 
 
 def cauchy(law: HyperelasticLaw, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
-    """In-plane Cauchy stress on the current configuration, ``σ = J⁻¹ P Fᵀ = J⁻¹ F Σ Fᵀ``."""
+    """Cauchy stress on the current configuration, ``σ = J⁻¹ P Fᵀ = J⁻¹ F Σ Fᵀ`` (in-plane
+    for a 2×2 F, the whole 3×3 one with the hoop stress for an axisymmetric F)."""
     return F * law.second_piola(F) * F.T / ufl.det(F)
 
 
@@ -85,8 +91,9 @@ class StVenantKirchhoff:
 @dataclass(frozen=True)
 class NeoHookean:
     """Compressible neo-Hookean: ``W = μ/2 (tr C − 2 − 2 ln J) + λ/2 (ln J)²``,
-    ``Σ = μ (I − C⁻¹) + λ ln J C⁻¹``, ``C = FᵀF``, ``J = det F``; in plane strain (``C₃₃ = 1``)
-    the usual 3D energy ``μ/2 (I₁³ᴰ − 3 − 2 ln J) + λ/2 (ln J)²``.
+    ``Σ = μ (I − C⁻¹) + λ ln J C⁻¹``, ``C = FᵀF``, ``J = det F``, with d = 2 the dimension
+    of F: in plane strain (``C₃₃ = 1``) the usual 3D energy ``μ/2 (I₁³ᴰ − 3 − 2 ln J) +
+    λ/2 (ln J)²``, which a 3×3 (axisymmetric) F gives with d = 3.
     """
 
     lmbda: Parameter

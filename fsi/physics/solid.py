@@ -4,6 +4,10 @@
     η = 0 (or given) on ΓD,   P N = t₀ (Pa) + nodal forces (N/m) − p J F⁻ᵀ N on Γw1,
     P N = −(k_s η·N + c_s η̇·N) N on ΓN (tissue support, :class:`Support`)
 
+in the plane (plane strain, per unit depth) or, ``axisymmetric``, on the meridian half-plane of
+a body of revolution (x = z, y = r; F is 3×3 with the hoop stretch 1 + η_r/r, the integrals are
+over the whole body and the nodal forces are in N; fsi/physics/solid_residual.py).
+
 :class:`SolidSolver` owns η, its time state, its boundary conditions and Newton (options prefix
 ``solid_``); the weak form is fsi/physics/solid_residual.py, the stresses
 fsi/physics/solid_stress.py.
@@ -28,11 +32,19 @@ import numpy as np
 import ufl
 
 from fsi import compat
-from fsi.config import Case, Material, SolverSettings, StenosisGeometry, TubeGeometry
+from fsi.config import (
+    Case,
+    Material,
+    SolverSettings,
+    StenosisGeometry,
+    TubeGeometry,
+    is_axisymmetric,
+)
 from fsi.geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 from fsi.numerics.newton import Newton, SolveResult, petsc_options
 from fsi.numerics.timestepping import NewmarkFamily, structural_scheme
 from fsi.physics import mesh as fsi_mesh
+from fsi.physics.coordinates import Coordinates
 from fsi.physics.mesh import TaggedMesh
 from fsi.physics.solid_residual import SolidResidual, material_fields
 from fsi.physics.solid_stress import StressFields
@@ -85,7 +97,18 @@ class PrescribedDisplacement:
     boundaries: tuple[Boundary, ...] | None = None
 
 
-Dirichlet = Clamp | HoldRegions | PrescribedDisplacement
+@dataclass(frozen=True)
+class Roller:
+    """η_``component`` = 0 on the facets of ``boundaries``, the other component free: a
+    boundary that slides along itself (``component`` its normal's axis, 0 for x, 1 for y),
+    e.g. the ends z = const of a tube section in plane strain (ε_zz = 0), or η_r = 0 where
+    an axisymmetric solid meets its axis."""
+
+    boundaries: tuple[Boundary, ...]
+    component: int
+
+
+Dirichlet = Clamp | HoldRegions | PrescribedDisplacement | Roller
 
 
 @dataclass(frozen=True)
@@ -110,11 +133,11 @@ class Support:
 class SolidBoundaryConditions:
     """Dirichlet conditions, the interface where the fluid's loads act, and the loads.
 
-    ``body_force``: force per unit mass (gravity), m/s². ``pressure(t)``: a follower pressure on
-    the interface (Pa; its traction is ``−p J F⁻ᵀ N`` per reference length). ``source(x)``: a
-    force per unit reference volume as a UFL expression of the spatial coordinate (for
-    manufactured solutions). ``support``: the tissue's spring–dashpot on the exterior.
-    Everything not named is traction-free.
+    ``body_force``: force per unit mass (gravity), m/s² (axisymmetric: along the axis only).
+    ``pressure(t)``: a follower pressure on the interface (Pa; its traction is ``−p J F⁻ᵀ N``
+    per reference area). ``source(x)``: a force per unit reference volume as a UFL expression
+    of the spatial coordinate (for manufactured solutions). ``support``: the tissue's
+    spring–dashpot on the exterior. Everything not named is traction-free.
     """
 
     dirichlet: tuple[Dirichlet, ...] = (Clamp(),)
@@ -213,18 +236,31 @@ class DirichletConditions:
 
     :attr:`bcs`: as Newton solves with them (η = 0, or the prescribed value that
     :meth:`update` sets); :attr:`homogeneous`: the same dofs held at 0 (the initial
-    acceleration's mass matrix); :attr:`constrained`: every constrained dof (local block
-    index), sorted.
+    acceleration's mass matrix); :attr:`constrained`: every constrained row, the local
+    unrolled index ``block × block size + component`` of each constrained component, sorted
+    (a :class:`Roller` constrains one component of its blocks, the others all of them).
     """
 
     def __init__(
         self, domain: TaggedMesh, V: dolfinx.fem.FunctionSpace, conditions: Sequence[Dirichlet]
     ):
         tdim = domain.mesh.topology.dim
-        self.bcs, self._prescribed = [], []
-        constrained = []
+        bs = V.dofmap.index_map_bs
+        self.bcs, self._prescribed, self.homogeneous = [], [], []
+        constrained = [np.zeros(0, dtype=np.int32)]
         zero = np.zeros(domain.mesh.geometry.dim, dtype=PETSc.ScalarType)
         for item in conditions:
+            if isinstance(item, Roller):
+                # dofs of a subspace: unrolled rows of V.
+                sub = V.sub(item.component)
+                rows = dolfinx.fem.locate_dofs_topological(
+                    sub, tdim - 1, _facets(domain, item.boundaries)
+                )
+                bc = dolfinx.fem.dirichletbc(PETSc.ScalarType(0), rows, sub)
+                self.bcs.append(bc)
+                self.homogeneous.append(bc)
+                constrained.append(rows)
+                continue
             if isinstance(item, HoldRegions):
                 dofs = dolfinx.fem.locate_dofs_topological(V, tdim, domain.cells(*item.regions))
                 self.bcs.append(dolfinx.fem.dirichletbc(zero, dofs, V))
@@ -242,11 +278,9 @@ class DirichletConditions:
                 self._prescribed.append((item.value, g))
             else:  # pragma: no cover
                 raise TypeError(f"unknown Dirichlet condition {item!r}")
-            constrained.append(dofs)
-        self.constrained = (
-            np.unique(np.concatenate(constrained)) if constrained else np.zeros(0, dtype=np.int32)
-        )
-        self.homogeneous = [dolfinx.fem.dirichletbc(zero, dofs, V) for dofs in constrained]
+            self.homogeneous.append(dolfinx.fem.dirichletbc(zero, dofs, V))
+            constrained.append((dofs[:, None] * bs + np.arange(bs)).ravel())
+        self.constrained = np.unique(np.concatenate(constrained))
 
     def update(self, t: float) -> None:
         """The prescribed displacements at time ``t``."""
@@ -275,9 +309,13 @@ class SolidSolver:
         degree: Lagrange degree of η (2: P1 locks in bending).
         quadrature_degree: of every integral (4 integrates the P2 SVK residual exactly).
         solver, prefix: Newton tolerances, PETSc options of the linear solves and their prefix.
+        axisymmetric: the mesh is the meridian half-plane (x = z, y = r) of a body of
+            revolution (fsi/physics/coordinates.py): 3×3 F with the hoop stretch, integrals
+            weighted by 2πR; False (the default): plane strain per unit depth.
 
-    Parts: ``rho``, ``law``, ``viscous`` (:func:`material_fields`), ``dirichlet``
-    (:class:`DirichletConditions`), ``residual`` (:class:`SolidResidual`), ``newton``, ``stress``.
+    Parts: ``coordinates`` (:class:`~fsi.physics.coordinates.Coordinates`), ``rho``, ``law``,
+    ``viscous`` (:func:`material_fields`), ``dirichlet`` (:class:`DirichletConditions`),
+    ``residual`` (:class:`SolidResidual`), ``newton``, ``stress``.
     """
 
     def __init__(
@@ -291,9 +329,11 @@ class SolidSolver:
         quadrature_degree: int = 4,
         solver: SolverSettings = DEFAULT_SOLVER,
         prefix: str = "solid_",
+        axisymmetric: bool = False,
     ):
         mesh = domain.mesh
         self.domain, self.bcs_data, self.scheme, self.prefix = domain, bcs, scheme, prefix
+        self.coordinates = Coordinates(mesh, axisymmetric)
         self.comm: MPI.Comm = mesh.comm
         tdim = mesh.topology.dim
         mesh.topology.create_connectivity(tdim - 1, tdim)
@@ -341,9 +381,10 @@ class SolidSolver:
         )
         self.interface_dofs = dofs[dofs < self.V.dofmap.index_map.size_local]
         self.interface_points = self.V.tabulate_dof_coordinates()[self.interface_dofs, :2]
-        free = ~np.isin(self.interface_dofs, self.dirichlet.constrained)
         bs = self.V.dofmap.index_map_bs
-        self._force_rows = (self.interface_dofs[free, None] * bs + np.arange(bs)).ravel()
+        rows = self.interface_dofs[:, None] * bs + np.arange(bs)
+        free = ~np.isin(rows, self.dirichlet.constrained)  # (n, bs): the free components
+        self._force_rows = rows[free]
         self._force_free = free
         self.forces = np.zeros((len(self.interface_dofs), bs))
         self.forces_n = np.zeros_like(self.forces)
@@ -355,8 +396,9 @@ class SolidSolver:
     # -- loads ----------------------------------------------------------------------------
 
     def set_interface_forces(self, forces: np.ndarray) -> None:
-        """Nodal forces at t_{n+1} on the owned interface dofs (an interface vector (n, 2), N/m);
-        entries on clamped dofs are ignored."""
+        """Nodal forces at t_{n+1} on the owned interface dofs (an interface vector (n, 2); N/m
+        in the plane, N on a whole ring when axisymmetric, as the residual's integrals); entries
+        on constrained components are ignored."""
         forces = np.asarray(forces, dtype=float).reshape(self.forces.shape)
         self.forces[:] = forces
 
@@ -486,9 +528,10 @@ class SolidSolver:
         return float(self.comm.allreduce(local, op=MPI.MAX))
 
     def min_jacobian(self) -> float:
-        """min det F at the cell midpoints (DG0 interpolation), over all ranks."""
+        """min det F at the cell midpoints (DG0 interpolation; axisymmetric with the hoop
+        stretch), over all ranks."""
         if self._det_F is None:
-            F = ufl.Identity(2) + ufl.grad(self.eta)
+            F = self.residual.deformation_gradient(self.eta)
             self._det_F = (
                 dolfinx.fem.Function(self.Q0),
                 dolfinx.fem.Expression(ufl.det(F), compat.interpolation_points(self.Q0)),
@@ -523,4 +566,5 @@ def build(
         degree=s.degree,
         quadrature_degree=s.quadrature_degree,
         solver=s.solver,
+        axisymmetric=is_axisymmetric(case.geometry),
     )

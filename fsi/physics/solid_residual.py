@@ -12,6 +12,18 @@ Kelvin–Voigt stress ``S_v = τ (λ tr Ė I + 2μ Ė)``, ``Ė = sym(Fᵀ ∇η�
 with ``Σ_{n+1-αf} = (1 − αf) Σ(F_{n+1}) + αf Σ(F_n)`` (Kuhl & Ramm's energy-momentum method,
 energy-conserving for St. Venant–Kirchhoff and αf = 1/2) and ``F̄ = (F_{n+1} + F_n)/2``, so that
 a rigid motion makes no viscous stress and a step's viscous work is ≥ 0.
+
+Plane or axisymmetric (fsi/physics/coordinates.py): plane, ``F = I + ∇η`` is 2×2 (plane strain)
+and the integrals are per unit depth. Axisymmetric (x = z, y = r, η = (η_z, η_r), no swirl), the
+gradients are the 3×3 ones of :meth:`~fsi.physics.coordinates.Coordinates.grad`::
+
+    F = [[1 + ∂η_z/∂z, ∂η_z/∂r, 0], [∂η_r/∂z, 1 + ∂η_r/∂r, 0], [0, 0, 1 + η_r/r]],
+
+the hoop stretch ``F_θθ = 1 + η_r/r`` = r/R, the laws take this F as it is (3D), the stress
+term is ``F Σ : ∇δη`` with the 3×3 ∇δη (its hoop part δη_r/r), the Kelvin–Voigt rate uses the
+3×3 ∇η̇, and every ``dx`` and ``ds`` carries the weight 2πR (R the reference radius), so the
+integrals are over the whole body of revolution (forces in N, energies in J). The follower
+pressure's ``J F⁻ᵀ N`` is :meth:`SolidResidual.area_normal`.
 """
 
 from __future__ import annotations
@@ -30,6 +42,7 @@ import ufl
 from fsi import compat
 from fsi.config import Material
 from fsi.geometry.tags import Boundary, Region
+from fsi.physics.coordinates import Coordinates
 from fsi.physics.materials import HyperelasticLaw, KelvinVoigt, lame, make_law
 from fsi.physics.mesh import TaggedMesh
 
@@ -131,10 +144,12 @@ def material_fields(domain: TaggedMesh, materials: Mapping[Region, Material]) ->
 
 class SolidUnknowns(Protocol):
     """What the residual reads from its solver (fsi.physics.solid.SolidSolver): the tagged
-    mesh and boundary data, the time scheme, the space V with η, η_n, v_n, a_n and the
-    interface tractions (now and at t_n), the step dt, and the material (ρ, law, viscosity)."""
+    mesh, its coordinates (plane or axisymmetric) and boundary data, the time scheme, the space
+    V with η, η_n, v_n, a_n and the interface tractions (now and at t_n), the step dt, and the
+    material (ρ, law, viscosity)."""
 
     domain: TaggedMesh
+    coordinates: Coordinates
     bcs_data: Any
     scheme: Any
     V: dolfinx.fem.FunctionSpace
@@ -158,9 +173,10 @@ class SolidResidual:
     quasi-static scheme, no viscous stress when every τ is 0) is not built.
 
     It reads the solver's functions (η, η_n, η̇_n, η̈_n, the tractions), materials (ρ, the law,
-    the viscous stress), time step ``dt`` and boundary data, and owns what the terms add: the
-    measures :attr:`dx` and :attr:`ds` (with the cell and facet tags) and
-    :attr:`ds_interface`, all at ``quadrature_degree``; the body force :attr:`gravity`
+    the viscous stress), coordinates, time step ``dt`` and boundary data, and owns what the
+    terms add: the measures :attr:`dx` and :attr:`ds` (with the cell and facet tags) and
+    :attr:`ds_interface`, all at ``quadrature_degree`` and weighted by the coordinates (2πR
+    when axisymmetric, the plain measures in the plane); the body force :attr:`gravity`
     (m/s²); the follower pressure at t_{n+1} and t_n, :attr:`pressure` and
     :attr:`pressure_n` (Pa); and the support's ``(k_s, c_s, ds)``, :attr:`support` (None
     without one).
@@ -169,10 +185,15 @@ class SolidResidual:
     def __init__(self, solver: SolidUnknowns, quadrature_degree: int):
         self.solver = solver
         mesh, bcs = solver.domain.mesh, solver.bcs_data
+        self.coordinates = solver.coordinates
         metadata = {"quadrature_degree": quadrature_degree}
         cell_tags, facet_tags = solver.domain.cell_tags, solver.domain.facet_tags
-        self.dx = ufl.Measure("dx", domain=mesh, subdomain_data=cell_tags, metadata=metadata)
-        self.ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags, metadata=metadata)
+        self.dx = self.coordinates.measure(
+            ufl.Measure("dx", domain=mesh, subdomain_data=cell_tags, metadata=metadata)
+        )
+        self.ds = self.coordinates.measure(
+            ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags, metadata=metadata)
+        )
         self.ds_interface = self._ds(bcs.interface)
         self.gravity = dolfinx.fem.Constant(
             mesh, np.asarray(bcs.body_force, dtype=PETSc.ScalarType)
@@ -192,14 +213,17 @@ class SolidResidual:
     def _ds(self, boundaries: Sequence[Boundary]) -> ufl.Measure:
         return sum((self.ds(int(b)) for b in boundaries[1:]), self.ds(int(boundaries[0])))
 
+    def deformation_gradient(self, eta):
+        """``F = I + ∇η``: 2×2, or 3×3 with the hoop stretch ``1 + η_r/r`` (axisymmetric)."""
+        return self.coordinates.identity() + self.coordinates.grad(eta)
+
     def _residual(self) -> ufl.Form:
         """stress + inertia − body force − source − interface traction + follower pressure
         + support, each at n+1−αf."""
         s, scheme = self.solver, self.solver.scheme
         af = scheme.alpha_f
         deta = ufl.TestFunction(s.V)
-        I = ufl.Identity(s.domain.mesh.geometry.dim)
-        F_new, F_old = I + ufl.grad(s.eta), I + ufl.grad(s.eta_n)
+        F_new, F_old = self.deformation_gradient(s.eta), self.deformation_gradient(s.eta_n)
         S_alpha, v_alpha = self._second_piola_alpha(F_new, F_old)
         residual = self._stress(scheme.at(F_new, F_old, af), S_alpha, deta)
         if scheme.dynamic:
@@ -221,10 +245,10 @@ class SolidResidual:
         :attr:`pressure_n`): the balance ``M a_n = f`` that the acceleration a_n satisfies."""
         s = self.solver
         deta, da = ufl.TestFunction(s.V), ufl.TrialFunction(s.V)
-        F = ufl.Identity(s.domain.mesh.geometry.dim) + ufl.grad(s.eta_n)
+        F = self.deformation_gradient(s.eta_n)
         S = s.law.second_piola(F)
         if s.viscous is not None:
-            S = S + s.viscous.second_piola(F, ufl.grad(s.v_n))
+            S = S + s.viscous.second_piola(F, self.coordinates.grad(s.v_n))
         force = -self._stress(F, S, deta)
         if self.support is not None:
             force -= self._support(s.eta_n, s.v_n, deta)
@@ -250,13 +274,14 @@ class SolidResidual:
             # The rate pulled back with the mid-step F̄: Ė = (E_{n+1} − E_n)/dt exactly when
             # η̇_{n+1-αf} = (η_{n+1} − η_n)/dt (trapezoidal, quasi-static): see the docstring.
             S_alpha = S_alpha + s.viscous.second_piola(
-                scheme.at(F_new, F_old, 0.5), ufl.grad(v_alpha)
+                scheme.at(F_new, F_old, 0.5), self.coordinates.grad(v_alpha)
             )
         return S_alpha, v_alpha
 
     def _stress(self, F, S, deta):
-        """``∫ F S : ∇δη dx``, the first Piola stress ``F S`` tested."""
-        return ufl.inner(F * S, ufl.grad(deta)) * self.dx
+        """``∫ F S : ∇δη dx``, the first Piola stress ``F S`` tested (axisymmetric: 3×3, with
+        the hoop term ``P_θθ δη_r/r``)."""
+        return ufl.inner(F * S, self.coordinates.grad(deta)) * self.dx
 
     def _inertia(self, deta):
         """``∫ ρ a_{n+1-αm}·δη dx``."""
@@ -280,7 +305,21 @@ class SolidResidual:
     def _follower_pressure(self, p, F, deta):
         """``∫ p J F⁻ᵀ N·δη ds`` over the interface (the pressure's traction is its negative)."""
         N = ufl.FacetNormal(self.solver.domain.mesh)
-        return p * ufl.inner(ufl.det(F) * ufl.inv(F).T * N, deta) * self.ds_interface
+        return p * ufl.inner(self.area_normal(F, N), deta) * self.ds_interface
+
+    def area_normal(self, F, N):
+        """Nanson's ``J F⁻ᵀ N`` (the deformed area times its normal per reference area) in the
+        meridian plane, for the reference normal ``N`` (2-vector).
+
+        Plane: ``det F F⁻ᵀ N`` with the 2×2 F. Axisymmetric: F is block-diagonal,
+        ``diag(F₂, F_θθ)``, and N = (N_z, N_r, 0) has no hoop component, so
+        ``F⁻ᵀ N = (F₂⁻ᵀ N, 0)`` and ``J = det F₂ F_θθ``: the in-plane vector
+        ``F_θθ det F₂ F₂⁻ᵀ N``, where the factor F_θθ = r/R is the ring's change of
+        circumference (the 2πR of the measure times F_θθ is the deformed 2πr)."""
+        if not self.coordinates.axisymmetric:
+            return ufl.det(F) * ufl.inv(F).T * N
+        F2 = ufl.as_tensor([[F[0, 0], F[0, 1]], [F[1, 0], F[1, 1]]])
+        return F[2, 2] * ufl.det(F2) * ufl.inv(F2).T * N
 
     def _support(self, eta, v, deta):
         """``∫ (k_s η·N + c_s η̇·N)(δη·N) ds`` over the supported boundary."""

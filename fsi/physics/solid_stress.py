@@ -23,9 +23,11 @@ from fsi.physics.materials import HyperelasticLaw, cauchy, cauchy_zz
 
 class SolidDisplacement(Protocol):
     """What the stresses read from the solver (fsi.physics.solid.SolidSolver): the tagged
-    mesh, the displacement η and its degree, the regions and each cell's region."""
+    mesh and its coordinates (plane or axisymmetric), the displacement η and its degree, the
+    regions and each cell's region."""
 
     domain: Any
+    coordinates: Any
     degree: int
     eta: dolfinx.fem.Function
     comm: Any
@@ -35,7 +37,8 @@ class SolidDisplacement(Protocol):
 
 @dataclass(frozen=True)
 class RegionStress:
-    """Maxima over one region (Pa): von Mises, largest principal, largest |σ₁₂| (the SSS)."""
+    """Maxima over one region (Pa): von Mises, largest principal, largest |σ₁₂| (the SSS;
+    σ_zr when axisymmetric)."""
 
     max_von_mises: float
     max_principal: float
@@ -51,6 +54,11 @@ class StressFields:
     ``max((σ₁₁+σ₂₂)/2 + sqrt(((σ₁₁−σ₂₂)/2)² + σ₁₂²), σ₃₃)``. Fields are interpolated into DG
     of degree ``max(k − 1, 0)`` for P``k`` displacements (the degree of ∇η), at its points.
 
+    Axisymmetric (x = z, y = r): ``σ = J⁻¹ F Σ Fᵀ`` with the 3×3 F of the hoop stretch
+    (:attr:`sigma` is 3×3, its [2, 2] entry the hoop stress σ_θθ), and σ_θθ takes the place of
+    σ₃₃ above: it is a principal stress (no swirl: σ_zθ = σ_rθ = 0), so von Mises and the
+    largest principal stress are the formulas above with σ₃₃ = σ_θθ; the SSS is σ_zr.
+
     :attr:`cell_fields` are what the field files hold (XDMF stores one value per cell): each
     cell's extreme of the fields above (``sss``: the value of largest magnitude, sign kept;
     ``von_mises`` and ``max_principal``: the largest), so their maxima over a region are the
@@ -62,10 +70,8 @@ class StressFields:
         mesh = solver.domain.mesh
         degree = max(solver.degree - 1, 0)
         self.S = compat.function_space(mesh, "DG", degree)
-        self.T = compat.function_space(mesh, "DG", degree, (2, 2))
-        F = ufl.Identity(2) + ufl.grad(solver.eta)
-        sigma = cauchy(law, F)
-        s33 = cauchy_zz(law, F)
+        sigma, s33 = self._cauchy(solver.coordinates, law, solver.eta)
+        self.T = compat.function_space(mesh, "DG", degree, sigma.ufl_shape)
         s11, s22, s12 = sigma[0, 0], sigma[1, 1], sigma[0, 1]
         von_mises = ufl.sqrt(
             ((s11 - s22) ** 2 + (s22 - s33) ** 2 + (s33 - s11) ** 2) / 2 + 3 * s12**2
@@ -100,6 +106,16 @@ class StressFields:
             self.cell_fields[name] = f
         region = self.cell_fields["region"].x.array
         region[self._cell_value] = solver.cell_region[: len(self._cell_value)]
+
+    @staticmethod
+    def _cauchy(coordinates, law: HyperelasticLaw, eta):
+        """The Cauchy stress of η and its out-of-plane principal component: plane, the 2×2
+        in-plane σ and the plane-strain ``σ₃₃ = J⁻¹ Σ₃₃``; axisymmetric, the 3×3 σ and σ_θθ."""
+        F = coordinates.identity() + coordinates.grad(eta)
+        sigma = cauchy(law, F)
+        if coordinates.axisymmetric:
+            return sigma, sigma[2, 2]
+        return sigma, cauchy_zz(law, F)
 
     def update(self) -> None:
         """Interpolate the stresses of the current η; their cell extremes."""
