@@ -455,7 +455,7 @@ def test_set_values_have_the_file_limits(capsys):
 # Time steps
 
 
-@pytest.mark.parametrize("path", sorted((ROOT / "configs").glob("*.yaml")), ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", sorted((ROOT / "configs").glob("**/*.yaml")), ids=lambda p: p.stem)
 def test_step_count_is_that_of_the_schedule(path):
     time_ = config.load(path).time
     assert run_size.count_steps(time_) == sum(1 for _ in steps(time_))

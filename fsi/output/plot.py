@@ -254,6 +254,12 @@ def _find(run_dir: Path, name: str) -> tuple[str, list[_Segment], list]:
     raise PlotError(f"--field {name}: {run_dir} has no such field ({listing})")
 
 
+def stored_times(run_dir: Path, name: str) -> list[float]:
+    """The times (s) at which field ``name`` of the run in ``run_dir`` is stored, in order
+    (restart segments merged as :func:`read_field` reads them)."""
+    return [entry[0] for entry in _find(Path(run_dir), name)[2]]
+
+
 def read_field(
     run_dir: Path, name: str, t: float, *, warp: float | None = None, region: str | None = None
 ) -> Snapshot:
