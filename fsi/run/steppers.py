@@ -232,6 +232,26 @@ class RigidStepper(_Checkpointed):
 # The coupled modes: partitioned fluid–structure interaction
 
 
+def displacement_point(case: config.Case) -> tuple[tuple[str, str], tuple[float, float]] | None:
+    """The benchmark point whose displacement a structure's rows carry, with its two column
+    names: Turek–Hron's point A (``ux_A``, ``uy_A``), a tube's inner wall at mid-length
+    (``uz_A``, ``ur_A``: the elastic-tube benchmarks' point A); None for other geometries."""
+    g = case.geometry
+    if isinstance(g, config.TurekHronGeometry):
+        return ("ux_A", "uy_A"), turek_hron.point_a(g)
+    if isinstance(g, config.TubeGeometry):
+        return ("uz_A", "ur_A"), tube.point_a(g)
+    return None
+
+
+def displacement_row(eta, point) -> dict:
+    """The row's displacement of :func:`displacement_point` ``point`` (m), or nothing."""
+    if point is None:
+        return {}
+    names, xy = point
+    return dict(zip(names, (float(v) for v in metrics.nodal_value(eta, xy))))
+
+
 class CoupledStepper(_Checkpointed):
     """Dirichlet–Neumann iterations per step (fsi/coupled/partitioned.py), then the study's metrics:
     peaks of |u| and p over the fluid, of |η| over the structure, and the largest |σ₁₂| (SSS).
@@ -243,14 +263,8 @@ class CoupledStepper(_Checkpointed):
     def __init__(self, case: config.Case, comm: MPI.Comm):
         self.problem = partitioned.build_coupled(case, comm)
         self.cells = mesh.summary(self.problem.whole, case)["cells"]
-        self.point_a = (
-            turek_hron.point_a(case.geometry)
-            if isinstance(case.geometry, config.TurekHronGeometry)
-            else None
-        )
-        self.tube_point = (
-            tube.point_a(case.geometry) if isinstance(case.geometry, config.TubeGeometry) else None
-        )
+        self.turek_hron = isinstance(case.geometry, config.TurekHronGeometry)
+        self.point = displacement_point(case)
         self.outputs = FluidOutputs(case, self.problem.fluid)
         # Before the mesh ever moves: the checkpoint keys are reference coordinates.
         problem = self.problem
@@ -275,8 +289,8 @@ class CoupledStepper(_Checkpointed):
             COUPLED_COLUMNS
             + stress_columns(problem.solid)
             + self.outputs.columns
-            + (["drag", "lift", "ux_A", "uy_A"] if self.point_a else [])
-            + (["uz_A", "ur_A"] if self.tube_point else [])
+            + (["drag", "lift"] if self.turek_hron else [])
+            + (list(self.point[0]) if self.point else [])
             + self.time_errors.columns
         )
         self.iterations: list[int] = []
@@ -312,12 +326,11 @@ class CoupledStepper(_Checkpointed):
         self.solid_newton += problem.solid_side.newton_iterations
         omega = problem.relaxation
         row = (
-            self.benchmark_values()
-            if self.point_a
+            self.forces()
+            if self.turek_hron
             else {"peak_wall_displacement": problem.solid.max_displacement([Region.WALL])}
         )
-        if self.tube_point:
-            row["uz_A"], row["ur_A"] = metrics.nodal_value(problem.solid.eta, self.tube_point)
+        row.update(displacement_row(problem.solid.eta, self.point))
         return {
             **row,
             **self.outputs.update(),
@@ -335,12 +348,10 @@ class CoupledStepper(_Checkpointed):
             **self.time_errors.after_step(step.t),
         }
 
-    def benchmark_values(self) -> dict:
-        """Turek–Hron: drag and lift on the cylinder + flag, the displacement of point A."""
-        problem = self.problem
-        drag, lift = problem.fluid.boundary_force((Boundary.OBSTACLE, Boundary.INTERFACE))
-        ux, uy = metrics.nodal_value(problem.solid.eta, self.point_a)
-        return {"drag": drag, "lift": lift, "ux_A": ux, "uy_A": uy}
+    def forces(self) -> dict:
+        """Turek–Hron: drag and lift on the cylinder + flag."""
+        drag, lift = self.problem.fluid.boundary_force((Boundary.OBSTACLE, Boundary.INTERFACE))
+        return {"drag": drag, "lift": lift}
 
     def describe(self, row: dict) -> str:
         omega = row["relaxation"]
@@ -403,8 +414,8 @@ class CoupledStepper(_Checkpointed):
 class StructureStepper(_Checkpointed):
     """The structure alone under a prescribed interface pressure (the inlet's P(t)) or under its
     body force only; the fluid columns hold the prescribed pressure and no velocity. The
-    Turek–Hron cases (CSM1–3) add the displacement ``ux_A``, ``uy_A`` (m) of point A, as the
-    coupled runs do."""
+    Turek–Hron cases (CSM1–3) add the displacement ``ux_A``, ``uy_A`` (m) of point A and a tube
+    ``uz_A``, ``ur_A``, as the coupled runs do (:func:`displacement_point`)."""
 
     def __init__(self, case: config.Case, comm: MPI.Comm):
         whole = mesh.build(case, comm)
@@ -416,16 +427,12 @@ class StructureStepper(_Checkpointed):
         )
         self.solver = solid.build(case, whole, comm, self.pressure)
         self.stenosis = isinstance(case.geometry, config.StenosisGeometry)
-        self.point_a = (
-            turek_hron.point_a(case.geometry)
-            if isinstance(case.geometry, config.TurekHronGeometry)
-            else None
-        )
+        self.point = displacement_point(case)
         self.columns = (
             COLUMNS
             + ["peak_wall_displacement"]
             + stress_columns(self.solver)
-            + (["ux_A", "uy_A"] if self.point_a else [])
+            + (list(self.point[0]) if self.point else [])
         )
         self._layouts = structure_layouts(self.solver)
         self.time_errors = time_errors.build(
@@ -462,8 +469,7 @@ class StructureStepper(_Checkpointed):
             "newton_residual": result.residual,
             **self.time_errors.after_step(step.t),
         }
-        if self.point_a:
-            row["ux_A"], row["uy_A"] = metrics.nodal_value(s.eta, self.point_a)
+        row.update(displacement_row(s.eta, self.point))
         return row
 
     def describe(self, row: dict) -> str:
