@@ -82,8 +82,10 @@ def main(argv: list[str] | None = None) -> int:
     slope = float(np.polyfit(p, u, 1)[0])
     top = int(np.argmax(p))
     values = {"slope": slope, "ratio": float(u[top] / p[top]), **estimates(case, radius)}
-    print(f"{args.run}: the wall at z = {1e3 * args.z:g} mm, r = {1e3 * radius:g} mm, {len(t)} times")
-    print(f"  pressure {p.min():.4g} to {p.max():.4g} Pa, u_r {1e6 * u.min():.4g} to {1e6 * u.max():.4g} µm")
+    where = f"z = {1e3 * args.z:g} mm, r = {1e3 * radius:g} mm"
+    print(f"{args.run}: the wall at {where}, {len(t)} times")
+    span = f"u_r {1e6 * u.min():.4g} to {1e6 * u.max():.4g} µm"
+    print(f"  pressure {p.min():.4g} to {p.max():.4g} Pa, {span}")
     for key in ("slope", "ratio", "thin_tube", "lame"):
         print(f"  {key:9s} {1e9 * values[key]:.4g} µm/kPa")
     for key in ("slope", "ratio"):

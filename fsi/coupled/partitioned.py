@@ -6,6 +6,7 @@ Dirichlet–Neumann step that joins them (fsi/coupled/coupling.py).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from mpi4py import MPI
@@ -62,18 +63,26 @@ class CoupledProblem:
         return self.acceleration.relaxation
 
 
-def build_coupled(case: config.Case, comm: MPI.Comm = MPI.COMM_WORLD) -> CoupledProblem:
+def build_coupled(
+    case: config.Case,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    *,
+    fluid_conditions: Sequence[fluid_boundaries.BoundaryCondition] | None = None,
+    solid_conditions: solid.SolidBoundaryConditions | None = None,
+) -> CoupledProblem:
     """Build the coupled problem of ``case`` (structure.mode fixed_wall or moving_wall): one mesh
     of the fluid and the structure (the stenosis' wall + cap + lipid, or the Turek–Hron flag),
     its fluid and structure submeshes (with the parent's tags), the fluid solver with the
     study's boundaries (no-slip on the rigid walls and the Turek–Hron cylinder), the mesh
     motion, the solid with the mode's Dirichlet conditions, the interface maps, the acceleration
-    and the predictor (initialised with the structure at rest). Collective."""
+    and the predictor (initialised with the structure at rest). ``fluid_conditions`` and
+    ``solid_conditions`` replace the case's boundary conditions (data no case file states,
+    such as an exact solution imposed at a verification case's ends). Collective."""
     if case.structure.mode == "rigid":
         raise ValueError("structure.mode 'rigid' has no structure to couple")
     whole = mesh.build(case, comm)
     fluid_mesh = mesh.restrict(whole, Region.FLUID)
-    boundaries = fluid_boundaries.boundary_conditions(
+    boundaries = fluid_conditions or fluid_boundaries.boundary_conditions(
         case.fluid, mesh.boundaries(case), moving_interface=True
     )
     fluid_solver = fluid.FluidSolver(
@@ -86,7 +95,7 @@ def build_coupled(case: config.Case, comm: MPI.Comm = MPI.COMM_WORLD) -> Coupled
     )
     # Built before the mesh ever moves: both keep the reference coordinates X.
     motion = MeshMotion(fluid_mesh, case.mesh_motion, moving=(Boundary.INTERFACE,))
-    solid_solver = solid.build(case, whole, comm)
+    solid_solver = solid.build(case, whole, comm, bcs=solid_conditions)
     fluid_facets = fluid_mesh.facets(Boundary.INTERFACE)
     to_fluid = InterfaceMap(
         solid_solver.V, solid_solver.interface_facets, fluid_solver.V, fluid_facets

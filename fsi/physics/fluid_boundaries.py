@@ -1,8 +1,9 @@
 """The fluid's boundary conditions as data, and the boundary data they need.
 
 One small frozen class per kind (:class:`NoSlip`, :class:`Velocity`, :class:`Inflow`,
-:class:`Outflow`, :class:`Slip`, :class:`Traction`, :class:`Axis`), a case's set of them
-(:func:`boundary_conditions`, :func:`walls`), the inlet's pressure P(t)
+:class:`Outflow`, :class:`Slip`, :class:`Traction`, :class:`Axis`,
+:class:`PrescribedVelocity`), a case's set of them (:func:`boundary_conditions`, :func:`walls`),
+the inlet's pressure P(t)
 (:func:`inlet_pressure`), the Turek–Hron inflow ramp and the parabolic inflow profile on a
 straight inlet. :class:`fsi.physics.fluid_residual.FluidResidual` turns each condition into its
 Dirichlet conditions and boundary terms (docs/model.md, Fluid).
@@ -138,7 +139,23 @@ class Axis:
         object.__setattr__(self, "tags", as_tags(self.tags))
 
 
-BoundaryCondition = NoSlip | Velocity | Inflow | Outflow | Slip | Traction | Axis
+@dataclass(frozen=True)
+class PrescribedVelocity:
+    """u = ``value(x, t)`` on ``tags``: a velocity field given in Python, not by a case file
+    (an exact solution imposed at the ends of a verification case, e.g. the deformable tube's
+    Womersley flow, scripts/benchmark_tube.py). ``value`` maps the points x (3, n) and the time
+    t (s) to the velocity (2, n) (m/s), as for ``Function.interpolate``."""
+
+    tags: tuple[int, ...]
+    value: Callable[[np.ndarray, float], np.ndarray]
+
+    def __post_init__(self):
+        object.__setattr__(self, "tags", as_tags(self.tags))
+
+
+BoundaryCondition = (
+    NoSlip | Velocity | Inflow | Outflow | Slip | Traction | Axis | PrescribedVelocity
+)
 
 
 def walls(boundaries: Sequence[Boundary], moving_interface: bool = False) -> tuple[Boundary, ...]:

@@ -37,6 +37,7 @@ from fsi.physics.fluid_boundaries import (
     InletFrame,
     NoSlip,
     Outflow,
+    PrescribedVelocity,
     Slip,
     Traction,
     Velocity,
@@ -369,6 +370,16 @@ class FluidResidual:
             dirichlet=[(_PRESCRIBED, dolfinx.fem.dirichletbc(zero, dofs, component))]
         )
 
+    def _prescribed_velocity(self, bc: PrescribedVelocity, s: _WeakForm) -> _Contribution:
+        """u = value(x, t), interpolated at the time of each step before it is solved."""
+        given = dolfinx.fem.Function(self.V, name="prescribed_velocity")
+
+        def update(t: float, value=bc.value) -> None:
+            given.interpolate(lambda x: value(x, t))
+
+        self.updates.append(update)
+        return _Contribution(dirichlet=[(_PRESCRIBED, self._dirichlet(given, bc.tags))])
+
     def _no_slip(self, bc: NoSlip, s: _WeakForm) -> _Contribution:
         """u = 0, applied last so that walls win at the corners they share."""
         zero = dolfinx.fem.Function(self.V)
@@ -445,6 +456,7 @@ class FluidResidual:
         Outflow: _outflow,
         Slip: _slip,
         Traction: _traction,
+        PrescribedVelocity: _prescribed_velocity,
     }
     """The function that turns each kind of boundary condition into its residual terms and
     Dirichlet conditions."""

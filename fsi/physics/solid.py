@@ -552,8 +552,11 @@ def build(
     comm: MPI.Comm = MPI.COMM_WORLD,
     pressure: Callable[[float], float] | None = None,
     scheme: NewmarkFamily | None = None,
+    bcs: SolidBoundaryConditions | None = None,
 ) -> SolidSolver:
-    """The case's structure solver (mesh from ``tagged`` or built; materials, mode, scheme)."""
+    """The case's structure solver (mesh from ``tagged`` or built; materials, mode, scheme);
+    ``bcs`` in place of the case's :func:`boundary_conditions` (a verification case's exact
+    data)."""
     if tagged is None:
         tagged = fsi_mesh.build(case, comm)
     domain = structure_mesh(tagged, structure_regions(case))
@@ -561,7 +564,7 @@ def build(
     return SolidSolver(
         domain,
         region_materials(case),
-        boundary_conditions(case, pressure),
+        bcs or boundary_conditions(case, pressure),
         scheme or structural_scheme(s.time_integration),
         degree=s.degree,
         quadrature_degree=s.quadrature_degree,
