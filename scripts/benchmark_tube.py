@@ -13,15 +13,28 @@ the command line's own code path (:func:`fsi.cli.main`) into ``--out`` (or, with
   z against the time the axis pressure first reaches half the inlet's peak at the stations
   z = 1, 1.5, … 4 cm (linear in time between stored fields and along the axis between nodes).
 
+``--case womersley``: Womersley flow in a deformable tube
+(``configs/axisymmetric/tube_womersley.yaml``), run here rather than by ``fsi run``: the exact
+linear solution (scripts/womersley_tube_exact.py) is imposed at both ends (the fluid's velocity
+at the inlet and the outlet, the wall's displacement at its ends: ends that do not reflect the
+wave) and is the initial state (fluid velocity and pressure, the wall's displacement, velocity,
+acceleration and load, the mesh). Over the last period the script takes the complex amplitude
+at the frequency of the pressure on the axis and of the wall's radial displacement at every node
+(a discrete Fourier coefficient), fits log a(z) = c − i k z over the middle 60 % of the tube and
+gives ``wave_speed`` = ω/Re k (m/s), ``amplitude_ratio_per_wavelength`` = exp(2π Im k/Re k) and
+``wall_radial_per_pressure`` = |w_r|/|p| at mid-length (m/Pa), beside the exact values.
+
 It prints a report, the references (:data:`REFERENCES`; the thick-wall estimate of the wave
-speed, :func:`thick_wall_wave_speed`) and, as the last line of its standard output, one JSON
-object of the four values. The report is also written to ``DIR/benchmark.txt``.
+speed, :func:`thick_wall_wave_speed`; the exact deformable-tube solution) and, as the last line
+of its standard output, one JSON object of the case's values. The report is also written to
+``DIR/benchmark.txt``.
 
 Usage::
 
     .venv/bin/python scripts/benchmark_tube.py --case pulse --out results/tube_pulse
         [--set mesh.size=1.25e-4] [--set 'time.schedule=[{until: 0.01, dt: 1.25e-5}]']
     .venv/bin/python scripts/benchmark_tube.py --case pulse --analyse-only results/tube_pulse
+    .venv/bin/python scripts/benchmark_tube.py --case womersley --out results/tube_womersley
 """
 
 from __future__ import annotations
@@ -41,10 +54,21 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from fsi import cli, config  # noqa: E402
-from fsi.output import plot  # noqa: E402
+sys.path.insert(0, str(ROOT / "scripts"))
 
-CONFIGS = {"pulse": ROOT / "configs" / "axisymmetric" / "tube_pulse.yaml"}
+from womersley_tube_exact import TubeParameters, WomersleyTube  # noqa: E402
+
+from fsi import cli, config  # noqa: E402
+from fsi.coupled import coupling, partitioned  # noqa: E402
+from fsi.geometry.tags import Boundary  # noqa: E402
+from fsi.numerics.timestepping import steps  # noqa: E402
+from fsi.output import plot  # noqa: E402
+from fsi.physics import fluid_boundaries, solid  # noqa: E402
+
+CONFIGS = {
+    "pulse": ROOT / "configs" / "axisymmetric" / "tube_pulse.yaml",
+    "womersley": ROOT / "configs" / "axisymmetric" / "tube_womersley.yaml",
+}
 
 REFERENCES = {
     "pulse": {
@@ -178,6 +202,194 @@ def report(values: dict, case: config.Case, run: Path, seconds: float | None) ->
     return "\n".join(lines)
 
 
+# --------------------------------------------------------------------------------------------
+# Womersley flow in a deformable tube
+
+
+def exact_solution(case: config.Case) -> WomersleyTube:
+    """The exact linear solution for the case's tube, fluid and wall (1 Pa on the axis at the
+    inlet; the frequency of the config's inlet formula is the script's: 0.02 Hz)."""
+    g, wall, fluid = case.geometry, case.structure.wall, case.fluid
+    return WomersleyTube(
+        TubeParameters(
+            a=g.radius,
+            h=g.wall_thickness,
+            young=wall.young_modulus,
+            poisson=wall.poisson_ratio,
+            rho_solid=wall.density,
+            rho_fluid=fluid.density,
+            mu=fluid.rheology.viscosity,
+        )
+    )
+
+
+def _vector(pair) -> np.ndarray:
+    return np.vstack([np.asarray(pair[0]), np.asarray(pair[1])])
+
+
+def outlet_traction(exact: WomersleyTube, x: np.ndarray, t: float) -> np.ndarray:
+    """σ n of the exact fluid on a cross-section with the normal +e_z (the outlet):
+    (σ_zz, σ_rz) with σ_zz = −p + 2 μ ∂u_z/∂z and ∂/∂z = −ik (Pa)."""
+    amplitude = exact.fluid_amplitudes(x[1])
+    wave = np.exp(1j * (exact.params.omega * t - exact.k * x[0]))
+    mu = exact.params.mu
+    zz = -amplitude["p"] + 2 * mu * (-1j * exact.k) * amplitude["u_z"]
+    return np.vstack([(zz * wave).real, (amplitude["s_rz"] * wave).real])
+
+
+def womersley_problem(case: config.Case, exact: WomersleyTube) -> partitioned.CoupledProblem:
+    """The coupled tube with the exact solution at its ends and as its initial state."""
+    velocity = lambda x, t: _vector(exact.fluid_velocity(x[1], x[0], t))  # noqa: E731
+    displacement = lambda x, t: _vector(exact.wall_displacement(x[1], x[0], t))  # noqa: E731
+    fluid_conditions = (
+        fluid_boundaries.PrescribedVelocity(Boundary.INLET, velocity),
+        fluid_boundaries.PrescribedTraction(
+            Boundary.OUTLET, lambda x, t: outlet_traction(exact, x, t)
+        ),
+        fluid_boundaries.Velocity(Boundary.INTERFACE),
+        fluid_boundaries.Axis(Boundary.AXIS),
+    )
+    solid_conditions = solid.SolidBoundaryConditions(
+        dirichlet=(solid.PrescribedDisplacement(displacement, (Boundary.CLAMPED,)),)
+    )
+    problem = partitioned.build_coupled(
+        case, fluid_conditions=fluid_conditions, solid_conditions=solid_conditions
+    )
+    start_exactly(problem, case, exact)
+    return problem
+
+
+def start_exactly(problem: partitioned.CoupledProblem, case, exact: WomersleyTube) -> None:
+    """The exact state at t = 0: the wall's η, η̇, η̈ and its load from the blood (the traction
+    −σ e_r of the exact fluid at r = a, which the first step's load at t_n uses), the mesh at
+    the extension of the wall's displacement, the fluid's velocity and pressure; the
+    predictor's history restarted from it."""
+    wall = problem.solid
+    radius = case.geometry.radius
+    for field, values in (
+        (wall.eta, exact.wall_displacement),
+        (wall.eta_n, exact.wall_displacement),
+        (wall.v_n, exact.wall_velocity),
+        (wall.a_n, exact.wall_acceleration),
+    ):
+        field.interpolate(lambda x, values=values: _vector(values(x[1], x[0], 0.0)))
+        field.x.scatter_forward()
+
+    def load(x):
+        amplitude = exact.fluid_amplitudes(np.full(x.shape[1], radius))
+        phase = np.exp(-1j * exact.k * x[0])
+        return np.vstack([(-amplitude["s_rz"] * phase).real, (-amplitude["s_rr"] * phase).real])
+
+    wall.traction_n.interpolate(load)
+    x0 = wall.interface_displacement().ravel()
+    problem.fluid_side.start_from(x0)
+    problem.fluid.set_initial_state(
+        lambda x: _vector(exact.fluid_velocity(x[1], x[0], 0.0)),
+        lambda x: exact.pressure(x[1], x[0], 0.0),
+    )
+    problem.predictor = coupling.predictor_from_config(case.coupling)
+    problem.predictor.record(x0, 0.0)
+
+
+def _gathered(points: np.ndarray, values: np.ndarray, comm) -> tuple[np.ndarray, np.ndarray]:
+    """Rows gathered from every rank, sorted by z, duplicates (shared nodes) dropped."""
+    points = np.concatenate(comm.allgather(points))
+    values = np.concatenate(comm.allgather(values))
+    z, index = np.unique(np.round(points[:, 0], 12), return_index=True)
+    return z, values[index]
+
+
+def womersley_samples(problem, case) -> tuple[np.ndarray, ...]:
+    """March the case; over its last period: the times, the axis pressure's z and values
+    (times × nodes), the wall's z and radial displacement (times × nodes)."""
+    comm = problem.fluid.comm
+    owned = problem.fluid.Q.dofmap.index_map.size_local
+    xp = problem.fluid.Q.tabulate_dof_coordinates()[:owned]
+    axis = np.abs(xp[:, 1]) < 1e-12 * case.geometry.radius
+    wall_points = problem.solid.interface_points
+    period = 1.0 / 0.02
+    times, pressure, radial = [], [], []
+    for step in steps(case.time):
+        problem.step(step.index, step.t, step.dt)  # raises CouplingNotConverged
+        if step.t > case.time.end - period + 1e-9 * period:
+            z_p, p = _gathered(xp[axis], problem.fluid.p.x.array[:owned][axis], comm)
+            w = problem.solid.interface_displacement()
+            z_w, w_r = _gathered(wall_points, w[:, 1], comm)
+            times.append(step.t)
+            pressure.append(p)
+            radial.append(w_r)
+    return np.array(times), z_p, np.array(pressure), z_w, np.array(radial)
+
+
+def amplitudes(times: np.ndarray, values: np.ndarray, omega: float) -> np.ndarray:
+    """The complex amplitude a of each column, values ≈ Re(a e^{iωt}) over whole periods."""
+    return 2 / len(times) * np.exp(-1j * omega * times) @ values
+
+
+def wave_number(z: np.ndarray, a: np.ndarray, window: tuple[float, float]) -> complex:
+    """k of a(z) ∝ e^{−ikz}: the slopes of the unwrapped phase (−Re k) and of log |a| (Im k)
+    fitted over ``window`` (m)."""
+    inside = (z >= window[0]) & (z <= window[1])
+    phase = np.unwrap(np.angle(a[inside]))
+    re = -np.polyfit(z[inside], phase, 1)[0]
+    im = np.polyfit(z[inside], np.log(np.abs(a[inside])), 1)[0]
+    return complex(re, im)
+
+
+def womersley_values(samples, case: config.Case, exact: WomersleyTube) -> dict[str, float]:
+    times, z_p, pressure, z_w, radial = samples
+    omega = exact.params.omega
+    length = case.geometry.length
+    window = (0.2 * length, 0.8 * length)
+    a_p, a_w = amplitudes(times, pressure, omega), amplitudes(times, radial, omega)
+    k_p, k_w = wave_number(z_p, a_p, window), wave_number(z_w, a_w, window)
+    middle = length / 2
+    at_p = np.interp(middle, z_p, a_p.real) + 1j * np.interp(middle, z_p, a_p.imag)
+    at_w = np.interp(middle, z_w, a_w.real) + 1j * np.interp(middle, z_w, a_w.imag)
+    return {
+        "wave_speed": omega / k_p.real,
+        "amplitude_ratio_per_wavelength": math.exp(2 * math.pi * k_p.imag / k_p.real),
+        "wall_radial_per_pressure": abs(at_w) / abs(at_p),
+        "wall_wave_speed": omega / k_w.real,
+        "wall_amplitude_ratio_per_wavelength": math.exp(2 * math.pi * k_w.imag / k_w.real),
+    }
+
+
+def womersley_report(values: dict, exact: WomersleyTube, run: Path, seconds: float) -> str:
+    reference = {
+        "wave_speed": exact.wave_speed,
+        "amplitude_ratio_per_wavelength": exact.amplitude_ratio_per_wavelength,
+        "wall_radial_per_pressure": exact.wall_radial_per_pressure,
+        "wall_wave_speed": exact.wave_speed,
+        "wall_amplitude_ratio_per_wavelength": exact.amplitude_ratio_per_wavelength,
+    }
+    lines = [f"Womersley flow in a deformable tube: {run}", "  (from the axis pressure; wall_*:"]
+    lines[-1] += " from the wall's radial displacement)"
+    for key, ours in values.items():
+        lines.append(
+            f"  {key:36s} {ours:12.6g}  exact {reference[key]:12.6g}"
+            f"  ({100 * (ours / reference[key] - 1):+.2f} %)"
+        )
+    lines.append(f"  wall time {seconds:.0f} s on {MPI.COMM_WORLD.size} rank(s)")
+    return "\n".join(lines)
+
+
+def run_womersley(out: Path, overrides: list[str]) -> tuple[dict, str]:
+    case = config.load(CONFIGS["womersley"], overrides)
+    exact = exact_solution(case)
+    if MPI.COMM_WORLD.rank == 0:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "config.yaml").write_text(config.to_yaml(case))
+    start = time.perf_counter()
+    problem = womersley_problem(case, exact)
+    values = womersley_values(womersley_samples(problem, case), case, exact)
+    text = womersley_report(values, exact, out, time.perf_counter() - start)
+    return values, text
+
+
+# --------------------------------------------------------------------------------------------
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--case", choices=sorted(CONFIGS), required=True)
@@ -187,6 +399,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--set", action="append", default=[], help="a config override")
     args = parser.parse_args(argv)
 
+    if args.case == "womersley":
+        if args.out is None:
+            parser.error("--case womersley runs the case itself: give --out")
+        values, text = run_womersley(args.out, args.set)
+        if MPI.COMM_WORLD.rank == 0:
+            (args.out / "benchmark.txt").write_text(text + "\n")
+            print(text)
+            keys = ("wave_speed", "amplitude_ratio_per_wavelength", "wall_radial_per_pressure")
+            print(json.dumps({k: values[k] for k in keys}))
+        return 0
     seconds = None
     run = args.analyse_only or args.out
     if args.out is not None:

@@ -155,6 +155,7 @@ def test_every_boundary_kind_has_its_function_and_others_are_refused():
         fluid_boundaries.Traction,
         fluid_boundaries.Axis,
         fluid_boundaries.PrescribedVelocity,
+        fluid_boundaries.PrescribedTraction,
     }
 
     class Porous(fluid_boundaries.NoSlip):  # a kind without a function of its own

@@ -152,6 +152,13 @@ class FluidInterface(_Adapter):
         self.mesh_quality = self.motion.check_quality()
         self.solver.set_mesh_displacement(self.motion.d)
 
+    def start_from(self, x: np.ndarray) -> None:
+        """An initial state other than rest: the mesh at X + d, the extension of the interface
+        displacement x, taken as at rest there (d^n = d^{n−1} = d)."""
+        self._set_interface(x)
+        self._extend()
+        self.solver.ale.history.start()
+
     def move_mesh(self, x: np.ndarray) -> None:
         """η_Γ ← x; the mesh to X + d, d the extension of η_Γ's vertex values; boundary
         velocity u_Γ = w = Σ_k a_k d^{n+1−k}, which the step then uses: the moving wall is

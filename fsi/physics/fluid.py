@@ -362,6 +362,21 @@ class FluidSolver:
         self._mesh_velocity_given = False
         self._advanced = True  # the step's reaction, if taken, stays what _reaction returns
 
+    def set_initial_state(self, u, p=None) -> None:
+        """Start from a state other than rest: the velocity ``u`` (and the pressure ``p``, a
+        first guess for Newton) interpolated from callables x ↦ values as for
+        ``Function.interpolate``; u^n = u^{n−1} = u (a verification case started from its exact
+        solution)."""
+        self.u.interpolate(u)
+        self.velocity_history.start()
+        owned = self._V_to_W >= 0
+        self.U.x.array[self._V_to_W[owned]] = self.u.x.array[owned]
+        if p is not None:
+            self.p.interpolate(p)
+            owned = self._Q_to_W >= 0
+            self.U.x.array[self._Q_to_W[owned]] = self.p.x.array[owned]
+        self.U.x.scatter_forward()
+
     def save_state(self) -> FluidState:
         """Snapshot of the solution, the time history and the mesh (local arrays)."""
         return FluidState(

@@ -2,8 +2,8 @@
 
 One small frozen class per kind (:class:`NoSlip`, :class:`Velocity`, :class:`Inflow`,
 :class:`Outflow`, :class:`Slip`, :class:`Traction`, :class:`Axis`,
-:class:`PrescribedVelocity`), a case's set of them (:func:`boundary_conditions`, :func:`walls`),
-the inlet's pressure P(t)
+:class:`PrescribedVelocity`, :class:`PrescribedTraction`), a case's set of them
+(:func:`boundary_conditions`, :func:`walls`), the inlet's pressure P(t)
 (:func:`inlet_pressure`), the Turek–Hron inflow ramp and the parabolic inflow profile on a
 straight inlet. :class:`fsi.physics.fluid_residual.FluidResidual` turns each condition into its
 Dirichlet conditions and boundary terms (docs/model.md, Fluid).
@@ -153,8 +153,30 @@ class PrescribedVelocity:
         object.__setattr__(self, "tags", as_tags(self.tags))
 
 
+@dataclass(frozen=True)
+class PrescribedTraction:
+    """σ n = ``value(x, t)`` on ``tags``, a traction field given in Python (Pa; the points x
+    (3, n) and the time t to (2, n)), interpolated at each step's time: an exact solution's
+    traction at an open end of a verification case (:class:`Traction` takes a UFL expression
+    instead)."""
+
+    tags: tuple[int, ...]
+    value: Callable[[np.ndarray, float], np.ndarray]
+
+    def __post_init__(self):
+        object.__setattr__(self, "tags", as_tags(self.tags))
+
+
 BoundaryCondition = (
-    NoSlip | Velocity | Inflow | Outflow | Slip | Traction | Axis | PrescribedVelocity
+    NoSlip
+    | Velocity
+    | Inflow
+    | Outflow
+    | Slip
+    | Traction
+    | Axis
+    | PrescribedVelocity
+    | PrescribedTraction
 )
 
 

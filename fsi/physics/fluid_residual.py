@@ -37,6 +37,7 @@ from fsi.physics.fluid_boundaries import (
     InletFrame,
     NoSlip,
     Outflow,
+    PrescribedTraction,
     PrescribedVelocity,
     Slip,
     Traction,
@@ -380,6 +381,16 @@ class FluidResidual:
         self.updates.append(update)
         return _Contribution(dirichlet=[(_PRESCRIBED, self._dirichlet(given, bc.tags))])
 
+    def _prescribed_traction(self, bc: PrescribedTraction, s: _WeakForm) -> _Contribution:
+        """σ n = value(x, t), interpolated at the time of each step: −∫ g · v."""
+        given = dolfinx.fem.Function(self.V, name="prescribed_traction")
+
+        def update(t: float, value=bc.value) -> None:
+            given.interpolate(lambda x: value(x, t))
+
+        self.updates.append(update)
+        return _Contribution([-(ufl.dot(given, s.v) * s.ds_of(bc.tags))])
+
     def _no_slip(self, bc: NoSlip, s: _WeakForm) -> _Contribution:
         """u = 0, applied last so that walls win at the corners they share."""
         zero = dolfinx.fem.Function(self.V)
@@ -457,6 +468,7 @@ class FluidResidual:
         Slip: _slip,
         Traction: _traction,
         PrescribedVelocity: _prescribed_velocity,
+        PrescribedTraction: _prescribed_traction,
     }
     """The function that turns each kind of boundary condition into its residual terms and
     Dirichlet conditions."""

@@ -1,0 +1,75 @@
+"""The elastic-tube benchmarks through scripts/benchmark_tube.py (issue #28;
+docs/axisymmetric.md): the pressure pulse's point A and wave speed against the published values
+and the thick-wall estimate.
+
+The shipped pulse (0.25 mm cells, 25 µs steps, 400 steps) takes ~20 minutes serially: it is
+``slow``. The default selection runs the same case on 0.5 mm cells and 50 µs steps (~8× less
+work), whose values are held to the same tolerances (measured in docs/axisymmetric.md).
+"""
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+import benchmark_tube  # noqa: E402
+
+from fsi import config  # noqa: E402
+
+COARSER = [
+    "--set",
+    "mesh.size=5.0e-4",
+    "--set",
+    "mesh.local_size=5.0e-4",
+    "--set",
+    "time.schedule=[{until: 0.01, dt: 5.0e-5}]",
+    "--set",
+    "output.fields_every=2",
+]
+
+
+def pulse(out: Path, options: list[str], capsys) -> dict:
+    """Run the pulse benchmark into ``out``; the JSON object of its last line (on every rank)."""
+    from mpi4py import MPI
+
+    assert benchmark_tube.main(["--case", "pulse", "--out", str(out), *options]) == 0
+    text = capsys.readouterr().out
+    line = text.strip().splitlines()[-1] if MPI.COMM_WORLD.rank == 0 else None
+    return json.loads(MPI.COMM_WORLD.bcast(line))
+
+
+def check(values: dict, out: Path) -> None:
+    """Point A's peak radial displacement within 5 % of the published converged value
+    (Tuković et al. 2018: 0.15694 mm), the wave speed within 10 % of the thick-wall estimate
+    (:func:`benchmark_tube.thick_wall_wave_speed`, 5.07 m/s), both as issue #28 asks; the
+    peak's time within 5 % of the published 7.23 ms and the axial trough within 10 % of
+    solids4foam's −0.0899 mm (looser: read from a figure, platform-dependent by 1.5–3 %)."""
+    reference = benchmark_tube.REFERENCES["pulse"]
+    case = config.load(out / "config.yaml")
+    g, wall = case.geometry, case.structure.wall
+    estimate = benchmark_tube.thick_wall_wave_speed(
+        wall.young_modulus,
+        wall.poisson_ratio,
+        case.fluid.density,
+        g.radius,
+        g.radius + g.wall_thickness,
+    )
+    assert values["ur_max_A"] == pytest.approx(reference["ur_max_A"], rel=0.05), values
+    assert values["t_ur_max_A"] == pytest.approx(reference["t_ur_max_A"], rel=0.05), values
+    assert values["uz_min_A"] == pytest.approx(reference["uz_min_A"], rel=0.10), values
+    assert math.isfinite(values["wave_speed"])
+    assert values["wave_speed"] == pytest.approx(estimate, rel=0.10), (values, estimate)
+
+
+def test_the_pressure_pulse_on_a_coarser_mesh(shared_tmp, capsys):
+    out = shared_tmp / "pulse_coarser"
+    check(pulse(out, COARSER, capsys), out)
+
+
+@pytest.mark.slow
+def test_the_shipped_pressure_pulse(shared_tmp, capsys):
+    out = shared_tmp / "pulse"
+    check(pulse(out, [], capsys), out)
