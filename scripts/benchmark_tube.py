@@ -310,7 +310,9 @@ def womersley_samples(problem, case) -> tuple[np.ndarray, ...]:
     period = 1.0 / 0.02
     times, pressure, radial = [], [], []
     for step in steps(case.time):
-        problem.step(step.index, step.t, step.dt)  # raises CouplingNotConverged
+        result = problem.step(step.index, step.t, step.dt)  # raises CouplingNotConverged
+        if comm.rank == 0 and step.index % 10 == 0:
+            print(f"step {step.index}  t = {step.t:g} s  coupling {result.iterations}", flush=True)
         if step.t > case.time.end - period + 1e-9 * period:
             z_p, p = _gathered(xp[axis], problem.fluid.p.x.array[:owned][axis], comm)
             w = problem.solid.interface_displacement()

@@ -1,10 +1,13 @@
 """The elastic-tube benchmarks through scripts/benchmark_tube.py (issue #28;
 docs/axisymmetric.md): the pressure pulse's point A and wave speed against the published values
-and the thick-wall estimate.
+and the thick-wall estimate; Womersley flow in a deformable tube against the exact linear
+solution (scripts/womersley_tube_exact.py).
 
-The shipped pulse (0.25 mm cells, 25 µs steps, 400 steps) takes ~20 minutes serially: it is
-``slow``. The default selection runs the same case on 0.5 mm cells and 50 µs steps (~8× less
-work), whose values are held to the same tolerances (measured in docs/axisymmetric.md).
+The shipped pulse (0.25 mm cells, 25 µs steps, 400 steps) takes ~20 minutes serially and the
+shipped Womersley case (two periods of 100 steps) ~7: both are ``slow``. The default selection
+runs the pulse on 0.5 mm cells and 50 µs steps (~8× less work), held to the same tolerances,
+and Womersley over one period of 50 steps (its attenuation to 10 %: see its test); measured in
+docs/axisymmetric.md.
 """
 
 import json
@@ -73,3 +76,44 @@ def test_the_pressure_pulse_on_a_coarser_mesh(shared_tmp, capsys):
 def test_the_shipped_pressure_pulse(shared_tmp, capsys):
     out = shared_tmp / "pulse"
     check(pulse(out, [], capsys), out)
+
+
+WOMERSLEY_SHORTER = ["--set", "time.end=50.0", "--set", "time.schedule=[{until: 50.0, dt: 1.0}]"]
+
+
+def womersley(out: Path, options: list[str], capsys) -> dict:
+    from mpi4py import MPI
+
+    assert benchmark_tube.main(["--case", "womersley", "--out", str(out), *options]) == 0
+    text = capsys.readouterr().out
+    line = text.strip().splitlines()[-1] if MPI.COMM_WORLD.rank == 0 else None
+    return json.loads(MPI.COMM_WORLD.bcast(line))
+
+
+def check_womersley(values: dict, out: Path, attenuation: float = 0.03) -> None:
+    """The issue's tolerances against the exact thick-wall solution: the wave speed within 1 %,
+    the amplitude ratio per wavelength within ``attenuation`` (the issue's 3 %), the wall's
+    radial displacement per pascal of axis pressure at mid-length within 2 %."""
+    exact = benchmark_tube.exact_solution(config.load(out / "config.yaml"))
+    assert values["wave_speed"] == pytest.approx(exact.wave_speed, rel=0.01), values
+    assert values["amplitude_ratio_per_wavelength"] == pytest.approx(
+        exact.amplitude_ratio_per_wavelength, rel=attenuation
+    ), values
+    assert values["wall_radial_per_pressure"] == pytest.approx(
+        exact.wall_radial_per_pressure, rel=0.02
+    ), values
+
+
+def test_womersley_flow_in_a_deformable_tube_over_one_period(shared_tmp, capsys):
+    """One period of 50 steps (the shipped case: two of 100): the wave speed and the wall's
+    displacement per pascal at the issue's tolerances (measured −0.20 %, −0.04 %); the
+    attenuation, the small imaginary part of k, within 10 % only (measured +6.8 %: the 1 s
+    step's error, +2.1 % with the shipped 0.5 s steps, which the slow test holds to 3 %)."""
+    out = shared_tmp / "womersley_shorter"
+    check_womersley(womersley(out, WOMERSLEY_SHORTER, capsys), out, attenuation=0.10)
+
+
+@pytest.mark.slow
+def test_the_shipped_womersley_tube(shared_tmp, capsys):
+    out = shared_tmp / "womersley"
+    check_womersley(womersley(out, [], capsys), out)
