@@ -15,8 +15,12 @@ import numpy as np
 import pytest
 import scipy.integrate
 import scipy.special
-import support_physics
-from test_open_boundaries import study_fluid
+from test_open_boundaries import (
+    WOMERSLEY_PERIOD,
+    WOMERSLEY_PRESSURE,
+    march_womersley,
+    study_fluid,
+)
 
 from fsi import config
 from fsi.geometry.tags import Boundary, Region
@@ -108,9 +112,6 @@ def test_the_axis_holds_only_the_radial_velocity():
     assert solver.comm.allreduce(np.abs(u[:, 1]).max(initial=0.0), op=MPI.MAX) == 0.0
 
 
-WOMERSLEY_PERIOD, WOMERSLEY_PRESSURE = 0.5, 6.0  # s; Pa over the 2 cm pipe (300 Pa/m)
-
-
 def pipe_womersley(r: np.ndarray, rho: float, mu: float) -> tuple[np.ndarray, complex]:
     """Womersley's periodic pipe flow under the pressure drop P cos(ωt) over L:
     u_z(r, t) = Re(û(r) e^{iωt}), Q(t) = Re(Q̂ e^{iωt}) with
@@ -140,25 +141,7 @@ def womersley_errors(size: float) -> tuple[float, float]:
     solver = solver_of(case, submesh, tags, "bdf2")
     rho, mu = case.fluid.density, case.fluid.rheology.viscosity
     u_hat, q_hat = pipe_womersley(np.linspace(0, R, 801), rho, mu)
-    omega = 2 * np.pi / WOMERSLEY_PERIOD
-    support_physics.initialize(
-        solver, lambda x: np.vstack([pipe_womersley(x[1], rho, mu)[0].real, 0 * x[0]])
-    )
-    dt, errors = 5e-3, []
-    for k in range(1, int(round(1.5 * WOMERSLEY_PERIOD / dt)) + 1):
-        t = k * dt
-        result = solver.step(t, dt)
-        assert result.converged, (t, result.reason)
-        solver.advance()
-        if t > 0.5 * WOMERSLEY_PERIOD:
-            phase = np.exp(1j * omega * t)
-            peak = metrics.peak_velocity(solver.u)
-            q = metrics.flow_rate(solver.u, tags, [Boundary.OUTLET], coordinates=solver.coordinates)
-            errors.append(
-                (abs(peak - np.abs((u_hat * phase).real).max()), abs(q - (q_hat * phase).real))
-            )
-    worst = np.max(errors, axis=0)
-    return worst[0] / np.abs(u_hat).max(), worst[1] / abs(q_hat)
+    return march_womersley(solver, tags, lambda r: pipe_womersley(r, rho, mu)[0], u_hat, q_hat)
 
 
 def test_womersley_pipe_flow_within_one_percent():
