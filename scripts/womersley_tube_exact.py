@@ -263,7 +263,13 @@ def wave_number(params: TubeParameters, k0: complex | None = None) -> complex:
         k0 = params.omega / thin_wall_wave_speed(params)
     det = _determinant(params, k0)
     k0 = complex(k0)
-    k = complex(optimize.newton(det, k0, x1=k0 * (1 + 1e-3), tol=1e-13 * abs(k0), rtol=1e-11))
+    try:
+        k = optimize.newton(det, k0, x1=k0 * (1 + 1e-3), tol=1e-13 * abs(k0), rtol=1e-11)
+    except RuntimeError:
+        # Thin, stiff walls make M(k) ill-conditioned (scipy's secant then wanders at ~1e-10
+        # of k on some platforms: Debian 13's at h = 0.5 mm): settle for 1e-9 of k.
+        k = optimize.newton(det, k0, x1=k0 * (1 + 1e-3), tol=1e-9 * abs(k0), rtol=1e-9)
+    k = complex(k)
     return k if k.real > 0 else -k
 
 
