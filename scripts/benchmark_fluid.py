@@ -17,7 +17,7 @@ inlet pulse, so Carreau runs at non-zero shear rates).
 Usage::
 
     .venv/bin/python scripts/benchmark_fluid.py [--levels coarse fine]
-        [--models newtonian carreau] [--steps 10] [--dt 1e-4] [--repeats 5]
+        [--models newtonian carreau] [--steps 10] [--dt 1e-4] [--repeats 5] [--set KEY=VALUE ...]
     mpirun -n 2 .venv/bin/python -m mpi4py scripts/benchmark_fluid.py ...
 
 Times on several ranks are the slowest rank's wall time; "µs/dof" divides by the global dofs,
@@ -58,7 +58,9 @@ RHEOLOGY = {"newtonian": "{model: newtonian}", "carreau": "{model: carreau}"}
 PETSC_EVENTS = ("PCSetUp", "PCApply")
 
 
-def load_case(level: str, model: str, n_steps: int, dt: float) -> config.Case:
+def load_case(
+    level: str, model: str, n_steps: int, dt: float, settings: tuple[str, ...] = ()
+) -> config.Case:
     end = n_steps * dt
     return config.load(
         CASE,
@@ -68,6 +70,7 @@ def load_case(level: str, model: str, n_steps: int, dt: float) -> config.Case:
             f"fluid.rheology={RHEOLOGY[model]}",
             f"time.end={end!r}",
             f"time.schedule=[{{until: {end!r}, dt: {dt!r}}}]",
+            *settings,
         ],
     )
 
@@ -261,6 +264,14 @@ def main(argv: list[str] | None = None) -> int:
         help="quadrature degrees of the Carreau Jacobian study (UFL's estimate"
         " is added); none: skip the study",
     )
+    parser.add_argument(
+        "--set",
+        dest="settings",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a config override for every case (e.g. fluid.supg=false)",
+    )
     args = parser.parse_args(argv)
     comm = MPI.COMM_WORLD
     logging.disable(logging.INFO)  # no JIT (distutils) chatter; warnings still show
@@ -279,13 +290,13 @@ def main(argv: list[str] | None = None) -> int:
     )
     rows, studies = [], {}
     for level in args.levels:
-        base = load_case(level, args.models[0], args.steps, args.dt)
+        base = load_case(level, args.models[0], args.steps, args.dt, args.settings)
         tic = time.perf_counter()
         part = mesh.restrict(mesh.build(base, comm), Region.FLUID)
         cells = part.mesh.topology.index_map(2).size_global
         say(f"[{level}] fluid mesh: {cells} cells ({time.perf_counter() - tic:.1f} s)")
         for model in args.models:
-            case = load_case(level, model, args.steps, args.dt)
+            case = load_case(level, model, args.steps, args.dt, args.settings)
             tic = time.perf_counter()
             solver = fluid.FluidSolver(
                 part.mesh,
@@ -321,7 +332,7 @@ def main(argv: list[str] | None = None) -> int:
             )
             del solver
         if "carreau" in args.models and args.degrees:
-            case = load_case(level, "carreau", args.steps, args.dt)
+            case = load_case(level, "carreau", args.steps, args.dt, args.settings)
             studies[level] = (
                 steppers.global_dofs(
                     compat.mixed_space(part.mesh, [("Lagrange", 2, (2,)), ("Lagrange", 1, ())])

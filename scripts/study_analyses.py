@@ -43,22 +43,29 @@ def static_compliance(docs_runs: Path) -> dict[str, float]:
     path = docs_runs / "static_compliance.json"
     if path.is_file():
         return json.loads(path.read_text())
-    from fsi import config
-    from fsi.physics import mesh, solid
-
-    out = {}
-    for mode in ("fixed_wall", "moving_wall"):
-        case = config.load(
-            Path(__file__).resolve().parents[1] / "configs" / "stenosis_moving_newtonian.yaml",
-            [f"structure.mode={mode}", "structure.time_integration={scheme: quasi_static}"],
-        )
-        structure = solid.build(case, mesh.build(case), pressure=lambda t: STATIC_PRESSURE)
-        if not structure.step(1.0, 1.0).converged:
-            raise RuntimeError(f"static compliance: the {mode} solve did not converge")
-        out[mode] = structure.max_displacement() / STATIC_PRESSURE
+    config_file = Path(__file__).resolve().parents[1] / "configs" / "stenosis_moving_newtonian.yaml"
+    out = {
+        mode: uniform_pressure_compliance(config_file, mode)
+        for mode in ("fixed_wall", "moving_wall")
+    }
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(out, indent=1) + "\n")
     return out
+
+
+def uniform_pressure_compliance(config_file: Path, mode: str) -> float:
+    """The peak |η| per Pa (m/Pa) of the case's structure in ``mode`` under a uniform lumen
+    pressure of :data:`STATIC_PRESSURE`, quasi-static, on the config's mesh."""
+    from fsi import config
+    from fsi.physics import mesh, solid
+
+    case = config.load(
+        config_file, [f"structure.mode={mode}", "structure.time_integration={scheme: quasi_static}"]
+    )
+    structure = solid.build(case, mesh.build(case), pressure=lambda t: STATIC_PRESSURE)
+    if not structure.step(1.0, 1.0).converged:
+        raise RuntimeError(f"static compliance: the {mode} solve of {config_file} did not converge")
+    return structure.max_displacement() / STATIC_PRESSURE
 
 
 def _ratio(s: dict | None, t: float) -> float | None:
