@@ -77,6 +77,7 @@ def row(folder: Path) -> dict:
         "cap_principal_at": [at_cap["max_principal_cap_x"], at_cap["max_principal_cap_y"]],
         "pulse_wss": maxima["pulse_wss"][0],
         "recirculation_length": maxima["recirculation_length"][0],
+        "cells": loaded.summary["cells"],
         "wall_time_s": summary["wall_time_s"],
         "steps": summary["steps"],
         "coupling_iterations": summary["mean_coupling_iterations"],
@@ -87,6 +88,10 @@ def row(folder: Path) -> dict:
 def _where(r: dict) -> str:
     x, y = r["cap_principal_at"]
     return f"({1e3 * x:.2f}, {1e3 * y:.2f})"
+
+
+def _structure(cells: dict) -> int:
+    return cells["total"] - cells["fluid"]
 
 
 TABLES = {
@@ -103,6 +108,7 @@ TABLES = {
         ("at (z, r) or (x, y) (mm)", _where),
     ],
     "The cost": [
+        ("cells: fluid, structure", lambda r: f"{r['cells']['fluid']}, {_structure(r['cells'])}"),
         ("wall time (s)", lambda r: f"{r['wall_time_s']:.4g}"),
         ("steps", lambda r: f"{r['steps']}"),
         ("coupling iterations per step", lambda r: f"{r['coupling_iterations']:.3g}"),
