@@ -134,6 +134,30 @@ def eval_expression(expression, mesh, cells: np.ndarray) -> np.ndarray:
     return np.asarray(values).reshape(len(cells), -1)
 
 
+def quadrature_space(mesh, degree: int):
+    """A scalar space of values at the points of the default quadrature rule of ``degree`` on
+    each cell (the points of ``dx`` with that quadrature degree), and those reference points,
+    shape (points, tdim): a coefficient of this space enters a form of that degree as its
+    values there."""
+    import dolfinx.fem
+
+    if LEGACY:
+        import basix
+        import ufl
+
+        element = ufl.FiniteElement("Quadrature", mesh.ufl_cell(), degree, quad_scheme="default")
+        cell = basix.cell.string_to_type(mesh.ufl_cell().cellname())
+        points, _ = basix.make_quadrature(basix.QuadratureType.Default, cell, degree)
+        return dolfinx.fem.FunctionSpace(mesh, element), points
+    import basix.ufl
+
+    element = basix.ufl.quadrature_element(
+        mesh.topology.cell_name(), value_shape=(), scheme="default", degree=degree
+    )
+    points, _ = element.custom_quadrature()
+    return dolfinx.fem.functionspace(mesh, element), points
+
+
 def geometry_dofmap(mesh) -> np.ndarray:
     """Geometry-node indices per local cell, shape (num_cells, nodes_per_cell)."""
     dofmap = mesh.geometry.dofmap

@@ -5,6 +5,7 @@ pulse against Stokes-layer theory, state handling, failures, 1 rank = 2 ranks, T
 import math
 
 from mpi4py import MPI
+from petsc4py import PETSc
 
 import dolfinx.fem
 import dolfinx.mesh
@@ -601,6 +602,48 @@ def test_uniform_flow_stays_uniform_on_a_moving_mesh():
     u = solver.u.x.array.reshape(-1, 2)
     assert np.abs(u - U).max() < 1e-10
     assert np.abs(solver.p.x.array).max() < 1e-8  # Pa, against ρ|U|² ≈ 1e3
+
+
+def test_supg_tau_held_per_step_is_the_expression():
+    """SUPG's τ is held at the quadrature points and evaluated once per solve
+    (fluid_residual.StepCoefficient) instead of in every assembly: on a moving mesh (τ reads
+    the cell size and the mesh velocity) with the Carreau law, after each step the residual and
+    the Jacobian equal those of the form with τ written out, to round-off."""
+    import dolfinx.fem.petsc
+
+    cfg = config.from_dict({"fluid": {"density": 1000.0, "rheology": {"model": "carreau"}}}).fluid
+    assert cfg.supg
+    domain, tags = unit_square(5)
+    solver = fluid.FluidSolver(
+        domain, tags, cfg, (fluid_boundaries.Velocity((1, 3, 4)), fluid_boundaries.Outflow(2, 1.0))
+    )
+    (held,) = solver.step_coefficients
+    written_out = ufl.replace(solver.residual_form, {held.function: held.value})
+    forms = {
+        name: [dolfinx.fem.form(F), dolfinx.fem.form(ufl.derivative(F, solver.U))]
+        for name, F in (("held", solver.residual_form), ("written out", written_out))
+    }
+    solver.boundary_velocity.interpolate(lambda x: np.vstack([x[1] * (1 - x[1]), 0 * x[0]]))
+    X = solver.ale.space.tabulate_dof_coordinates()
+    d = dolfinx.fem.Function(solver.ale.space)
+    for k in range(1, 4):
+        d.x.array[:] = 0.05 * k * np.column_stack([np.sin(np.pi * X[:, 1]), X[:, 0] * 0]).ravel()
+        solver.set_mesh_displacement(d)
+        solver.boundary_velocity.x.array[:] *= 2
+        assert solver.step(0.01 * k, 0.01).converged
+        vectors = {n: dolfinx.fem.petsc.assemble_vector(f[0]) for n, f in forms.items()}
+        matrices = {n: dolfinx.fem.petsc.assemble_matrix(f[1]) for n, f in forms.items()}
+        for v in vectors.values():
+            v.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        for A in matrices.values():
+            A.assemble()
+        b, c = vectors["held"], vectors["written out"]
+        A, B = matrices["held"], matrices["written out"]
+        assert (b - c).norm() <= 1e-12 * c.norm(), (k, (b - c).norm(), c.norm())
+        A.axpy(-1.0, B)
+        assert A.norm() <= 1e-12 * B.norm(), (k, A.norm(), B.norm())
+        solver.advance()
+    assert np.abs(solver.ale.w.x.array).max() > 0.1  # the mesh really moved
 
 
 def test_slip_wall_with_traction_on_a_tilted_channel():

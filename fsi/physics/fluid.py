@@ -250,6 +250,7 @@ class FluidSolver:
         residual = FluidResidual(self, body_force)
         self.residual_form: ufl.Form = residual.form
         self._bcs, self._updates, self.lumped = residual.bcs, residual.updates, residual.lumped
+        self.step_coefficients = residual.step_coefficients  # SUPG's τ, held per step
         self.problem = _FluidProblem(residual.form, self.U, self._bcs, self.lumped)
         self.newton = Newton(self.comm, self.problem, self.config.solver, "fluid_")
         # −R of the last step's solution, kept from before advance() (the residual needs the
@@ -335,6 +336,8 @@ class FluidSolver:
         if not self._mesh_velocity_given:  # else mesh_velocity(dt) computed it
             self.ale.set_velocity(weights)
         self.ale.w.x.scatter_forward()
+        for coefficient in self.step_coefficients:
+            coefficient.evaluate()
         result = self.newton.solve(
             self.U,
             lambda: self.newton.solver.b.norm(),  # the solver's b: a failed attempt renews it

@@ -26,7 +26,7 @@ import dolfinx.fem.petsc
 import numpy as np
 import ufl
 
-from fsi import config
+from fsi import compat, config
 from fsi.config.rheology_section import womersley_viscosity
 from fsi.physics import outlets, rheology
 from fsi.physics.coordinates import Coordinates
@@ -185,6 +185,30 @@ class _WeakForm:
         return sum((self.ds(t) for t in tags[1:]), self.ds(tags[0]))
 
 
+class StepCoefficient:
+    """An expression that does not change during a step's solve (it reads the step's constants,
+    u^n, u^{n−1}, the mesh and its velocity, not the unknown), held as a Function of its values
+    at the quadrature points of ``dx`` (quadrature ``degree``): the form reads the values
+    instead of evaluating the expression at every assembly, and :meth:`evaluate` sets them once
+    the step's mesh and mesh velocity are (the solver calls it before each solve). For SUPG's τ,
+    whose square root and powers were ~30 % of the residual's and the Jacobian's assembly
+    (docs/performance.md); the form is the expression's to round-off (tests/test_fluid.py)."""
+
+    def __init__(self, mesh: dolfinx.mesh.Mesh, value: ufl.core.expr.Expr, degree: int):
+        space, points = compat.quadrature_space(mesh, degree)
+        self.mesh, self.value = mesh, value
+        self.function = dolfinx.fem.Function(space)
+        self._expression = dolfinx.fem.Expression(value, points)
+        index_map = mesh.topology.index_map(mesh.topology.dim)
+        self._cells = np.arange(index_map.size_local + index_map.num_ghosts, dtype=np.int32)
+        self._dofs = compat.cell_dofs(space)[self._cells]
+
+    def evaluate(self) -> None:
+        """Set the values from the expression (every local cell, ghosts too: no scatter)."""
+        values = compat.eval_expression(self._expression, self.mesh, self._cells)
+        self.function.x.array[self._dofs] = values
+
+
 _NORMAL_FLOW, _PRESCRIBED, _WALL = 0, 1, 2
 """The precedence of Dirichlet conditions: they are applied in this order, so at a dof two of
 them share (a corner) the later one wins: walls over inlets and the interface, both over the
@@ -256,6 +280,7 @@ class FluidResidual:
         self._extrapolation = s.extrapolation_weights
         self.bcs: list = []
         self.updates: list[Callable[[float], None]] = []
+        self.step_coefficients: list[StepCoefficient] = []
         self.lumped: list[LumpedOutlet] = []
         self.form = self._residual(body_force)
 
@@ -547,10 +572,19 @@ class FluidResidual:
         tau = (
             (2 * self._a[0]) ** 2 + (2 * speed / h) ** 2 + (viscous * mu_tau / (rho * h**2)) ** 2
         ) ** -0.5
+        if self.scheme != "steady":
+            tau = self._step_coefficient(tau)
         terms = self._supg(s, tau, residual)
         if self.config.element == "p1p1":
             terms = terms - self._pspg(s, tau, residual) + self._lsic(s, tau)
         return terms
+
+    def _step_coefficient(self, value) -> dolfinx.fem.Function:
+        """``value`` held at the quadrature points of ``dx`` (:class:`StepCoefficient`, added to
+        :attr:`step_coefficients`)."""
+        held = StepCoefficient(self.mesh, value, self.config.quadrature_degree)
+        self.step_coefficients.append(held)
+        return held.function
 
     @staticmethod
     def _hoop(s: _WeakForm):
