@@ -550,8 +550,9 @@ class FluidResidual:
         :data:`VISCOUS_CONSTANT`). τ takes u and μ(s(u)) of the last accepted step, so that it
         is a coefficient of the step, not a function of its unknown; a steady solve has no last
         step and takes them from its unknown (Newton differentiates), the extrapolated
-        linearization from u*; R is the step's own (advected by u*, with μ(s(u*)), when
-        extrapolated)."""
+        linearization from u*; fixed during a solve, it is held at the quadrature points
+        (:class:`StepCoefficient`) except when steady; R is the step's own (advected by u*,
+        with μ(s(u*)), when extrapolated)."""
         rho, w, u, h = self._rho, self.ale.w, s.u, s.h
         residual = (
             rho * s.dudt
