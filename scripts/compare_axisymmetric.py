@@ -5,9 +5,10 @@ Runs (unless ``--reuse`` finds them finished) ``fsi run`` of configs/stenosis_CA
 configs/axisymmetric/stenosis_CASE.yaml for the four cases, on one rank and the coarse mesh unless
 told, into ``--out``, then prints, per case and model: the wall's displacement per Pa of peak
 pressure at rest (0.8 s), the cap's largest principal stress (when and where), the largest wall
-shear stress of the pulse (t ≤ 10 ms), the longest recirculation zone and the cost (wall time,
-steps, coupling iterations per step); and the structure's displacement per Pa under a uniform
-static lumen pressure in each model beside the thin tube's R²/(E h) and Lamé's thick cylinder.
+shear stress of the pulse (t ≤ 10 ms), the longest recirculation zone and the cost (cells,
+the steps' wall time, steps, coupling iterations per step); and the structure's displacement
+per Pa under a uniform static lumen pressure in each model beside the thin tube's R²/(E h) and
+Lamé's thick cylinder.
 The last line of its standard output is one JSON object of all of it.
 
 Usage::
@@ -29,7 +30,7 @@ sys.path.insert(0, str(ROOT))
 from fsi import config  # noqa: E402
 from fsi.output import report  # noqa: E402
 from scripts.study_analyses import uniform_pressure_compliance  # noqa: E402
-from scripts.study_runs import CONFIGS, LABELS, finished, summarise  # noqa: E402
+from scripts.study_runs import CONFIGS, LABELS, summarise  # noqa: E402
 from scripts.wall_compliance import estimates  # noqa: E402
 
 MODELS = {"plane": ROOT / "configs", "axisymmetric": ROOT / "configs" / "axisymmetric"}
@@ -45,11 +46,10 @@ def config_file(model: str, name: str) -> Path:
 
 def run(model: str, name: str, out: Path, settings: list[str], ranks: int, reuse: bool) -> Path:
     """The run folder of one case in one model, made by ``fsi run`` unless ``reuse`` finds it
-    finished."""
+    finished (its summary.json, which ``fsi run`` writes at the end)."""
     folder = out / f"{model}_{name}"
-    if reuse and (folder / "metrics.csv").is_file():
-        if finished(summarise(report.load_run(folder))):
-            return folder
+    if reuse and (folder / "summary.json").is_file():
+        return folder
     command = [sys.executable, "-m", "fsi", "run", str(config_file(model, name))]
     command += ["--out", str(folder), "--overwrite"]
     for setting in settings:

@@ -250,7 +250,7 @@ class FluidSolver:
         residual = FluidResidual(self, body_force)
         self.residual_form: ufl.Form = residual.form
         self._bcs, self._updates, self.lumped = residual.bcs, residual.updates, residual.lumped
-        self.step_coefficients = residual.step_coefficients  # SUPG's τ, held per step
+        self.step_coefficients = residual.step_coefficients  # SUPG's τ, held per solve
         self.problem = _FluidProblem(residual.form, self.U, self._bcs, self.lumped)
         self.newton = Newton(self.comm, self.problem, self.config.solver, "fluid_")
         # −R of the last step's solution, kept from before advance() (the residual needs the
