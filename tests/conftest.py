@@ -2,12 +2,17 @@
 
 import gc
 import logging
+import os
 import shutil
+import sys
 import tempfile
+import time
+import zlib
 from pathlib import Path
 
 from mpi4py import MPI
 
+import numpy as np
 import pytest
 
 
@@ -44,3 +49,63 @@ def fsi_log(caplog):
     logger.addHandler(caplog.handler)
     yield caplog
     logger.removeHandler(caplog.handler)
+
+
+# --------------------------------------------------------------------------------------------
+# On several ranks: the ranks must agree on every test's outcome.
+#
+# A test that fails on one rank only leaves the ranks out of step: the other rank's pending
+# collectives (a broadcast, a barrier) are matched with the wrong calls in later tests, and the
+# lane hangs, or fails far from the cause, until the lane's timeout. After every test the ranks
+# compare which test they ran and whether it failed, on a communicator of their own and with a
+# deadline; when they disagree, or a rank does not arrive, the failing rank's report is printed
+# and the run is aborted at once.
+
+_RANKS = MPI.COMM_WORLD.Dup() if MPI.COMM_WORLD.size > 1 else None
+_WAIT = float(os.environ.get("FSI_TEST_RANK_WAIT", "600"))
+"""Seconds a rank that has finished a test waits for the others to finish it."""
+_FAILURES = pytest.StashKey[list]()
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    report = (yield).get_result()
+    if report.failed:
+        item.stash.setdefault(_FAILURES, []).append(f"{report.when}: {report.longreprtext}")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    yield
+    if _RANKS is not None:
+        _ranks_agree(item)
+
+
+def _ranks_agree(item: pytest.Item) -> None:
+    failures = item.stash.get(_FAILURES, [])
+    mine = np.array([zlib.crc32(item.nodeid.encode()), bool(failures)], dtype=np.int64)
+    everyone = np.empty((_RANKS.size, 2), dtype=np.int64)
+    request = _RANKS.Iallgather(mine, everyone)
+    deadline = time.monotonic() + _WAIT
+    while not request.Test():
+        if time.monotonic() > deadline:
+            _abort(item, failures, f"the other ranks have not finished it after {_WAIT:g} s")
+        time.sleep(0.005)
+    if len(set(everyone[:, 0])) > 1:
+        _abort(item, failures, "the ranks ran different tests")
+    failed = [rank for rank, flag in enumerate(everyone[:, 1]) if flag]
+    if failed and len(failed) < _RANKS.size:
+        _abort(item, failures, f"it failed on rank(s) {failed} only: the ranks are out of step")
+
+
+def _abort(item: pytest.Item, failures: list[str], why: str) -> None:
+    capture = item.config.pluginmanager.getplugin("capturemanager")
+    with capture.global_and_fixture_disabled():
+        rank = _RANKS.rank
+        state = "failed" if failures else "passed"
+        print(f"\nrank {rank}: {item.nodeid} {state}; {why}. Aborting.", file=sys.stderr)
+        for text in failures:
+            print(f"rank {rank}: {text}", file=sys.stderr)
+        sys.stderr.flush()
+        sys.stdout.flush()
+    MPI.COMM_WORLD.Abort(3)
