@@ -11,6 +11,7 @@ import zlib
 from pathlib import Path
 
 from mpi4py import MPI
+from petsc4py import PETSc
 
 import numpy as np
 import pytest
@@ -18,9 +19,13 @@ import pytest
 
 @pytest.fixture(autouse=True)
 def _collect_and_sync():
-    """Free PETSc/dolfinx objects and line the ranks up after every test (as dolfinx does)."""
+    """Free PETSc/dolfinx objects and line the ranks up after every test (as dolfinx does).
+    petsc4py only stashes a collected parallel object (its destruction is collective, and the
+    ranks collect at different moments): ``garbage_cleanup`` destroys them on every rank at
+    once, or they would pile up for the whole 2-rank run."""
     yield
     gc.collect()
+    PETSc.garbage_cleanup(MPI.COMM_WORLD)
     MPI.COMM_WORLD.barrier()
 
 
