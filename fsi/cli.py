@@ -557,8 +557,12 @@ def _run_checked(request: RunRequest, case: config.Case, restart, comm: MPI.Comm
         # are collective (MUMPS), and a run that stopped leaves them in reference cycles
         # (through its exception's traceback) that each rank's garbage collector would free at
         # a different moment, hanging the ranks (seen in tests/test_faults.py on 2 ranks).
+        # petsc4py only stashes a collected parallel object: garbage_cleanup destroys them.
         if not at_once:
+            from petsc4py import PETSc
+
             gc.collect()
+            PETSc.garbage_cleanup(comm)
             comm.barrier()
     done = f"done: {result.steps} steps in {result.wall_time_s:.1f} s; wrote {request.out}"
     log.info(done)
