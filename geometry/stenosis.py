@@ -64,10 +64,13 @@ def sides(p: StenosisParameters) -> tuple[str, ...]:
 
 def boundaries(p: StenosisParameters) -> tuple[Boundary, ...]:
     """The boundary tags of the mesh: :data:`BOUNDARIES`, with ``axis`` for the rigid wall when
-    axisymmetric (the bottom side is the axis, the top carries the plaque)."""
-    if not p.axisymmetric:
-        return BOUNDARIES
-    return tuple(Boundary.AXIS if b == Boundary.RIGID_WALL else b for b in BOUNDARIES)
+    axisymmetric (the bottom side is the axis, the top carries the plaque), and without the
+    rigid wall when both sides carry a plaque (the lumen is bounded by the interface alone)."""
+    if p.axisymmetric:
+        return tuple(Boundary.AXIS if b == Boundary.RIGID_WALL else b for b in BOUNDARIES)
+    if set(sides(p)) == set(SIDES):
+        return tuple(b for b in BOUNDARIES if b != Boundary.RIGID_WALL)
+    return BOUNDARIES
 
 
 def apex_x(p: StenosisParameters) -> float:

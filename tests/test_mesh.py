@@ -111,7 +111,9 @@ def test_plaque_on_the_top_or_both_sides(sides):
     for name, area in exact.items():
         assert s["area_m2"][name] == pytest.approx(area, rel=5e-3), name
     assert s["measures"]["stenosis_degree"] == pytest.approx(0.5, rel=1e-12)
-    assert (s["facets"]["rigid_wall"] > 0) == (len(sides) == 1)
+    assert (
+        s["facets"].get("rigid_wall", 0) > 0 if len(sides) == 1 else "rigid_wall" not in s["facets"]
+    )
     assert s["measures"]["min_cap_thickness_m"] == pytest.approx(0.0005, rel=5e-3)
 
 
