@@ -5,7 +5,8 @@
 :class:`FluidInterface` maps the interface displacement (m) to the fluid's nodal forces on the
 structure (N/m) through the mesh motion, :class:`SolidInterface` those forces at t_{n+1} to its
 interface displacement; both on flat interface vectors (the owned interface dofs of the solid's
-displacement space).
+displacement space). Forces are per metre of depth in the plane and in N (a whole ring) when
+axisymmetric, as the residuals' integrals (fsi.physics.coordinates).
 """
 
 from __future__ import annotations

@@ -480,15 +480,15 @@ class FluidSolver:
         return NodalForces(coordinates, minus_R[W_dofs], nodes)
 
     def boundary_force(self, tags: Sequence[int]) -> np.ndarray:
-        """Total force (N/m) of the fluid on ``tags``, Σ_i f_i over :meth:`interface_force`'s
-        nodes (the residual form of ∫ σ n_obstacle ds: drag and lift)."""
+        """Total force (N/m; N when axisymmetric) of the fluid on ``tags``, Σ_i f_i over
+        :meth:`interface_force`'s nodes (the residual form of ∫ σ n_obstacle ds: drag, lift)."""
         local = self.interface_force(as_tags(tags)).force.sum(axis=0)
         return self.comm.allreduce(local, op=MPI.SUM)
 
     def nodal_forces(self, tags: Sequence[int]) -> np.ndarray:
-        """:meth:`interface_force` on ``tags`` (N/m) as an array over every owned velocity node,
-        shape (n_owned, gdim) in the order of the owned (block) dofs of :attr:`V`, zero off the
-        boundary."""
+        """:meth:`interface_force` on ``tags`` (N/m; N when axisymmetric) as an array over every
+        owned velocity node, shape (n_owned, gdim) in the order of the owned (block) dofs of
+        :attr:`V`, zero off the boundary."""
         nodal = self.interface_force(tags)
         values = np.zeros((self.V.dofmap.index_map.size_local, self.mesh.geometry.dim))
         values[nodal.dofs] = nodal.force
