@@ -30,7 +30,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-from scripts.study_analyses import effective_length  # noqa: E402
+from scripts.study_analyses import P10_VARIANTS, effective_length  # noqa: E402
 from scripts.study_runs import PULSE_AMPLITUDE  # noqa: E402
 
 CASES = [
@@ -247,6 +247,11 @@ ANALYSES = {
             ("large_steps_bdf2", (LARGE_STEPS,)),
             ("large_steps_backward_euler", (LARGE_STEPS, "time.scheme=backward_euler")),
         )
+    ],
+    # 3b. What the fixed wall's p(10 ms) does not depend on, to 20 ms.
+    "p10": [
+        StudyRun("stenosis_fixed_newtonian", "coarse", sets=sets, label=f"p10/{name}", end=0.02)
+        for name, (_, sets) in P10_VARIANTS.items()
     ],
     # 4. The stenosis degree behind the velocity.
     "degree": [

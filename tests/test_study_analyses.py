@@ -135,3 +135,24 @@ def test_the_plane_stress_reading_is_plane_strain_with_the_equivalent_moduli():
         )
         assert mu2 == pytest.approx(mu, rel=1e-5)
         assert lam2 == pytest.approx(2 * lam * mu / (lam + 2 * mu), rel=1e-5)
+
+
+def test_what_p10_does_not_depend_on_states_the_largest_change_and_how_pressure_falls():
+    """The largest change of p(10 ms) over the variants but the two-sided plaque (reported on
+    its own), and p(10 ms) / p(20 ms) beside (u(10 ms) / u(20 ms))², fsi's and the study's."""
+    paper = study_runs.paper_values()
+
+    def run(p10: float, p20: float, u10: float = 0.27, u20: float = 0.25) -> dict:
+        return summary({0.01: {"peak_pressure": p10, "peak_velocity": u10},
+                        0.02: {"peak_pressure": p20, "peak_velocity": u20}})  # fmt: skip
+
+    main = {"fixed_newtonian_coarse": run(4.0, 3.4)}
+    p10 = {"p10/no_supg": run(4.1, 3.5), "p10/degree_0.7": run(3.8, 3.3),
+           "p10/plaque_both_sides": run(2.0, 1.7)}  # fmt: skip
+    text = study_analyses.pressure_at_10ms(p10, main, paper)
+    assert "by more than 5.0 %" in text and "lowers it by 50 %" in text
+    assert "| no SUPG (the Galerkin form) | 4.1 | +2.5 % | 3.5 |" in text
+    assert f"p(10 ms) / p(20 ms) = {4.0 / 3.4:.3f}" in text
+    assert f"(u(10 ms) / u(20 ms))² = {(0.27 / 0.25) ** 2:.3f}" in text
+    assert "falls 1.258-fold against 1.053" in text  # the study's coarse Table 2 and Table 1
+    assert study_analyses.pressure_at_10ms({}, main, paper) == ""
