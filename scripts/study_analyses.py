@@ -447,7 +447,7 @@ def pressure(
     steps: Summaries,
     main: Summaries,
     paper: dict,
-    p10: Summaries | None = None,
+    p10: Summaries,
 ) -> str:
     """The peak pressure's decay from 10 ms to 0.1 s and its value at 0.8 s: the study's, ours,
     ours with the inlet before the physiological-flow issue, and with other stenosis degrees."""
@@ -524,7 +524,7 @@ def pressure(
             "",
             stagnation(main, paper),
             "",
-            pressure_at_10ms(p10 or {}, main, paper),
+            pressure_at_10ms(p10, main, paper),
             "",
             'The moving-wall cases\' "peak pressure" is max p over the fluid. While the '
             "ringing wall draws blood in, it is the small positive pressure left: "
@@ -730,9 +730,9 @@ def pressure_at_10ms(p10: Summaries, main: Summaries, paper: dict) -> str:
     the peak pressure falls from 10 to 20 ms beside the square of the peak velocity, fsi's and
     the study's."""
     base = main.get("fixed_newtonian_coarse")
-    if base is None or not p10:
-        return ""
     p_base = at(base, 0.01, "peak_pressure")
+    if p_base is None or not p10:
+        return ""
     lines = [
         "| coarse fixed-wall Newtonian run | p(10 ms) (Pa) | change | p(20 ms) (Pa) |",
         "|---|---|---|---|",
@@ -742,7 +742,7 @@ def pressure_at_10ms(p10: Summaries, main: Summaries, paper: dict) -> str:
     for name, (label, _) in P10_VARIANTS.items():
         s = p10.get(f"p10/{name}")
         p = at(s, 0.01, "peak_pressure")
-        if p is None or p_base is None:
+        if p is None:
             continue
         changes[name] = p / p_base - 1
         lines.append(
