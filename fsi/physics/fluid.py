@@ -28,7 +28,7 @@ import numpy as np
 import ufl
 
 from fsi import compat, config
-from fsi.numerics.newton import Forcing, Newton, SolveResult
+from fsi.numerics.newton import DirichletLifting, Forcing, Newton, SolveResult
 from fsi.numerics.timestepping import BdfHistory, bdf_weights
 from fsi.physics import rheology
 from fsi.physics.coordinates import Coordinates
@@ -94,10 +94,11 @@ class _FluidProblem(dolfinx.fem.petsc.NonlinearProblem):
         self.comm: MPI.Comm = U.function_space.mesh.comm
         self._unconstrained = dolfinx.fem.Function(U.function_space)
         self._evaluated_at: np.ndarray | None = None  # the iterate of the last residual
+        self.dirichlet = DirichletLifting(self.a, self.bcs)
 
     def F(self, x: PETSc.Vec, b: PETSc.Vec) -> None:
-        """dolfinx's residual (Dirichlet rows x − g, lifted), keeping R(x) before the rows
-        are set."""
+        """dolfinx's residual (Dirichlet rows x − g, lifted when x is not already g there:
+        :class:`fsi.numerics.newton.DirichletLifting`), keeping R(x) before the rows are set."""
         for outlet in self.lumped:
             outlet.update(x)
         kept = self._assemble_unconstrained()
@@ -106,9 +107,9 @@ class _FluidProblem(dolfinx.fem.petsc.NonlinearProblem):
         self._finish_unconstrained()
         with x.localForm() as local:
             self._evaluated_at = local.array_r.copy()
-        dolfinx.fem.petsc.apply_lifting(b, [self.a], [self.bcs], [x], -1.0)
+        self.dirichlet.apply(b, x)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        dolfinx.fem.petsc.set_bc(b, self.bcs, x, -1.0)
+        self.dirichlet.constrain(b, x)
 
     def _assemble_unconstrained(self) -> PETSc.Vec:
         """R(x) into the kept vector, each rank's own cells' contributions (ghosts unsummed)."""

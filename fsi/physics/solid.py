@@ -41,7 +41,7 @@ from fsi.config import (
     is_axisymmetric,
 )
 from fsi.geometry.tags import STRUCTURE_REGIONS, Boundary, Region
-from fsi.numerics.newton import Newton, SolveResult, petsc_options
+from fsi.numerics.newton import DirichletLifting, Newton, SolveResult, petsc_options
 from fsi.numerics.timestepping import NewmarkFamily, structural_scheme
 from fsi.physics import mesh as fsi_mesh
 from fsi.physics.coordinates import Coordinates
@@ -204,15 +204,23 @@ class SolidState:
 
 
 class _Problem(dolfinx.fem.petsc.NonlinearProblem):
-    """The residual with the interface's nodal forces subtracted (on owned, free dofs)."""
+    """The residual with the interface's nodal forces subtracted (on owned, free dofs); its
+    Dirichlet rows as dolfinx's, lifted only when the iterate is not already at the prescribed
+    values (:class:`fsi.numerics.newton.DirichletLifting`)."""
 
     def __init__(self, F, u, bcs, J, nodal: Callable[[], tuple[np.ndarray, np.ndarray]]):
         super().__init__(F, u, bcs, J=J)
         self._nodal = nodal
         self.residual_norm = math.nan
+        self.dirichlet = DirichletLifting(self.a, self.bcs)
 
     def F(self, x, b):
-        super().F(x, b)
+        with b.localForm() as local:
+            local.set(0.0)
+        dolfinx.fem.petsc.assemble_vector(b, self.L)
+        self.dirichlet.apply(b, x)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        self.dirichlet.constrain(b, x)
         rows, values = self._nodal()
         if len(rows):
             array = b.getArray(readonly=False)
