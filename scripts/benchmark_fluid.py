@@ -75,6 +75,17 @@ def load_case(
     )
 
 
+def fluid_solver(part: mesh.TaggedMesh, case: config.Case) -> fluid.FluidSolver:
+    """The case's fluid solver on the fluid mesh ``part`` (its boundaries and time scheme)."""
+    return fluid.FluidSolver(
+        part.mesh,
+        part.facet_tags,
+        case.fluid,
+        steppers.fluid_boundaries(case),
+        scheme=case.time.scheme,
+    )
+
+
 def event_totals(comm: MPI.Comm) -> dict[str, tuple[int, float]]:
     """(count, slowest rank's time) of PETSc's log events so far."""
     totals = {}
@@ -215,13 +226,7 @@ def degree_study(
         comm.barrier()
         tic = time.perf_counter()
         # The state (rest, zero BDF weights) does not change the cost: the kernel is the same.
-        solver = fluid.FluidSolver(
-            part.mesh,
-            part.facet_tags,
-            case.fluid,
-            steppers.fluid_boundaries(case),
-            scheme=case.time.scheme,
-        )
+        solver = fluid_solver(part, case)
         for coefficient in solver.step_coefficients:
             coefficient.evaluate()
         problem, x, A = solver.problem, compat.petsc_vector(solver.U), solver.newton.solver.A
@@ -310,13 +315,7 @@ def main(argv: list[str] | None = None) -> int:
         for model in args.models:
             case = load_case(level, model, args.steps, args.dt, args.settings)
             tic = time.perf_counter()
-            solver = fluid.FluidSolver(
-                part.mesh,
-                part.facet_tags,
-                case.fluid,
-                steppers.fluid_boundaries(case),
-                scheme=case.time.scheme,
-            )
+            solver = fluid_solver(part, case)
             setup = comm.allreduce(time.perf_counter() - tic, op=MPI.MAX)
             dofs = steppers.global_dofs(solver.W)
             say(
