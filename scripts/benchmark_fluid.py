@@ -291,7 +291,6 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     comm = MPI.COMM_WORLD
-    logging.disable(logging.INFO)  # no JIT (distutils) chatter; warnings still show
     PETSc.Log.begin()
 
     def say(*text):
@@ -432,4 +431,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    # No JIT (distutils) chatter; warnings still show. Not when imported (tests): the setting
+    # is the process's, and later tests read the run logs' INFO lines.
+    logging.disable(logging.INFO)
     sys.exit(main())

@@ -4,6 +4,7 @@ its Dirichlet lifting assembled, and the Carreau Jacobian against the quadrature
 degree a solver of its own: SUPG's held τ lives at the degree's points; the degree study once
 failed with "Mismatch of tabulation points" when the degree was set on the form alone)."""
 
+import logging
 import sys
 from pathlib import Path
 
@@ -28,3 +29,10 @@ def test_both_tables_are_printed(capsys):
     assert set(degrees) == {"2", "4"}
     assert float(degrees["4"][4]) == 1.0  # "× deg 4" of the reference degree
     assert any(line.startswith("auto (cell ") for line in study)
+
+
+def test_importing_and_running_it_leaves_logging_alone():
+    """The script silences INFO logging only when run as a script: a test running its main()
+    once switched it off for the rest of the pytest process, and the run-log checks of
+    tests/test_faults.py failed ("step 2/4" missing from run.log)."""
+    assert logging.root.manager.disable < logging.INFO
