@@ -172,8 +172,8 @@ class DirichletLifting:
         self.skipped = 0  # liftings not assembled (counter, for the benchmarks)
 
     def apply(self, b: PETSc.Vec, x: PETSc.Vec) -> None:
-        """Lift ``b`` (owned and ghost entries, before the ghosts are summed) when needed.
-        Collective."""
+        """``b``, the assembled residual with its ghost contributions not yet summed: lifted
+        when needed, ghosts summed, constrained rows set. Collective."""
         if self._gap is None:
             self._gap = x.duplicate()
         with self._gap.localForm() as local:
@@ -181,11 +181,9 @@ class DirichletLifting:
         dolfinx.fem.petsc.set_bc(self._gap, self.bcs, x, 1.0)
         if self._gap.norm(PETSc.NormType.NORM_INFINITY) == 0.0:  # NaN: lift, as before
             self.skipped += 1
-            return
-        dolfinx.fem.petsc.apply_lifting(b, [self.a], [self.bcs], [x], -1.0)
-
-    def constrain(self, b: PETSc.Vec, x: PETSc.Vec) -> None:
-        """``b = x − g`` on the constrained rows (after the ghosts are summed)."""
+        else:
+            dolfinx.fem.petsc.apply_lifting(b, [self.a], [self.bcs], [x], -1.0)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         dolfinx.fem.petsc.set_bc(b, self.bcs, x, -1.0)
 
 

@@ -108,8 +108,6 @@ class _FluidProblem(dolfinx.fem.petsc.NonlinearProblem):
         with x.localForm() as local:
             self._evaluated_at = local.array_r.copy()
         self.dirichlet.apply(b, x)
-        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        self.dirichlet.constrain(b, x)
 
     def _assemble_unconstrained(self) -> PETSc.Vec:
         """R(x) into the kept vector, each rank's own cells' contributions (ghosts unsummed)."""

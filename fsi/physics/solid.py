@@ -219,8 +219,6 @@ class _Problem(dolfinx.fem.petsc.NonlinearProblem):
             local.set(0.0)
         dolfinx.fem.petsc.assemble_vector(b, self.L)
         self.dirichlet.apply(b, x)
-        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        self.dirichlet.constrain(b, x)
         rows, values = self._nodal()
         if len(rows):
             array = b.getArray(readonly=False)
