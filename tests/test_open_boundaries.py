@@ -23,7 +23,7 @@ from fsi import config
 from fsi.config import reader
 from fsi.geometry.tags import Boundary
 from fsi.numerics.timestepping import steps
-from fsi.output import metrics
+from fsi.output import comparison, metrics
 from fsi.physics import fluid, fluid_boundaries, rheology
 from fsi.run import steppers
 
@@ -316,6 +316,37 @@ def test_supg_leaves_poiseuille_flow_exact():
     assert np.abs(u[:, 1]).max() < 1e-10 * peak
     xp = solver.Q.tabulate_dof_coordinates()
     assert np.abs(solver.p.x.array - G * (L - xp[:, 0])).max() < 1e-10 * G * L
+
+
+def test_supg_moves_the_stenosis_only_in_its_outlet_pressure_and_by_a_bounded_amount(shared_tmp):
+    """What SUPG changes where it is shipped: the rigid-wall Newtonian study stenosis, shipped
+    settings against the Galerkin form (``fluid.supg=false``, which runs this case), the
+    config's schedule through the pulse and into the decay (to 0.2 s: 5 ms steps from 0.1 s).
+
+    Every headline column of metrics.csv (fsi/output/comparison.py) but one stays within 0.5 %
+    of its peak (measured ≤ 0.26 %, the largest WSS). The mean outlet pressure moves more
+    (measured 57 % of its peak; asserted below 75 %), but at this stress-free outlet its exact
+    value is zero (the mean of μ ∂u_n/∂n, and the mean of ∂u_n/∂n is dQ/dx = 0 between rigid
+    walls), so the column holds the discretisation's error (in the moving Carreau case 20×
+    smaller on the fine mesh). SUPG's change is bounded against the pressure that matters, the
+    lumen's: below 2 % of the peak pressure at the same step (measured 1.58 %, in the decay).
+    docs/boundary-conditions.md §4 has the figures, the moving Carreau case and the fine mesh."""
+    settings = ["time.end=0.2", "time.retries=0"]
+    status, galerkin = fsi_run_rigid_stenosis([*settings, "fluid.supg=false"], shared_tmp / "g")
+    assert status == 0
+    status, supg = fsi_run_rigid_stenosis(settings, shared_tmp / "supg")
+    assert status == 0
+    found = comparison.largest_differences(supg, galerkin)
+    outlet = found.pop("mean_outlet_pressure")
+    print(f"\nSUPG against Galerkin: {found}; mean outlet pressure {outlet:.3g} of its peak")
+    assert max(found.values()) < 5e-3, found
+    lumen = max(
+        abs(a["mean_outlet_pressure"] - b["mean_outlet_pressure"]) / b["peak_pressure"]
+        for a, b in zip(supg, galerkin)
+    )
+    print(f"mean outlet pressure's change against the peak pressure: {lumen:.3g}")
+    assert lumen < 2e-2, lumen
+    assert outlet < 0.75, outlet
 
 
 @pytest.mark.parametrize("rheology", ["newtonian", "carreau"])
