@@ -253,6 +253,20 @@ ANALYSES = {
         StudyRun("stenosis_fixed_newtonian", "coarse", sets=sets, label=f"p10/{name}", end=0.02)
         for name, (_, sets) in P10_VARIANTS.items()
     ],
+    # 3c. The fluid's element: the study's code (COMSOL) discretises laminar flow with
+    #     equal-order P1+P1 by default; fsi's P1-P1 is fluid-only, so the plaque is held rigid
+    #     (which alone leaves p(10 ms) alone: the fixed wall's plaque moves by 0.05 um).
+    "element": [
+        StudyRun(
+            "stenosis_fixed_newtonian",
+            level,
+            sets=("structure.mode=rigid", f"fluid.element={element}"),
+            label=f"element/{element}_{level}",
+            end=0.1,
+        )
+        for level in ("coarse", "fine")
+        for element in ("p2p1", "p1p1")
+    ],
     # 4. The stenosis degree behind the velocity.
     "degree": [
         StudyRun(
