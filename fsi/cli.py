@@ -411,6 +411,10 @@ def _error(comm: MPI.Comm, message: str) -> None:
 
 
 def _check(args: argparse.Namespace, case: config.Case) -> int:
+    reason = config.mesh_only(case)
+    if reason is not None:
+        _error(MPI.COMM_WORLD, f"{args.config}: {reason}")
+        return EXIT_USAGE
     log.info(
         "%s: valid (case %r, geometry %s, mesh %s, structure %s)",
         args.config,
@@ -815,10 +819,11 @@ def _mesh(args: argparse.Namespace, case: config.Case) -> int:
         return EXIT_OUTPUT_FAILED
     cells = summary["cells"]
     log.info(
-        "mesh of %s (%s): %d triangles (%s)",
+        "mesh of %s (%s): %d %s (%s)",
         args.config,
         case.mesh.level,
         cells["total"],
+        "tetrahedra" if config.dimension(case.geometry) == 3 else "triangles",
         ", ".join(f"{k} {v}" for k, v in cells.items() if k != "total"),
     )
     for name, value in summary.get("measures", {}).items():

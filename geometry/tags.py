@@ -13,7 +13,7 @@ from enum import IntEnum
 
 
 class Region(IntEnum):
-    """Cell tags (gmsh physical surfaces)."""
+    """Cell tags (gmsh physical surfaces; volumes in 3D)."""
 
     FLUID = 1
     WALL = 2
@@ -28,7 +28,7 @@ class Region(IntEnum):
 
 
 class Boundary(IntEnum):
-    """Facet tags (gmsh physical curves)."""
+    """Facet tags (gmsh physical curves; surfaces in 3D)."""
 
     INLET = 11
     OUTLET = 12
@@ -50,15 +50,17 @@ class Boundary(IntEnum):
 STRUCTURE_REGIONS = (Region.WALL, Region.CAP, Region.LIPID)
 
 
-def add_physical_groups(groups: dict[int, list[int]]) -> None:
+def add_physical_groups(groups: dict[int, list[int]], dimension: int = 2) -> None:
     """Create one named physical group per non-empty tag of ``groups`` (tag → gmsh entities;
-    surfaces for a :class:`Region`, curves for a :class:`Boundary`) in the current gmsh model."""
+    entities of the model's ``dimension`` for a :class:`Region`, one less for a
+    :class:`Boundary`: surfaces and curves in 2D, volumes and surfaces in 3D) in the current
+    gmsh model."""
     import gmsh
 
     for tag, entities in groups.items():
         if not entities:
             continue
-        dim = 2 if tag in Region._value2member_map_ else 1
-        name = (Region(tag) if dim == 2 else Boundary(tag)).label
+        dim = dimension if tag in Region._value2member_map_ else dimension - 1
+        name = (Region(tag) if dim == dimension else Boundary(tag)).label
         gmsh.model.addPhysicalGroup(dim, entities, tag)
         gmsh.model.setPhysicalName(dim, tag, name)

@@ -26,6 +26,7 @@ from fsi.config.domain import (
     StenosisGeometry,
     TubeGeometry,
     TurekHronGeometry,
+    dimension,
     is_axisymmetric,
 )
 from fsi.config.fluid_section import (
@@ -71,7 +72,7 @@ from fsi.config.structure_section import (
     WallMaterial,
 )
 from fsi.config.time_section import MAX_CYCLES, AdaptiveStepping, Time, TimeSegment
-from fsi.config.validation import cautions, validate
+from fsi.config.validation import cautions, mesh_only, validate
 
 __all__ = [
     # the case and its files
@@ -82,6 +83,7 @@ __all__ = [
     "from_dict",
     "validate",
     "cautions",
+    "mesh_only",
     "to_dict",
     "to_yaml",
     "dump",
@@ -95,6 +97,7 @@ __all__ = [
     "ChannelGeometry",
     "TubeGeometry",
     "TurekHronGeometry",
+    "dimension",
     "is_axisymmetric",
     "MESH_LEVELS",
     "MeshSettings",

@@ -37,6 +37,14 @@ class StenosisGeometry:
     # The meridian half-plane of a circular vessel (docs/axisymmetric.md): y = 0 the axis,
     # height the lumen's radius, the plaque a concentric ring of cap and lipid.
     axisymmetric: bool = False
+    # 3: the circular vessel as a solid (docs/3d.md), height the lumen's radius, the plaque the
+    # axisymmetric one revolved over plaque_angle; only `fsi mesh` builds it so far.
+    dimension: Literal[2, 3] = 2
+    # The plaque's angular span in 3D (degrees): 360 the concentric ring, less an eccentric
+    # plaque centred on +y.
+    plaque_angle: float = checked(
+        360.0, lambda v: 0 < v <= 360, "a number in (0, 360]", "degrees"
+    )
 
 
 @dataclass(frozen=True)
@@ -54,13 +62,17 @@ class TubeGeometry:
     (or, plane, the symmetry line) at y = 0 and a wall of ``wall_thickness`` outside it, clamped
     at both ends. ``axisymmetric`` (the default): the meridian half-plane of a circular tube
     (docs/axisymmetric.md); false: half of a plane channel of height 2 radius, symmetric about
-    y = 0."""
+    y = 0; ``dimension: 3`` (with ``axisymmetric: false``): the circular tube as a solid about
+    the x axis (geometry/vessel_3d.py)."""
 
     kind: Literal["tube"] = "tube"
     length: float = positive(0.05, "m")
     radius: float = positive(0.005, "m")
     wall_thickness: float = positive(0.001, "m")
     axisymmetric: bool = True
+    # 3: the circular tube as a solid (docs/3d.md; with axisymmetric false); only `fsi mesh`
+    # builds it so far.
+    dimension: Literal[2, 3] = 2
 
 
 @dataclass(frozen=True)
@@ -85,6 +97,11 @@ Geometry = StenosisGeometry | ChannelGeometry | TubeGeometry | TurekHronGeometry
 def is_axisymmetric(geometry: Geometry) -> bool:
     """Whether ``geometry`` is the meridian half-plane of a body of revolution."""
     return bool(getattr(geometry, "axisymmetric", False))
+
+
+def dimension(geometry: Geometry) -> int:
+    """The geometry's (and its mesh's) dimension: 3 for a solid vessel, otherwise 2."""
+    return int(getattr(geometry, "dimension", 2))
 
 
 MESH_LEVELS = {"coarse": 0, "medium": 1, "fine": 2, "finest": 3}

@@ -1,4 +1,5 @@
-"""How big a run is before it starts: its number of steps and, without gmsh, of triangles.
+"""How big a run is before it starts: its number of steps and, without gmsh, of triangles
+(tetrahedra in 3D).
 
 Validation (:func:`fsi.config.validate`) refuses a schedule of more than ``time.max_steps``
 steps and a mesh of more than ``mesh.max_cells`` triangles with these counts. The functions
@@ -12,6 +13,7 @@ import math
 from fsi.geometry import stenosis as stenosis_geometry
 from fsi.geometry import tube as tube_geometry
 from fsi.geometry import turek_hron as turek_hron_geometry
+from fsi.geometry import vessel_3d as vessel_3d_geometry
 
 
 def format_count(n: float) -> str:
@@ -57,6 +59,8 @@ def estimated_cells(case) -> float:
     """
     g, m = case.geometry, case.mesh
     size, local = m.size, min(m.local_size, m.size)
+    if getattr(g, "dimension", 2) == 3:
+        return _estimated_tetrahedra(g, size, local) * 8.0**m.refinements
     if g.kind == "stenosis":
         total = stenosis_geometry.analytic_areas(g)["total"]
         fine_area = (
@@ -88,6 +92,27 @@ def _turek_hron_cells_area(g, size: float, local: float) -> float:
     total = turek_hron_geometry.analytic_areas(g)["total"]
     rest = max(total - perimeter * band - math.pi * band**2, 0.0)
     return near + rest / size / size
+
+
+TETRAHEDRON_VOLUME = 1 / (6 * math.sqrt(2))
+"""Volume of a regular tetrahedron of edge 1: a gmsh tetrahedron of size h fills about
+``TETRAHEDRON_VOLUME · h³``."""
+
+
+def _estimated_tetrahedra(g, size: float, local: float) -> float:
+    """About how many tetrahedra a 3D vessel's coarse mesh has (geometry/vessel_3d.py): its
+    volume / (TETRAHEDRON_VOLUME h³), with h = ``local`` in the plaque's box (its angular span
+    of the ring ``R − A <= r <= R`` over ``stenosis_length``) and ``size`` elsewhere. Measured:
+    30,675 (estimate 32,200) for the 120° plaque and 53,055 (54,500) for the concentric one at
+    size 0.8 mm, local size 0.4 mm. Each further level halves the sizes: × 8."""
+    volumes = vessel_3d_geometry.analytic_volumes(g)
+    box = 0.0
+    if g.kind == "stenosis":
+        R, A = g.height, stenosis_geometry.plaque_height(g)
+        share = vessel_3d_geometry.plaque_angle(g) / (2 * math.pi)
+        box = share * math.pi * (R**2 - (R - A) ** 2) * g.stenosis_length
+    rest = volumes["total"] - box
+    return (box / local**3 + rest / size**3) / TETRAHEDRON_VOLUME
 
 
 BYTES_PER_CELL = 18e3

@@ -10,7 +10,7 @@ import math
 
 from fsi.config.boundary_data import FormulaError, periodic, sample_times, time_function
 from fsi.config.case import Case, heartbeat_period, run_time
-from fsi.config.domain import StenosisGeometry, TubeGeometry, TurekHronGeometry
+from fsi.config.domain import StenosisGeometry, TubeGeometry, TurekHronGeometry, dimension
 from fsi.config.fluid_section import (
     FLOW_RATE_INLETS,
     TABLE_INLETS,
@@ -25,6 +25,7 @@ from fsi.config.rheology_section import womersley_viscosity
 from fsi.config.run_size import BYTES_PER_CELL, count_steps, estimated_cells, format_count
 from fsi.config.time_section import Time
 from fsi.geometry import stenosis as stenosis_geometry
+from fsi.geometry import vessel_3d
 from fsi.numerics.timestepping import steps
 
 
@@ -48,8 +49,20 @@ def validate(case: Case) -> None:
     _validate_inlet(case)  # last: it walks the schedule, now known to be of bounded length
 
 
+def mesh_only(case: Case) -> str | None:
+    """Why ``fsi run`` and ``fsi check`` refuse a case that ``fsi mesh`` builds (a 3D vessel:
+    its physics is the next step of docs/3d.md), or None."""
+    if dimension(case.geometry) == 3:
+        return (
+            "geometry.dimension: 3 is only supported by `fsi mesh` so far (the fluid and"
+            " structure solvers are plane and axisymmetric; docs/3d.md)"
+        )
+    return None
+
+
 def _validate_geometry(case: Case) -> None:
     g = case.geometry
+    _validate_dimension(g)
     if isinstance(g, StenosisGeometry):
         _validate_stenosis(g)
     elif isinstance(g, TurekHronGeometry):
@@ -75,6 +88,26 @@ def _validate_geometry(case: Case) -> None:
         )
 
 
+def _validate_dimension(g) -> None:
+    """A 3D vessel is meshed whole (not as the axisymmetric meridian plane) and its plaque
+    spans ``plaque_angle``, which a plane or axisymmetric plaque cannot."""
+    if dimension(g) == 3 and g.axisymmetric:
+        raise ConfigError(
+            "",
+            "geometry.axisymmetric",
+            "false with geometry.dimension 3 (the 3D vessel is the solid itself;"
+            " axisymmetric is its 2D meridian-plane model)",
+            g.axisymmetric,
+        )
+    if isinstance(g, StenosisGeometry) and dimension(g) == 2 and g.plaque_angle != 360:
+        raise ConfigError(
+            "",
+            "geometry.plaque_angle",
+            "360 unless geometry.dimension is 3 (a plane or axisymmetric plaque spans no angle)",
+            g.plaque_angle,
+        )
+
+
 def _validate_stenosis(g: StenosisGeometry) -> None:
     """Plaque sides once each; the stenosis (its length and its centre) inside the segment;
     the cap thinner than the plaque and nowhere thinner than ``cap_thickness`` over the lipid
@@ -85,6 +118,14 @@ def _validate_stenosis(g: StenosisGeometry) -> None:
             "geometry.plaque_sides",
             "no plaque_sides with geometry.axisymmetric (the plaque is a concentric ring on the"
             " vessel's wall; the bottom side is the axis)",
+            list(g.plaque_sides),
+        )
+    if dimension(g) == 3 and g.plaque_sides is not None:
+        raise ConfigError(
+            "",
+            "geometry.plaque_sides",
+            "no plaque_sides with geometry.dimension 3 (the plaque spans geometry.plaque_angle"
+            " about +y)",
             list(g.plaque_sides),
         )
     sides = stenosis_geometry.sides(g)
@@ -111,6 +152,16 @@ def _validate_stenosis(g: StenosisGeometry) -> None:
             g.cap_thickness,
         )
     _refuse_not_shorter(g, "lipid_length", than="stenosis_length")
+    if dimension(g) == 3 and vessel_3d.lipid_angle(g) <= 0:
+        inner = g.height - (plaque - g.cap_thickness)
+        least = 2 * math.degrees(math.asin(min(1.0, g.cap_thickness / inner)))
+        raise ConfigError(
+            "",
+            "geometry.plaque_angle",
+            f"more than {least:.4g} degrees, the angle of the cap that covers the lipid pool's"
+            f" two ends by cap_thickness = {g.cap_thickness} m",
+            g.plaque_angle,
+        )
     thinnest = _thinnest_cap(g)
     if thinnest < g.cap_thickness * (1 - 1e-4):
         raise ConfigError(

@@ -1,9 +1,10 @@
 """The case's tagged mesh: gmsh builds it on rank 0, dolfinx distributes it, and its measures.
 
 The geometry builders (``geometry/``) add entities and physical groups to a gmsh model; this
-module meshes that model at the configured level (coarse, then uniform refinements), hands it to
-dolfinx, and measures the distributed mesh: cell and facet counts, region areas, the stenosis
-degree and the thinnest fibrous cap. Every function here is collective.
+module meshes that model at the configured level (coarse, then uniform refinements; in 3D meshed
+anew with smaller sizes), hands it to dolfinx, and measures the distributed mesh: cell and facet
+counts, region areas (volumes in 3D, :mod:`fsi.physics.mesh_3d`), the stenosis degree and the
+thinnest fibrous cap. Every function here is collective.
 """
 
 from __future__ import annotations
@@ -22,10 +23,11 @@ import dolfinx.mesh
 import numpy as np
 import ufl
 
-from fsi import compat
+from fsi import compat, config
 from fsi.config import Case, ChannelGeometry, StenosisGeometry, TubeGeometry, TurekHronGeometry
-from fsi.geometry import channel, stenosis, tube, turek_hron
+from fsi.geometry import channel, stenosis, tube, turek_hron, vessel_3d
 from fsi.geometry.tags import Boundary, Region
+from fsi.physics import mesh_3d
 
 log = logging.getLogger(__name__)
 
@@ -75,13 +77,15 @@ def _sigint_kept():
 
 def _build(case: Case, comm: MPI.Comm) -> TaggedMesh:
     error = None
+    dim = config.dimension(case.geometry)
     if comm.rank == 0:
         gmsh = _start_gmsh()
         try:
             _build_model(case)
-            gmsh.model.mesh.generate(2)
-            for _ in range(case.mesh.refinements):
-                gmsh.model.mesh.refine()
+            gmsh.model.mesh.generate(dim)
+            if dim == 2:  # a 3D level is meshed anew with smaller sizes (_build_model)
+                for _ in range(case.mesh.refinements):
+                    gmsh.model.mesh.refine()
         except Exception as e:  # reported on every rank below, before any collective
             error = f"gmsh failed to mesh the geometry: {e}"
     error = comm.bcast(error, root=0)
@@ -90,12 +94,12 @@ def _build(case: Case, comm: MPI.Comm) -> TaggedMesh:
             gmsh.finalize()
         raise RuntimeError(error)
     try:
-        mesh, cell_tags, facet_tags = compat.model_to_mesh(comm, 0, gdim=2)
+        mesh, cell_tags, facet_tags = compat.model_to_mesh(comm, 0, gdim=dim)
     finally:
         if comm.rank == 0:
             gmsh.finalize()
-    mesh.topology.create_connectivity(1, 2)
-    mesh.topology.create_entities(1)
+    mesh.topology.create_connectivity(dim - 1, dim)
+    mesh.topology.create_entities(dim - 1)
     cell_tags.name, facet_tags.name = "cell_tags", "facet_tags"
     return TaggedMesh(mesh, cell_tags, facet_tags)
 
@@ -137,7 +141,16 @@ def _skip_fltk_preferences() -> bool:
 
 def _build_model(case: Case) -> None:
     g, m = case.geometry, case.mesh
-    if isinstance(g, StenosisGeometry):
+    if config.dimension(g) == 3:
+        # Each level halves the sizes and meshes anew, rather than splitting every tetrahedron
+        # in eight as the 2D levels split triangles (docs/3d.md: the same sizes per level as
+        # the 2D meshes, and Delaunay-quality tetrahedra at every level).
+        scale = 0.5**m.refinements
+        if isinstance(g, StenosisGeometry):
+            vessel_3d.build_stenosis(g, size=m.size * scale, local_size=m.local_size * scale)
+        else:
+            vessel_3d.build_tube(g, size=m.size * scale)
+    elif isinstance(g, StenosisGeometry):
         stenosis.build(g, size=m.size, local_size=m.local_size)
     elif isinstance(g, ChannelGeometry):
         channel.build(g, size=m.size)
@@ -149,8 +162,15 @@ def _build_model(case: Case) -> None:
         raise ValueError(f"unknown geometry kind {g.kind!r}")
 
 
+def regions(case: Case) -> tuple[Region, ...]:
+    """The region tags of the case's mesh (the geometry module's ``REGIONS``)."""
+    if config.dimension(case.geometry) == 3:
+        return mesh_3d.regions(case.geometry)
+    return geometry_module(case).REGIONS
+
+
 def geometry_module(case: Case):
-    """The module of geometry/ that builds the case's geometry."""
+    """The module of geometry/ that builds the case's (plane or axisymmetric) geometry."""
     return {
         StenosisGeometry: stenosis,
         ChannelGeometry: channel,
@@ -161,7 +181,10 @@ def geometry_module(case: Case):
 
 def boundaries(case: Case) -> tuple[Boundary, ...]:
     """The boundary tags of the case's mesh (the geometry module's ``BOUNDARIES``; an
-    axisymmetric stenosis has the axis in place of the rigid wall)."""
+    axisymmetric stenosis has the axis in place of the rigid wall; geometry/vessel_3d.py's in
+    3D)."""
+    if config.dimension(case.geometry) == 3:
+        return mesh_3d.boundaries(case.geometry)
     if isinstance(case.geometry, StenosisGeometry):
         return stenosis.boundaries(case.geometry)
     return geometry_module(case).BOUNDARIES
@@ -258,12 +281,14 @@ def _owned_count(indices: np.ndarray, index_map) -> int:
 
 
 def summary(tagged: TaggedMesh, case: Case) -> dict:
-    """Cell counts and areas per region, facet counts per boundary and geometric measures.
+    """Cell counts and areas (``area_m2``; volumes, ``volume_m3``, in 3D) per region, facet
+    counts per boundary and geometric measures.
 
     Counts cover owned entities only, so they are the same on any number of ranks.
     """
     mesh, comm = tagged.mesh, tagged.comm
-    cell_map, facet_map = mesh.topology.index_map(2), mesh.topology.index_map(1)
+    tdim = mesh.topology.dim
+    cell_map, facet_map = mesh.topology.index_map(tdim), mesh.topology.index_map(tdim - 1)
     dx = ufl.Measure("dx", domain=mesh, subdomain_data=tagged.cell_tags)
     one = dolfinx.fem.Constant(mesh, 1.0)
 
@@ -271,18 +296,23 @@ def summary(tagged: TaggedMesh, case: Case) -> dict:
         local = dolfinx.fem.assemble_scalar(dolfinx.fem.form(one * measure))
         return float(comm.allreduce(local, op=MPI.SUM))
 
-    builder = geometry_module(case)
     cells = {
-        r.label: comm.allreduce(_owned_count(tagged.cells(r), cell_map)) for r in builder.REGIONS
+        r.label: comm.allreduce(_owned_count(tagged.cells(r), cell_map)) for r in regions(case)
     }
     cells["total"] = cell_map.size_global
-    areas = {r.label: area(dx(int(r))) for r in builder.REGIONS}
-    areas["total"] = area(dx)
+    if tdim == 3:  # summed exactly rounded: the same bits on any number of ranks
+        areas = mesh_3d.region_volumes(tagged, regions(case))
+    else:
+        areas = {r.label: area(dx(int(r))) for r in regions(case)}
+        areas["total"] = area(dx)
     facets = {
         b.label: comm.allreduce(_owned_count(tagged.facets(b), facet_map)) for b in boundaries(case)
     }
-    result = {"cells": cells, "area_m2": areas, "facets": facets}
-    if isinstance(case.geometry, StenosisGeometry):
+    measure = "volume_m3" if tdim == 3 else "area_m2"
+    result = {"cells": cells, measure: areas, "facets": facets}
+    if tdim == 3:
+        result["measures"] = mesh_3d.measures(tagged, case.geometry)
+    elif isinstance(case.geometry, StenosisGeometry):
         result["measures"] = stenosis_measures(tagged, case.geometry)
     elif isinstance(case.geometry, TurekHronGeometry):
         result["measures"] = turek_hron_measures(tagged, case.geometry)
