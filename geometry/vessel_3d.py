@@ -118,9 +118,25 @@ def area_reduction(p) -> float:
     return plaque_angle(p) / (2 * math.pi) * (1 - (1 - d) ** 2)
 
 
-def interface_area(p) -> float:
-    """Exact area (m²) of a tube's lumen surface, 2πRL (a stenosis's has no closed form)."""
-    return 2 * math.pi * lumen_radius(p) * p.length
+def interface_area(p, samples: int = 20001) -> float:
+    """Exact area (m²) of the lumen surface: the cylinder 2πRL, with over the plaque's span
+    the surface of revolution ``∫ (R − s) √(1 + s'²) dx`` per radian in place of the
+    cylinder's ``R l``, and for an eccentric plaque its two flat ends (each the meridian
+    plaque's area A l / 2). The integral by the trapezoidal rule on ``samples`` points
+    (relative error ~1e-9)."""
+    R, L = lumen_radius(p), p.length
+    if not hasattr(p, "height"):
+        return 2 * math.pi * R * L
+    alpha, l = plaque_angle(p), p.stenosis_length
+    x = np.linspace(stenosis.apex_x(p) - l / 2, stenosis.apex_x(p) + l / 2, samples)
+    s = stenosis.plaque_profile(p, x)
+    slope = np.gradient(s, x)
+    f = (R - s) * np.sqrt(1 + slope**2)
+    revolved = float(np.sum((f[1:] + f[:-1]) / 2 * np.diff(x)))
+    area = 2 * math.pi * R * (L - l) + alpha * revolved + (2 * math.pi - alpha) * R * l
+    if alpha < 2 * math.pi:
+        area += stenosis.plaque_height(p) * l  # the two ends, A l / 2 each
+    return area
 
 
 def build_tube(p, size: float) -> None:
@@ -265,8 +281,9 @@ class _Builder:
         self.sections["plaque"] = {
             Region.FLUID: [self.face([axis, outlet, *[-c for c in reversed(lumen)], -inlet])],
             Region.CAP: [self.face([*base, *[-c for c in reversed(cap)]])],
-            Region.WALL: [self.face([*lumen[: len(left)], *base, *right, clamp1, -exterior,
-                                     -clamp0])],  # fmt: skip
+            Region.WALL: [
+                self.face([*lumen[: len(left)], *base, *right, clamp1, -exterior, -clamp0])
+            ],  # fmt: skip
         }
         self.sections["lipid"] = {Region.LIPID: [self.face([base[1], *[-c for c in lipid[::-1]]])]}
 
@@ -305,6 +322,11 @@ class _Builder:
             for kind, span in (("plaque", alpha / 2), ("lipid", beta / 2)):
                 revolve(self.sections[kind], -span)
                 revolve(self.sections[kind], span)
+        if not self.stenosed:  # a tube: from the meridian φ = 0 both ways, as the plaque
+            revolve(self.sections["plain"], -math.pi)
+            revolve(self.sections["plain"], math.pi)
+            self._fragment(inputs)
+            return
         rest = tau - alpha  # the plain vessel from α/2 to 2π − α/2, in pieces of <= 180°
         n = math.ceil(rest / math.pi - 1e-12)
         faces = self.sections["plain"]
@@ -315,6 +337,11 @@ class _Builder:
             faces = revolve(faces, rest / n)
         if n == 0:  # concentric: the plain section is not part of the vessel
             self.occ.remove([(2, f) for fs in faces.values() for f in fs], recursive=True)
+        self._fragment(inputs)
+
+    def _fragment(self, inputs: list[tuple[Region, tuple[int, int]]]) -> None:
+        """Fragment the revolved ``inputs`` (region, volume) into conformal volumes and file
+        each under its region in ``pieces``."""
         self.occ.synchronize()
         dimtags = [d for _, d in inputs]
         _, mapping = self.occ.fragment(dimtags[:1], dimtags[1:])
@@ -338,7 +365,7 @@ class _Builder:
         bounding: dict[int, list[Region]] = {}
         for region, volumes in self.pieces.items():
             for _, v in volumes:
-                for dim, s in gmsh.model.getBoundary([(3, v)], oriented=False):
+                for _, s in gmsh.model.getBoundary([(3, v)], oriented=False):
                     bounding.setdefault(abs(s), []).append(region)
         groups: dict[int, list[int]] = {int(t): [] for t in (*Region, *Boundary)}
         for region, volumes in self.pieces.items():

@@ -42,9 +42,7 @@ class StenosisGeometry:
     dimension: Literal[2, 3] = 2
     # The plaque's angular span in 3D (degrees): 360 the concentric ring, less an eccentric
     # plaque centred on +y.
-    plaque_angle: float = checked(
-        360.0, lambda v: 0 < v <= 360, "a number in (0, 360]", "degrees"
-    )
+    plaque_angle: float = checked(360.0, lambda v: 0 < v <= 360, "a number in (0, 360]", "degrees")
 
 
 @dataclass(frozen=True)

@@ -257,14 +257,18 @@ def _validate_cell_count(case: Case) -> None:
             if gigabytes < 1e9
             else "too much"
         )
+        if dimension(case.geometry) == 3:  # no 3D run has measured its memory yet
+            kind, need = "tetrahedra", ""
+        else:
+            kind = "triangles"
+            need = f" (a coupled run needs ~{BYTES_PER_CELL / 1e3:.0f} kB per triangle: {memory})"
         raise ConfigError(
             "",
             "mesh",
             reason=(
-                f"{format_count(cells)} triangles estimated (mesh.size = {m.size:g} m, "
+                f"{format_count(cells)} {kind} estimated (mesh.size = {m.size:g} m, "
                 f"mesh.local_size = {m.local_size:g} m, mesh.level = {m.level}), more than "
-                f"mesh.max_cells = {m.max_cells:,} (a coupled run needs "
-                f"~{BYTES_PER_CELL / 1e3:.0f} kB per triangle: {memory}): use larger sizes or a "
+                f"mesh.max_cells = {m.max_cells:,}{need}: use larger sizes or a "
                 "coarser level, or raise mesh.max_cells if you "
                 "mean it"
             ),
