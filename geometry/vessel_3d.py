@@ -45,9 +45,11 @@ STENOSIS_BOUNDARIES = (*TUBE_BOUNDARIES, Boundary.CAP_LIPID, Boundary.PLAQUE_BAS
 
 # Control points of each B-spline of a plaque profile (the cap's lumen surface and the lipid
 # pool's, from an end to the apex). A B-spline lies in the convex hull of its control points,
-# so the plaque never crosses r = R; they interpolate the profile's end points (the apex and
-# the plaque's ends), and elsewhere lie within ~1 µm of the cosine (checked by the volumes).
-SPLINE_POINTS = 41
+# so the plaque never crosses r = R (an interpolating spline may overshoot at the plaque's
+# tangent ends); it passes through the end points (the apex and the plaque's ends) and within
+# ~0.2 µm of the cosine elsewhere: the solids' volumes are Pappus's within 1e-5 (cap) and
+# 8e-5 (pool) at 101 points, against 3e-4 and 3e-4 at 41.
+SPLINE_POINTS = 101
 # Growth of the element size away from the plaque (size per metre of distance) in the size
 # field of :func:`build_stenosis`: from local_size at the plaque to size.
 GRADING = 0.3
@@ -152,24 +154,24 @@ def build_tube(p, size: float) -> None:
     gmsh.option.setNumber("Mesh.MeshSizeMin", 0.0)
 
 
-def build_stenosis(p, size: float, local_size: float) -> None:
+def build_stenosis(p, size: float, local_size: float, grading: float = GRADING) -> None:
     """Add the 3D stenosed artery to the current gmsh model (OpenCASCADE kernel) with physical
     groups, and its size field: ``local_size`` in the box around the plaque (its axial extent,
-    its angular span and ``R − A <= r <= R``), growing by :data:`GRADING` with the distance
-    from it up to ``size``. Meshing is left to the caller."""
+    its angular span and ``R − A <= r <= R``), growing by ``grading`` (size per metre) with
+    the distance from it up to ``size``. Meshing is left to the caller."""
     import gmsh
 
     builder = _Builder(p, gmsh.model.occ)
     builder.add_sections(plaque=True)
     builder.revolve_pieces()
     builder.tag()
-    _plaque_size_field(p, size, local_size)
+    _plaque_size_field(p, size, local_size, grading)
 
 
-def _plaque_size_field(p, size: float, local_size: float) -> None:
+def _plaque_size_field(p, size: float, local_size: float, grading: float) -> None:
     """The background size field: a MathEval field of the distance to the plaque's box (its
     axial, radial and angular excess, each ``(a + |a|) / 2``), thresholded from
-    ``local_size`` at 0 to ``size`` at ``(size − local_size) / GRADING``."""
+    ``local_size`` at 0 to ``size`` at ``(size − local_size) / grading``."""
     import gmsh
 
     field = gmsh.model.mesh.field
@@ -195,7 +197,7 @@ def _plaque_size_field(p, size: float, local_size: float) -> None:
     field.setNumber(threshold, "SizeMin", local_size)
     field.setNumber(threshold, "SizeMax", size)
     field.setNumber(threshold, "DistMin", 0.0)
-    field.setNumber(threshold, "DistMax", (size - local_size) / GRADING)
+    field.setNumber(threshold, "DistMax", (size - local_size) / grading)
     field.setAsBackgroundMesh(threshold)
     # The field alone sets the sizes: none from the points, none extended from the boundary
     # (which would carry a curve's coarse size into the plaque's box).

@@ -261,7 +261,7 @@ def test_each_level_halves_the_sizes():
     coarse = _built(config.load(SAMPLE))[2]
     medium = _built(config.load(SAMPLE, ["mesh.level=medium"]))[2]
     ratio = medium["cells"]["total"] / coarse["cells"]["total"]
-    assert 6 < ratio < 10
+    assert 5 < ratio < 8.5  # measured 6.3: the coarse mesh is denser near its boundaries
     exact = vessel_3d.analytic_volumes(config.load(SAMPLE).geometry)
     for name in ("fluid", "cap", "lipid"):
         e0 = abs(coarse["volume_m3"][name] / exact[name] - 1)

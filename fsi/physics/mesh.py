@@ -142,12 +142,14 @@ def _skip_fltk_preferences() -> bool:
 def _build_model(case: Case) -> None:
     g, m = case.geometry, case.mesh
     if config.dimension(g) == 3:
-        # Each level halves the sizes and meshes anew, rather than splitting every tetrahedron
-        # in eight as the 2D levels split triangles (docs/3d.md: the same sizes per level as
-        # the 2D meshes, and Delaunay-quality tetrahedra at every level).
+        # Each level halves the size field (the sizes and the grading's slope, so the graded
+        # band keeps its width) and meshes anew, rather than splitting every tetrahedron in
+        # eight as the 2D levels split triangles (docs/3d.md: the 2D levels' sizes, and
+        # Delaunay-quality tetrahedra at every level).
         scale = 0.5**m.refinements
         if isinstance(g, StenosisGeometry):
-            vessel_3d.build_stenosis(g, size=m.size * scale, local_size=m.local_size * scale)
+            grading = vessel_3d.GRADING * scale
+            vessel_3d.build_stenosis(g, m.size * scale, m.local_size * scale, grading)
         else:
             vessel_3d.build_tube(g, size=m.size * scale)
     elif isinstance(g, StenosisGeometry):
