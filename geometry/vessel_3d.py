@@ -17,8 +17,8 @@ mid-length on φ = 0 (the plaque's middle), is a mesh vertex.
 
 Tags (geometry/tags.py), the axisymmetric cases' with surfaces for curves and volumes for
 surfaces: ``fluid``, ``wall``, ``cap``, ``lipid``; ``inlet`` (x = 0) and ``outlet``
-(x = length) across the lumen, ``interface`` (the lumen surface), ``clamped`` (the wall's and
-plaque's end rings, x = 0 and x = length), ``exterior`` (r = R + wall_thickness),
+(x = length) across the lumen, ``interface`` (the lumen surface), ``clamped`` (the wall's end
+rings, x = 0 and x = length), ``exterior`` (r = R + wall_thickness),
 ``cap_lipid`` and ``plaque_base`` (the plaque's internal surfaces).
 """
 
@@ -55,9 +55,14 @@ SPLINE_POINTS = 101
 GRADING = 0.3
 
 
+def is_stenosis(p) -> bool:
+    """Whether ``p`` is a stenosis's parameters (it has a plaque), not a tube's."""
+    return hasattr(p, "stenosis_degree")
+
+
 def lumen_radius(p) -> float:
-    """The lumen's radius R (m): the tube's ``radius``, the stenosis's ``height``."""
-    return p.radius if hasattr(p, "radius") else p.height
+    """The lumen's radius R (m): the stenosis's ``height``, the tube's ``radius``."""
+    return p.height if is_stenosis(p) else p.radius
 
 
 def plaque_angle(p) -> float:
@@ -81,7 +86,7 @@ def point_a(p) -> tuple[float, float, float]:
     """Point A (m): the lumen surface at mid-length on φ = 0 (+y), ``(length/2, R − s, 0)``
     with ``s`` the plaque's height there (0 for a tube); a mesh vertex."""
     x = p.length / 2
-    s = float(stenosis.plaque_profile(p, np.array([x]))[0]) if hasattr(p, "height") else 0.0
+    s = float(stenosis.plaque_profile(p, np.array([x]))[0]) if is_stenosis(p) else 0.0
     return x, lumen_radius(p) - s, 0.0
 
 
@@ -101,7 +106,7 @@ def analytic_volumes(p) -> dict[str, float]:
         Region.FLUID.label: math.pi * R**2 * L,
         Region.WALL.label: math.pi * ((R + t) ** 2 - R**2) * L,
     }
-    if hasattr(p, "height"):
+    if is_stenosis(p):
         A = stenosis.plaque_height(p)
         plaque = _revolved_bump(A, p.stenosis_length, plaque_angle(p), R)
         lipid = _revolved_bump(A - p.cap_thickness, p.lipid_length, lipid_angle(p), R)
@@ -127,7 +132,7 @@ def interface_area(p, samples: int = 20001) -> float:
     plaque's area A l / 2). The integral by the trapezoidal rule on ``samples`` points
     (relative error ~1e-9)."""
     R, L = lumen_radius(p), p.length
-    if not hasattr(p, "height"):
+    if not is_stenosis(p):
         return 2 * math.pi * R * L
     alpha, l = plaque_angle(p), p.stenosis_length
     x = np.linspace(stenosis.apex_x(p) - l / 2, stenosis.apex_x(p) + l / 2, samples)
@@ -239,23 +244,56 @@ class _Builder:
         return curve
 
     def add_sections(self, plaque: bool) -> None:
-        """The meridian faces: the plain lumen and wall (split at mid-length, so point A is a
-        vertex) and, for a stenosis, the plaque's lumen, plaque (cap and pool) and pool."""
-        p, R, L, t = self.p, self.R, self.L, self.t
-        x_a = L / 2
+        """The meridian faces: the plain lumen and wall and, for a stenosis, the plaque's lumen,
+        plaque (cap and pool) and wall, and the pool alone. Each section has its own curves
+        (the plain one is rotated before it is revolved, which must move no other face's
+        edges); within a section the faces share theirs."""
+        self.sections["plain"] = self._plain_section()
+        if plaque:
+            self.stenosed = True
+            self._add_plaque_sections()
+
+    def _ends(self) -> tuple[tuple[int, int, int, int], dict[str, int]]:
+        """A section's corner points on r = R (x = 0, L) and its lines off the lumen surface:
+        the axis, inlet, outlet, the wall's two ends and its exterior."""
+        R, L, t = self.R, self.L, self.t
         axis0, axis1 = self.point(0, 0), self.point(L, 0)
-        in0, in1, a = self.point(0, R), self.point(L, R), self.point(x_a, R)
+        in0, in1 = self.point(0, R), self.point(L, R)
         out0, out1 = self.point(0, R + t), self.point(L, R + t)
-        axis, inlet, outlet = self.line(axis0, axis1), self.line(axis0, in0), self.line(axis1, in1)
-        upstream, downstream = self.line(in0, a), self.line(a, in1)
-        clamp0, clamp1, exterior = self.line(in0, out0), self.line(in1, out1), self.line(out0, out1)
-        self.sections["plain"] = {
-            Region.FLUID: [self.face([axis, outlet, -downstream, -upstream, -inlet])],
-            Region.WALL: [self.face([upstream, downstream, clamp1, -exterior, -clamp0])],
+        lines = {
+            "axis": self.line(axis0, axis1),
+            "inlet": self.line(axis0, in0),
+            "outlet": self.line(axis1, in1),
+            "clamp0": self.line(in0, out0),
+            "clamp1": self.line(in1, out1),
+            "exterior": self.line(out0, out1),
         }
-        if not plaque:
-            return
-        self.stenosed = True
+        return (axis0, axis1, in0, in1), lines
+
+    def _plain_section(self) -> dict[Region, list[int]]:
+        """The healthy vessel's lumen and wall faces, the lumen line split at mid-length (so
+        point A is a vertex)."""
+        (_, _, in0, in1), e = self._ends()
+        lumen = self._plain_lumen(in0, in1, 0.0, self.L)
+        return {
+            Region.FLUID: [self._fluid_face(e, lumen)],
+            Region.WALL: [self._wall_face(e, lumen)],
+        }
+
+    def _fluid_face(self, e: dict[str, int], lumen: list[int]) -> int:
+        """The lumen's face: the axis, the outlet, the lumen curves (from x = 0 to L) back and
+        the inlet."""
+        return self.face([e["axis"], e["outlet"], *[-c for c in reversed(lumen)], -e["inlet"]])
+
+    def _wall_face(self, e: dict[str, int], inner: list[int]) -> int:
+        """The wall's face: its inner curves (from x = 0 to L), its ends and its exterior."""
+        return self.face([*inner, e["clamp1"], -e["exterior"], -e["clamp0"]])
+
+    def _add_plaque_sections(self) -> None:
+        """The plaque's section (lumen, plaque of cap and pool, wall behind) and the pool's."""
+        p, R, L = self.p, self.R, self.L
+        x_a = L / 2
+        (_, _, in0, in1), e = self._ends()
         xc, half, half_lip = stenosis.apex_x(p), p.stenosis_length / 2, p.lipid_length / 2
         A = stenosis.plaque_height(p)
         x0, x1, x2, x3 = xc - half, xc - half_lip, xc + half_lip, xc + half
@@ -269,8 +307,8 @@ class _Builder:
             cap_breaks.append((x_a, self.point(x_a, r_a)))
         cap_breaks.sort()
         cap = [
-            self.profile_curve(s, e, xs, xe, stenosis.plaque_profile)
-            for (xs, s), (xe, e) in zip(cap_breaks, cap_breaks[1:])
+            self.profile_curve(start, end, xs, xe, stenosis.plaque_profile)
+            for (xs, start), (xe, end) in zip(cap_breaks, cap_breaks[1:])
         ]
         left = self._plain_lumen(in0, q0, 0.0, x0)
         right = self._plain_lumen(q3, in1, x3, L)
@@ -279,13 +317,10 @@ class _Builder:
             self.profile_curve(lipid_apex, q2, xc, x2, stenosis.lipid_profile),
         ]
         base = [self.line(q0, q1), self.line(q1, q2), self.line(q2, q3)]
-        lumen = [*left, *cap, *right]
         self.sections["plaque"] = {
-            Region.FLUID: [self.face([axis, outlet, *[-c for c in reversed(lumen)], -inlet])],
+            Region.FLUID: [self._fluid_face(e, [*left, *cap, *right])],
             Region.CAP: [self.face([*base, *[-c for c in reversed(cap)]])],
-            Region.WALL: [
-                self.face([*lumen[: len(left)], *base, *right, clamp1, -exterior, -clamp0])
-            ],  # fmt: skip
+            Region.WALL: [self._wall_face(e, [*left, *base, *right])],
         }
         self.sections["lipid"] = {Region.LIPID: [self.face([base[1], *[-c for c in lipid[::-1]]])]}
 
@@ -303,8 +338,6 @@ class _Builder:
         of them), its pool's likewise over ``±β/2``, the plain vessel's over the rest, each piece
         continuing from the previous one's end faces; then fragment everything into conformal
         volumes (the pieces' coplanar ends, the pool inside the plaque)."""
-        tau = 2 * math.pi
-        alpha = plaque_angle(self.p) if self.stenosed else 0.0
         inputs: list[tuple[Region, tuple[int, int]]] = []
 
         def revolve(faces: dict[Region, list[int]], span: float) -> dict[Region, list[int]]:
@@ -319,26 +352,25 @@ class _Builder:
                 tops.setdefault(region, []).append(out[i - 1][1])  # the top precedes it
             return tops
 
-        if self.stenosed:
-            beta = lipid_angle(self.p)
-            for kind, span in (("plaque", alpha / 2), ("lipid", beta / 2)):
-                revolve(self.sections[kind], -span)
-                revolve(self.sections[kind], span)
-        if not self.stenosed:  # a tube: from the meridian φ = 0 both ways, as the plaque
-            revolve(self.sections["plain"], -math.pi)
-            revolve(self.sections["plain"], math.pi)
+        plain = self.sections["plain"]
+        if not self.stenosed:  # a tube: from the meridian φ = 0 both ways, as a plaque
+            revolve(plain, -math.pi)
+            revolve(plain, math.pi)
             self._fragment(inputs)
             return
-        rest = tau - alpha  # the plain vessel from α/2 to 2π − α/2, in pieces of <= 180°
+        alpha, beta = plaque_angle(self.p), lipid_angle(self.p)
+        for kind, span in (("plaque", alpha / 2), ("lipid", beta / 2)):
+            revolve(self.sections[kind], -span)
+            revolve(self.sections[kind], span)
+        rest = 2 * math.pi - alpha  # the plain vessel from α/2 to 2π − α/2, pieces <= 180°
         n = math.ceil(rest / math.pi - 1e-12)
-        faces = self.sections["plain"]
-        if n:
-            self.occ.rotate([(2, f) for fs in faces.values() for f in fs], 0, 0, 0, 1, 0, 0,
-                            alpha / 2)  # fmt: skip
-        for _ in range(n):
-            faces = revolve(faces, rest / n)
+        plain_faces = [(2, f) for fs in plain.values() for f in fs]
         if n == 0:  # concentric: the plain section is not part of the vessel
-            self.occ.remove([(2, f) for fs in faces.values() for f in fs], recursive=True)
+            self.occ.remove(plain_faces, recursive=True)
+        else:
+            self.occ.rotate(plain_faces, 0, 0, 0, 1, 0, 0, alpha / 2)
+        for _ in range(n):
+            plain = revolve(plain, rest / n)
         self._fragment(inputs)
 
     def _fragment(self, inputs: list[tuple[Region, tuple[int, int]]]) -> None:

@@ -218,6 +218,7 @@ def test_fsi_mesh_writes_the_same_json_on_every_rank(shared_tmp, eccentric):
         (["geometry.plaque_angle=0"], "geometry.plaque_angle"),
         (["geometry.plaque_angle=361"], "geometry.plaque_angle"),
         (["geometry.plaque_angle=20"], "geometry.plaque_angle"),  # too narrow for its pool
+        (["geometry.plaque_angle=359.9"], "geometry.plaque_angle"),  # a healthy strip of 6 µm
         (["geometry.stenosis_degree=1.0"], "geometry.stenosis_degree"),  # the whole lumen
         (["geometry.cap_thickness=0.002"], "geometry.cap_thickness"),  # thicker than the plaque
         (["geometry.axisymmetric=true"], "geometry.axisymmetric"),

@@ -152,6 +152,14 @@ def _validate_stenosis(g: StenosisGeometry) -> None:
             g.cap_thickness,
         )
     _refuse_not_shorter(g, "lipid_length", than="stenosis_length")
+    if dimension(g) == 3 and 359 < g.plaque_angle < 360:
+        raise ConfigError(
+            "",
+            "geometry.plaque_angle",
+            "360 (concentric) or at most 359 degrees: a narrower strip of healthy wall cannot be"
+            " meshed (359.9 failed in gmsh)",
+            g.plaque_angle,
+        )
     if dimension(g) == 3 and vessel_3d.lipid_angle(g) <= 0:
         inner = g.height - (plaque - g.cap_thickness)
         least = 2 * math.degrees(math.asin(min(1.0, g.cap_thickness / inner)))
