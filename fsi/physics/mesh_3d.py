@@ -32,8 +32,8 @@ def boundaries(g) -> tuple[Boundary, ...]:
 
 
 def facet_triangles(tagged, boundary: Boundary) -> np.ndarray:
-    """Vertices (n, 3, 3) of every owned facet on ``boundary``, gathered on all ranks in rank
-    order."""
+    """Vertices (n, 3, 3) of every owned facet on ``boundary``, gathered on all ranks in an
+    order independent of the partition (:func:`_canonical`)."""
     mesh = tagged.mesh
     facets = tagged.facets(boundary)
     facets = facets[facets < mesh.topology.index_map(2).size_local]
@@ -92,7 +92,7 @@ def measures(tagged, g) -> dict:
     R = g.height
     depth = (R - np.hypot(lumen[..., 1], lumen[..., 2])).max(initial=0.0)
     result["stenosis_degree"] = float(depth / R)
-    result["area_reduction"] = area_reduction(tagged, g, lumen)
+    result["area_reduction"] = area_reduction(g, lumen)
     result["min_cap_thickness_m"] = min_cap_thickness(tagged, lumen)
     return result
 
@@ -124,7 +124,7 @@ def section_area(triangles: np.ndarray, x: float) -> float:
     return math.fsum(np.abs(p[:, 1] * q[:, 2] - p[:, 2] * q[:, 1]) / 2)
 
 
-def area_reduction(tagged, g, lumen: np.ndarray) -> float:
+def area_reduction(g, lumen: np.ndarray) -> float:
     """``1 − (the lumen's section at the apex) / (its section at the inlet)`` on the mesh
     (:func:`section_area`; both sections are polygons, so their chords' errors largely cancel).
     The sections are taken 10⁻⁶ L past the apex and the inlet, off the vertices there (the
