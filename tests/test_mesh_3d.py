@@ -252,11 +252,15 @@ def test_a_3d_benchmark_or_channel_is_refused(shared_tmp, capsys, kind):
     assert refused.value.key == "geometry.dimension"
 
 
-@pytest.mark.parametrize("command", ["run", "check"])
-def test_run_and_check_refuse_a_3d_case(shared_tmp, capsys, command):
+@pytest.mark.parametrize("command", ["run", "check", "sweep"])
+def test_run_check_and_sweep_refuse_a_3d_case(shared_tmp, capsys, command):
     out = shared_tmp / "run3d"
-    args = [command, str(SAMPLE)] + (["--out", str(out)] if command == "run" else [])
-    assert cli.main(args) == cli.EXIT_USAGE
+    more = {
+        "run": ["--out", str(out)],
+        "check": [],
+        "sweep": ["--out", str(out), "--vary", "geometry.plaque_angle=90,120"],
+    }[command]
+    assert cli.main([command, str(SAMPLE), *more]) == cli.EXIT_USAGE
     if MPI.COMM_WORLD.rank == 0:
         err = capsys.readouterr().err
         assert "geometry.dimension: 3 is only supported by `fsi mesh` so far" in err
