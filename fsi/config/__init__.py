@@ -60,6 +60,7 @@ from fsi.config.solver_settings import (
     SolverSettings,
 )
 from fsi.config.structure_section import (
+    Fibres,
     FlagMaterial,
     GeneralizedAlpha,
     Material,
@@ -125,6 +126,7 @@ __all__ = [
     # structure
     "Structure",
     "Material",
+    "Fibres",
     "WallMaterial",
     "FlagMaterial",
     "StructuralTimeIntegration",

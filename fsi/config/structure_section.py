@@ -14,19 +14,38 @@ from fsi.config.solver_settings import SolverSettings, quadrature
 
 
 @dataclass(frozen=True)
+class Fibres:
+    """The collagen fibres of an ``hgo`` material (Holzapfel, Gasser & Ogden 2000; Gasser,
+    Ogden & Holzapfel 2006; fsi/physics/materials.py): two families at ±``angle`` degrees from
+    the circumferential direction in the circumferential–axial plane, stiffness ``k1`` (Pa) and
+    exponent ``k2`` (dimensionless), ``dispersion`` κ (0: every fibre along its family's mean
+    direction; 1/3: isotropic)."""
+
+    k1: float = non_negative(2.3632e3, "Pa")
+    k2: float = positive(0.8393)
+    angle: float = checked(29.0, lambda v: 0 <= v <= 90, "a number in [0, 90]", "degrees")
+    dispersion: float = checked(0.0, lambda v: 0 <= v <= 1 / 3, "a number in [0, 1/3]")
+
+
+@dataclass(frozen=True)
 class Material:
     """Hyperelastic material of one structure region (docs/model.md §3;
     fsi/physics/materials.py): the study's St. Venant–Kirchhoff ``svk`` or a compressible
     ``neo_hookean``, plane strain.
     ``viscous_relaxation_time`` τ (s) adds the Kelvin–Voigt viscous stress
     ``S_v = τ (λ tr Ė I + 2μ Ė)`` (docs/wall-damping.md): every small-amplitude mode of
-    angular frequency ω gets the damping ratio ζ = ωτ/2; 0 (the default) is purely elastic."""
+    angular frequency ω gets the damping ratio ζ = ωτ/2; 0 (the default) is purely elastic.
+    ``hgo``: the fibre-reinforced arterial wall (docs/arterial-wall.md), whose ground matrix
+    has the shear modulus ``c = E/(2(1 + ν))`` and the bulk modulus ``K = E/(3(1 − 2ν))`` of
+    ``young_modulus`` and ``poisson_ratio``, and whose ``fibres`` (:class:`Fibres`, required
+    with ``hgo`` and refused otherwise) stiffen it in stretch; axisymmetric cases only."""
 
-    law: Literal["svk", "neo_hookean"] = "svk"
+    law: Literal["svk", "neo_hookean", "hgo"] = "svk"
     density: float = positive(1200.0, "kg/m^3")
     young_modulus: float = positive(1.6e6, "Pa")
     poisson_ratio: float = open_interval(0.45, -1.0, 0.5)
     viscous_relaxation_time: float = non_negative(0.0, "s")
+    fibres: Fibres | None = None
 
 
 @dataclass(frozen=True)

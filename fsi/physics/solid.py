@@ -363,7 +363,7 @@ class SolidSolver:
         self.traction = function("traction")  # t₀ at t_{n+1} (first Piola, on the interface)
         self.traction_n = function("traction_n")
 
-        m = material_fields(domain, materials)
+        m = material_fields(domain, materials, axisymmetric)
         self.regions, self.rho, self.law, self.viscous = m.regions, m.rho, m.law, m.viscous
         self.Q0, self.cell_region = m.cells, m.cell_region
         self.dirichlet = DirichletConditions(domain, self.V, bcs.dirichlet)

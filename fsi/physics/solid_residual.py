@@ -28,6 +28,7 @@ pressure's ``J F⁻ᵀ N`` is :meth:`SolidResidual.area_normal`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -43,7 +44,14 @@ from fsi import compat
 from fsi.config import Material
 from fsi.geometry.tags import Boundary, Region
 from fsi.physics.coordinates import Coordinates
-from fsi.physics.materials import HyperelasticLaw, KelvinVoigt, lame, make_law
+from fsi.physics.materials import (
+    HyperelasticLaw,
+    KelvinVoigt,
+    axisymmetric_fibres,
+    lame,
+    make_law,
+    splits_volumetric,
+)
 from fsi.physics.mesh import TaggedMesh
 
 # --------------------------------------------------------------------------------------------
@@ -69,6 +77,23 @@ class RegionwiseLaw:
     def second_piola_zz(self, F):
         return self._sum("second_piola_zz", F)
 
+    @property
+    def splits_volumetric(self) -> bool:
+        return any(splits_volumetric(law) for _, law in self.parts)
+
+    def volumetric_second_piola(self, F):
+        """The volumetric parts of the laws that split theirs off."""
+        return sum(
+            chi * law.volumetric_second_piola(F)
+            for chi, law in self.parts
+            if splits_volumetric(law)
+        )
+
+    def volumetric_stress(self, F):
+        return sum(
+            chi * law.volumetric_stress(F) for chi, law in self.parts if splits_volumetric(law)
+        )
+
 
 @dataclass(frozen=True)
 class MaterialFields:
@@ -89,9 +114,30 @@ class MaterialFields:
     cell_region: np.ndarray
 
 
-def material_fields(domain: TaggedMesh, materials: Mapping[Region, Material]) -> MaterialFields:
-    """The :class:`MaterialFields` of ``materials`` on ``domain``'s cell tags. Collective; a
-    ValueError names the regions present without a material."""
+def _fibre_fields(dg0, mats: Mapping[int, Material], axisymmetric: bool) -> dict[str, Any]:
+    """The HGO law's fibre parameters as DG0 fields (k₁, k₂, κ, the directions of ±β); in
+    the regions of other laws k₁ = 0 (no fibre energy) and k₂ = 1 (no 0/0)."""
+    if not axisymmetric:
+        raise ValueError("the HGO law needs an axisymmetric (or 3D) structure")
+    fibres = {r: m.fibres for r, m in mats.items() if m.law == "hgo"}
+    angle = {r: math.radians(f.angle) for r, f in fibres.items()}
+    return {
+        "k1": dg0({r: f.k1 for r, f in fibres.items()}, "fibre_k1"),
+        "k2": dg0({r: fibres[r].k2 if r in fibres else 1.0 for r in mats}, "fibre_k2"),
+        "dispersion": dg0({r: f.dispersion for r, f in fibres.items()}, "fibre_dispersion"),
+        "fibres": axisymmetric_fibres(
+            dg0({r: math.sin(a) for r, a in angle.items()}, "fibre_sin"),
+            dg0({r: math.cos(a) for r, a in angle.items()}, "fibre_cos"),
+        ),
+    }
+
+
+def material_fields(
+    domain: TaggedMesh, materials: Mapping[Region, Material], axisymmetric: bool = False
+) -> MaterialFields:
+    """The :class:`MaterialFields` of ``materials`` on ``domain``'s cell tags (``axisymmetric``:
+    the fibres of an HGO material in the axisymmetric frame). Collective; a ValueError names
+    the regions present without a material."""
     mesh, tags = domain.mesh, domain.cell_tags
     present = [
         int(r) for r in np.unique(np.concatenate(mesh.comm.allgather(np.unique(tags.values))))
@@ -115,14 +161,17 @@ def material_fields(domain: TaggedMesh, materials: Mapping[Region, Material]) ->
     lmbda = dg0({r: lm[0] for r, lm in lmbda_mu.items()}, "lambda")
     mu = dg0({r: lm[1] for r, lm in lmbda_mu.items()}, "mu")
     laws = sorted({m.law for m in mats.values()})
+    parameters = {name: {} for name in laws}
+    if "hgo" in laws:
+        parameters["hgo"] = _fibre_fields(dg0, mats, axisymmetric)
     if len(laws) == 1:
-        law: HyperelasticLaw = make_law(laws[0], lmbda, mu)
+        law: HyperelasticLaw = make_law(laws[0], lmbda, mu, **parameters[laws[0]])
     else:
         law = RegionwiseLaw(
             tuple(
                 (
                     dg0({r: 1.0 for r, m in mats.items() if m.law == name}, f"chi_{name}"),
-                    make_law(name, lmbda, mu),
+                    make_law(name, lmbda, mu, **parameters[name]),
                 )
                 for name in laws
             )
@@ -194,6 +243,12 @@ class SolidResidual:
         self.ds = self.coordinates.measure(
             ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags, metadata=metadata)
         )
+        # The volumetric stress of a nearly incompressible law: one point per cell.
+        self.dx_volumetric = self.coordinates.measure(
+            ufl.Measure(
+                "dx", domain=mesh, subdomain_data=cell_tags, metadata={"quadrature_degree": 1}
+            )
+        )
         self.ds_interface = self._ds(bcs.interface)
         self.gravity = dolfinx.fem.Constant(
             mesh, np.asarray(bcs.body_force, dtype=PETSc.ScalarType)
@@ -225,7 +280,12 @@ class SolidResidual:
         deta = ufl.TestFunction(s.V)
         F_new, F_old = self.deformation_gradient(s.eta), self.deformation_gradient(s.eta_n)
         S_alpha, v_alpha = self._second_piola_alpha(F_new, F_old)
-        residual = self._stress(scheme.at(F_new, F_old, af), S_alpha, deta)
+        S_volumetric = None
+        if splits_volumetric(s.law):
+            S_volumetric = scheme.at(
+                s.law.volumetric_second_piola(F_new), s.law.volumetric_second_piola(F_old), af
+            )
+        residual = self._stress(scheme.at(F_new, F_old, af), S_alpha, deta, S_volumetric)
         if scheme.dynamic:
             residual += self._inertia(deta)
         residual -= self._body_force(deta)
@@ -249,7 +309,8 @@ class SolidResidual:
         S = s.law.second_piola(F)
         if s.viscous is not None:
             S = S + s.viscous.second_piola(F, self.coordinates.grad(s.v_n))
-        force = -self._stress(F, S, deta)
+        S_volumetric = s.law.volumetric_second_piola(F) if splits_volumetric(s.law) else None
+        force = -self._stress(F, S, deta, S_volumetric)
         if self.support is not None:
             force -= self._support(s.eta_n, s.v_n, deta)
         force += self._body_force(deta)
@@ -278,10 +339,18 @@ class SolidResidual:
             )
         return S_alpha, v_alpha
 
-    def _stress(self, F, S, deta):
+    def _stress(self, F, S, deta, S_volumetric=None):
         """``∫ F S : ∇δη dx``, the first Piola stress ``F S`` tested (axisymmetric: 3×3, with
-        the hoop term ``P_θθ δη_r/r``)."""
-        return ufl.inner(F * S, self.coordinates.grad(deta)) * self.dx
+        the hoop term ``P_θθ δη_r/r``). ``S_volumetric``, the volumetric part of S (if the law
+        splits one off, :func:`~fsi.physics.materials.splits_volumetric`), is integrated at one
+        point per cell."""
+        grad_deta = self.coordinates.grad(deta)
+        if S_volumetric is None:
+            return ufl.inner(F * S, grad_deta) * self.dx
+        return (
+            ufl.inner(F * (S - S_volumetric), grad_deta) * self.dx
+            + ufl.inner(F * S_volumetric, grad_deta) * self.dx_volumetric
+        )
 
     def _inertia(self, deta):
         """``∫ ρ a_{n+1-αm}·δη dx``."""
