@@ -152,7 +152,7 @@ class Tube:
             return integrand(r, hoop, axial) * R / (self.lz * r)
 
         value, _ = integrate.quad(
-            in_R, self.R_i, self.R_o if upper is None else upper, epsabs=0, epsrel=1e-13, limit=200
+            in_R, self.R_i, self.R_o if upper is None else upper, epsabs=0, epsrel=1e-11, limit=200
         )
         return value
 

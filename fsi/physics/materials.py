@@ -15,7 +15,7 @@ plane, which a plane (longitudinal) section does not contain.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import ufl
 
@@ -56,15 +56,6 @@ class HyperelasticLaw(Protocol):
         """The out-of-plane component ``Σ₃₃`` that keeps the plane-strain constraint (2×2 F
         only)."""
         ...
-
-
-def splits_volumetric(law: HyperelasticLaw) -> bool:
-    """Whether ``law`` splits off a volumetric stress (``volumetric_second_piola`` and its
-    Cauchy value ``volumetric_stress``: the nearly incompressible :class:`HolzapfelGasserOgden`).
-    The structure's residual integrates that part at one point per cell, the cell's mean
-    dilatation, so that a P2 displacement does not lock (P2–P0 in the linear limit, an inf-sup
-    stable pair), and its stresses take it at the same point."""
-    return bool(getattr(law, "splits_volumetric", False))
 
 
 def cauchy(law: HyperelasticLaw, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
@@ -194,10 +185,14 @@ class HolzapfelGasserOgden:
     the full I₄ negligible (Sansour 2008 shows the isochoric form's spurious volumetric response
     when K is small).
 
-    :meth:`second_piola` is ``2 ∂W/∂C``; its volumetric part
-    :meth:`volumetric_second_piola` ``= J U'(J) C⁻¹ = K/2 (J² − 1) C⁻¹`` is what the structure's
-    residual integrates at one point per cell against locking (fsi/physics/solid_residual.py),
-    and the Cauchy stress's volumetric part is :meth:`volumetric_stress` ``U'(J) I``.
+    Locking: the displacement is P2 (``structure.degree``) and every term is integrated at the
+    structure's quadrature degree. The inflated tube (tests/test_hgo_tube.py) shows no locking
+    at the shipped degree: its error is the same on 4 and 8 cells across the wall and falls as
+    1/K (the compressibility, not the mesh), so K must stand well above the stiffened fibres'
+    stress (ν = 0.49999 for a carotid at 25 kPa; docs/arterial-wall.md). A one-point
+    integration of the volumetric term (P2–P0) was tried and dropped: dolfinx 0.5's form
+    compiler assembles an integrand split over two quadrature degrees wrongly (10 % off the
+    sum of the parts, measured), and its Newton then converged only linearly.
     """
 
     lmbda: Parameter
@@ -207,7 +202,6 @@ class HolzapfelGasserOgden:
     dispersion: Parameter
     fibres: tuple[Any, ...]
     name: str = "hgo"
-    splits_volumetric: ClassVar[bool] = True
 
     @property
     def bulk_modulus(self):
@@ -234,23 +228,11 @@ class HolzapfelGasserOgden:
     def strain_energy(self, F):
         return self.isochoric_energy(F.T * F) + self.volumetric_energy(ufl.det(F))
 
-    def isochoric_second_piola(self, F):
-        """``2 ∂W_iso/∂C``."""
-        C = ufl.variable(F.T * F)
-        return 2 * ufl.diff(self.isochoric_energy(C), C)
-
-    def volumetric_second_piola(self, F):
-        """``2 ∂U/∂C = J U'(J) C⁻¹ = K/2 (J² − 1) C⁻¹``."""
-        J = ufl.det(F)
-        return 0.5 * self.bulk_modulus * (J**2 - 1) * ufl.inv(F.T * F)
-
-    def volumetric_stress(self, F):
-        """The volumetric Cauchy stress's value ``U'(J) = K/2 (J − 1/J)`` (times I)."""
-        J = ufl.det(F)
-        return 0.5 * self.bulk_modulus * (J - 1 / J)
-
     def second_piola(self, F):
-        return self.isochoric_second_piola(F) + self.volumetric_second_piola(F)
+        """``2 ∂W/∂C``, UFL's derivative of the energy in C."""
+        C = ufl.variable(F.T * F)
+        W = self.isochoric_energy(C) + self.volumetric_energy(ufl.sqrt(ufl.det(C)))
+        return 2 * ufl.diff(W, C)
 
     def second_piola_zz(self, F):
         raise ValueError(

@@ -102,10 +102,12 @@ class Roller:
     """η_``component`` = 0 on the facets of ``boundaries``, the other component free: a
     boundary that slides along itself (``component`` its normal's axis, 0 for x, 1 for y),
     e.g. the ends z = const of a tube section in plane strain (ε_zz = 0), or η_r = 0 where
-    an axisymmetric solid meets its axis."""
+    an axisymmetric solid meets its axis. ``value`` (m, default 0) moves the boundary along its
+    normal by that much: the end of a tube stretched axially."""
 
     boundaries: tuple[Boundary, ...]
     component: int
+    value: float = 0.0
 
 
 Dirichlet = Clamp | HoldRegions | PrescribedDisplacement | Roller
@@ -262,8 +264,10 @@ class DirichletConditions:
                 rows = dolfinx.fem.locate_dofs_topological(
                     sub, tdim - 1, _facets(domain, item.boundaries)
                 )
-                bc = dolfinx.fem.dirichletbc(PETSc.ScalarType(0), rows, sub)
+                bc = dolfinx.fem.dirichletbc(PETSc.ScalarType(item.value), rows, sub)
                 self.bcs.append(bc)
+                if item.value != 0:
+                    bc = dolfinx.fem.dirichletbc(PETSc.ScalarType(0), rows, sub)
                 self.homogeneous.append(bc)
                 constrained.append(rows)
                 continue

@@ -50,7 +50,6 @@ from fsi.physics.materials import (
     axisymmetric_fibres,
     lame,
     make_law,
-    splits_volumetric,
 )
 from fsi.physics.mesh import TaggedMesh
 
@@ -76,23 +75,6 @@ class RegionwiseLaw:
 
     def second_piola_zz(self, F):
         return self._sum("second_piola_zz", F)
-
-    @property
-    def splits_volumetric(self) -> bool:
-        return any(splits_volumetric(law) for _, law in self.parts)
-
-    def volumetric_second_piola(self, F):
-        """The volumetric parts of the laws that split theirs off."""
-        return sum(
-            chi * law.volumetric_second_piola(F)
-            for chi, law in self.parts
-            if splits_volumetric(law)
-        )
-
-    def volumetric_stress(self, F):
-        return sum(
-            chi * law.volumetric_stress(F) for chi, law in self.parts if splits_volumetric(law)
-        )
 
 
 @dataclass(frozen=True)
@@ -243,12 +225,6 @@ class SolidResidual:
         self.ds = self.coordinates.measure(
             ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags, metadata=metadata)
         )
-        # The volumetric stress of a nearly incompressible law: one point per cell.
-        self.dx_volumetric = self.coordinates.measure(
-            ufl.Measure(
-                "dx", domain=mesh, subdomain_data=cell_tags, metadata={"quadrature_degree": 1}
-            )
-        )
         self.ds_interface = self._ds(bcs.interface)
         self.gravity = dolfinx.fem.Constant(
             mesh, np.asarray(bcs.body_force, dtype=PETSc.ScalarType)
@@ -280,12 +256,7 @@ class SolidResidual:
         deta = ufl.TestFunction(s.V)
         F_new, F_old = self.deformation_gradient(s.eta), self.deformation_gradient(s.eta_n)
         S_alpha, v_alpha = self._second_piola_alpha(F_new, F_old)
-        S_volumetric = None
-        if splits_volumetric(s.law):
-            S_volumetric = scheme.at(
-                s.law.volumetric_second_piola(F_new), s.law.volumetric_second_piola(F_old), af
-            )
-        residual = self._stress(scheme.at(F_new, F_old, af), S_alpha, deta, S_volumetric)
+        residual = self._stress(scheme.at(F_new, F_old, af), S_alpha, deta)
         if scheme.dynamic:
             residual += self._inertia(deta)
         residual -= self._body_force(deta)
@@ -309,8 +280,7 @@ class SolidResidual:
         S = s.law.second_piola(F)
         if s.viscous is not None:
             S = S + s.viscous.second_piola(F, self.coordinates.grad(s.v_n))
-        S_volumetric = s.law.volumetric_second_piola(F) if splits_volumetric(s.law) else None
-        force = -self._stress(F, S, deta, S_volumetric)
+        force = -self._stress(F, S, deta)
         if self.support is not None:
             force -= self._support(s.eta_n, s.v_n, deta)
         force += self._body_force(deta)
@@ -339,18 +309,10 @@ class SolidResidual:
             )
         return S_alpha, v_alpha
 
-    def _stress(self, F, S, deta, S_volumetric=None):
+    def _stress(self, F, S, deta):
         """``∫ F S : ∇δη dx``, the first Piola stress ``F S`` tested (axisymmetric: 3×3, with
-        the hoop term ``P_θθ δη_r/r``). ``S_volumetric``, the volumetric part of S (if the law
-        splits one off, :func:`~fsi.physics.materials.splits_volumetric`), is integrated at one
-        point per cell."""
-        grad_deta = self.coordinates.grad(deta)
-        if S_volumetric is None:
-            return ufl.inner(F * S, grad_deta) * self.dx
-        return (
-            ufl.inner(F * (S - S_volumetric), grad_deta) * self.dx
-            + ufl.inner(F * S_volumetric, grad_deta) * self.dx_volumetric
-        )
+        the hoop term ``P_θθ δη_r/r``)."""
+        return ufl.inner(F * S, self.coordinates.grad(deta)) * self.dx
 
     def _inertia(self, deta):
         """``∫ ρ a_{n+1-αm}·δη dx``."""

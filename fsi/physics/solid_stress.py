@@ -15,7 +15,7 @@ import numpy as np
 import ufl
 
 from fsi import compat
-from fsi.physics.materials import HyperelasticLaw, cauchy, cauchy_zz, splits_volumetric
+from fsi.physics.materials import HyperelasticLaw, cauchy, cauchy_zz
 
 # --------------------------------------------------------------------------------------------
 # Stresses
@@ -70,17 +70,7 @@ class StressFields:
         mesh = solver.domain.mesh
         degree = max(solver.degree - 1, 0)
         self.S = compat.function_space(mesh, "DG", degree)
-        self._expressions = []
-        volumetric = None
-        if splits_volumetric(law):
-            # The volumetric stress U'(J) where the residual takes it: one value per cell.
-            volumetric = dolfinx.fem.Function(compat.function_space(mesh, "DG", 0))
-            F = solver.coordinates.identity() + solver.coordinates.grad(solver.eta)
-            points = compat.interpolation_points(volumetric.function_space)
-            self._expressions.append(
-                (volumetric, dolfinx.fem.Expression(law.volumetric_stress(F), points))
-            )
-        sigma, s33 = self._cauchy(solver.coordinates, law, solver.eta, volumetric)
+        sigma, s33 = self._cauchy(solver.coordinates, law, solver.eta)
         self.T = compat.function_space(mesh, "DG", degree, sigma.ufl_shape)
         s11, s22, s12 = sigma[0, 0], sigma[1, 1], sigma[0, 1]
         von_mises = ufl.sqrt(
@@ -91,9 +81,9 @@ class StressFields:
         self.sigma = dolfinx.fem.Function(self.T)
         self.sigma.name = "sigma"
         self.fields = {}
-        self._expressions.append(
+        self._expressions = [
             (self.sigma, dolfinx.fem.Expression(sigma, compat.interpolation_points(self.T)))
-        )
+        ]
         for name, expr in (("sss", s12), ("von_mises", von_mises), ("max_principal", principal)):
             f = dolfinx.fem.Function(self.S)
             f.name = name
@@ -118,16 +108,10 @@ class StressFields:
         region[self._cell_value] = solver.cell_region[: len(self._cell_value)]
 
     @staticmethod
-    def _cauchy(coordinates, law: HyperelasticLaw, eta, volumetric=None):
+    def _cauchy(coordinates, law: HyperelasticLaw, eta):
         """The Cauchy stress of η and its out-of-plane principal component: plane, the 2×2
-        in-plane σ and the plane-strain ``σ₃₃ = J⁻¹ Σ₃₃``; axisymmetric, the 3×3 σ and σ_θθ.
-        ``volumetric``: the cell values of the volumetric stress of a law that splits it off,
-        added to the Cauchy stress of the rest."""
+        in-plane σ and the plane-strain ``σ₃₃ = J⁻¹ Σ₃₃``; axisymmetric, the 3×3 σ and σ_θθ."""
         F = coordinates.identity() + coordinates.grad(eta)
-        if volumetric is not None:
-            S = law.second_piola(F) - law.volumetric_second_piola(F)
-            sigma = F * S * F.T / ufl.det(F) + volumetric * ufl.Identity(3)
-            return sigma, sigma[2, 2]
         sigma = cauchy(law, F)
         if coordinates.axisymmetric:
             return sigma, sigma[2, 2]
