@@ -164,3 +164,107 @@ def test_an_inflated_extended_hgo_tube_matches_the_radial_equilibrium():
         print(f"worst: r_i {worst_r:.2e}, N {worst_n:.2e}; 8 vs 16 cells {mesh_change:.1e}")
     assert worst_r < 0.005
     assert worst_n < 0.005
+
+
+# --------------------------------------------------------------------------------------------
+# Prestress: the drawn tube is the loaded one (fsi/physics/prestress.py)
+
+REFERENCE_PRESSURE = 10.7e3  # Pa, diastolic (80 mmHg)
+THICKNESS = R_O - R_I
+# From the stress-free tube the fibres (Ī₄ = 1) add no stiffness to Newton's first tangent: the
+# soft matrix alone (c = 3 kPa) predicts a huge first step, on which the exponential blows up;
+# 1.07 kPa fails, 0.43 kPa (25 steps) converges.
+LOAD_STEPS = 100
+
+
+def drawn_tube(prestressed: bool) -> solid.SolidSolver:
+    """The section drawn at [R_i, R_o], ends on rollers (no axial stretch), quasi-static,
+    P(t) = 10.7 kPa t."""
+    young = 2 * C * (1 + POISSON)
+    wall = Material(
+        law="hgo",
+        density=1000.0,
+        young_modulus=young,
+        poisson_ratio=POISSON,
+        fibres=Fibres(k1=K1, k2=K2, angle=ANGLE, dispersion=0.0),
+    )
+    bcs = solid.SolidBoundaryConditions(
+        dirichlet=(solid.Roller((Boundary.CLAMPED, Boundary.OUTLET), component=0),),
+        pressure=lambda t: REFERENCE_PRESSURE * t,
+    )
+    return solid.SolidSolver(
+        section(8),
+        {Region.WALL: wall},
+        bcs,
+        NewmarkFamily.quasi_static(),
+        solver=TIGHT,
+        axisymmetric=True,
+        prestressed=prestressed,
+    )
+
+
+def surface_hoop_stress(s: solid.SolidSolver, radius: float) -> np.ndarray:
+    """σ_θθ at every DG node of the Cauchy stress on the drawn surface r = ``radius``."""
+    s.stress.update()
+    T = s.stress.T
+    n = T.dofmap.index_map.size_local
+    points = T.tabulate_dof_coordinates()[:n]
+    sigma = s.stress.sigma.x.array.reshape(-1, 9)[:n]
+    on = np.isclose(points[:, 1], radius)
+    return np.concatenate(s.comm.allgather(sigma[on, 8]))
+
+
+def reference_radius(s: solid.SolidSolver, radius: float) -> np.ndarray:
+    """R* = r − U₀_r at the dofs on the drawn surface r = ``radius``, from all ranks."""
+    V = s.V
+    n = V.dofmap.index_map.size_local
+    x = V.tabulate_dof_coordinates()[:n]
+    on = np.isclose(x[:, 1], radius)
+    offset = s.prestress.offset.x.array.reshape(-1, 2)[:n]
+    return np.concatenate(s.comm.allgather(radius - offset[on, 1]))
+
+
+def test_a_prestressed_tube_keeps_its_drawn_geometry_at_the_reference_pressure():
+    """The stress-free reference of the tube drawn at 10.7 kPa (inverse elastostatics,
+    fsi/physics/prestress.py): its radii are the exact unloaded tube's that the pressure takes
+    to the drawn radii (within 1 %); held at that pressure the tube stays where it is drawn
+    (max |η| ≤ 1e-4 of the wall thickness); started stress-free instead, the same pressure moves
+    the inner surface by what the inflation curve says (within 1 %).
+
+    Not asserted, and why #45 stays open: the hoop stress at the surfaces' DG nodes is 3.3×
+    (inner) and 5× (outer) the exact one (measured 495 / 24.6 kPa against 148 / 4.9 kPa), though
+    the reference radii agree to 0.6 %: the pointwise volumetric stress K(J − 1) of a P2
+    displacement at K = 150 MPa is noise of tens of kPa; the cap's stress needs a mixed u–p
+    formulation or a cell-mean volumetric stress first (docs/arterial-wall.md)."""
+    from fsi.benchmarks.hgo_tube import unloaded_tube
+    from fsi.physics.prestress import solve_reference
+
+    s = drawn_tube(prestressed=True)
+    result = solve_reference(s, load_steps=LOAD_STEPS)
+    assert result.converged, result
+    assert s.step(1.0, 1.0).converged  # held at the reference pressure, from the drawn geometry
+    s.advance()
+    moved = s.max_displacement()
+    assert moved <= 1e-4 * THICKNESS
+
+    exact = unloaded_tube(R_I, R_O, 1.0, REFERENCE_PRESSURE, MEDIA)
+    error_inner = float(np.abs(reference_radius(s, R_I) / exact.R_i - 1).max())
+    error_outer = float(np.abs(reference_radius(s, R_O) / exact.R_o - 1).max())
+
+    free = drawn_tube(prestressed=False)
+    for j in range(1, LOAD_STEPS + 1):
+        assert free.step(j / LOAD_STEPS, 1 / LOAD_STEPS).converged
+        free.advance()
+    inflated = Tube(R_I, R_O, 1.0, MEDIA).inflated(REFERENCE_PRESSURE)
+    u_exact = inflated.r_i - R_I
+    u_error = abs(inner_radius(free) - R_I - u_exact) / u_exact
+    if MPI.COMM_WORLD.rank == 0:
+        print(
+            f"prestress: moved {moved / THICKNESS:.1e} H; reference R_i, R_o "
+            f"{exact.R_i * 1e3:.4f}, {exact.R_o * 1e3:.4f} mm exact: {error_inner:.1e}, "
+            f"{error_outer:.1e} off; stress-free start u_r(R_i) {u_error:.2e} off "
+            f"({u_exact * 1e6:.2f} um)"
+        )
+    assert error_inner < 0.01  # measured 5.9e-3 (the worst inner node)
+    assert error_outer < 0.01  # measured 9.2e-4
+    assert u_error < 0.01

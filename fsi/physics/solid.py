@@ -46,6 +46,7 @@ from fsi.numerics.timestepping import NewmarkFamily, structural_scheme
 from fsi.physics import mesh as fsi_mesh
 from fsi.physics.coordinates import Coordinates
 from fsi.physics.mesh import TaggedMesh
+from fsi.physics.prestress import Prestress
 from fsi.physics.solid_residual import SolidResidual, material_fields
 from fsi.physics.solid_stress import StressFields
 
@@ -322,6 +323,8 @@ class SolidSolver:
         axisymmetric: the mesh is the meridian half-plane (x = z, y = r) of a body of
             revolution (fsi/physics/coordinates.py): 3×3 F with the hoop stretch, integrals
             weighted by 2πR; False (the default): plane strain per unit depth.
+        prestressed: the mesh is drawn under load, from a stress-free reference
+            (``prestress``, fsi/physics/prestress.py; U₀ = 0 until it is computed).
 
     Parts: ``coordinates`` (:class:`~fsi.physics.coordinates.Coordinates`), ``rho``, ``law``,
     ``viscous`` (:func:`material_fields`), ``dirichlet`` (:class:`DirichletConditions`),
@@ -340,6 +343,7 @@ class SolidSolver:
         solver: SolverSettings = DEFAULT_SOLVER,
         prefix: str = "solid_",
         axisymmetric: bool = False,
+        prestressed: bool = False,
     ):
         mesh = domain.mesh
         self.domain, self.bcs_data, self.scheme, self.prefix = domain, bcs, scheme, prefix
@@ -372,6 +376,8 @@ class SolidSolver:
         self.Q0, self.cell_region = m.cells, m.cell_region
         self.dirichlet = DirichletConditions(domain, self.V, bcs.dirichlet)
         self._build_interface()
+        # The stress-free reference of a geometry drawn under load (U₀ = 0 until computed).
+        self.prestress = Prestress(self.V, self.coordinates) if prestressed else None
         self.residual = SolidResidual(self, quadrature_degree)
         self.problem = _Problem(
             self.residual.form, self.eta, self.dirichlet.bcs, self.residual.jacobian, self._nodal
@@ -379,7 +385,7 @@ class SolidSolver:
         # dolfinx's "residual" test divides by the first increment's norm (mixed units), so test
         # the increments: converged when |δη_k| < atol (m) or |δη_k| < rtol |δη_1|.
         self.newton = Newton(self.comm, self.problem, solver, self.prefix, "incremental")
-        self.stress = StressFields(self, self.law)
+        self.stress = StressFields(self, self.law, self.prestress)
         self._det_F = None
 
     def _build_interface(self) -> None:

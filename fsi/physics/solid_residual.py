@@ -238,6 +238,7 @@ class SolidResidual:
                 dolfinx.fem.Constant(mesh, PETSc.ScalarType(bcs.support.damping)),
                 self._ds(bcs.support.boundaries),
             )
+        self.prestress = getattr(solver, "prestress", None)
         self.form = self._residual()
         self.jacobian = ufl.derivative(self.form, solver.eta, ufl.TrialFunction(solver.V))
 
@@ -277,9 +278,9 @@ class SolidResidual:
         s = self.solver
         deta, da = ufl.TestFunction(s.V), ufl.TrialFunction(s.V)
         F = self.deformation_gradient(s.eta_n)
-        S = s.law.second_piola(F)
+        S = s.law.second_piola(self._elastic(F))
         if s.viscous is not None:
-            S = S + s.viscous.second_piola(F, self.coordinates.grad(s.v_n))
+            S = S + self._viscous(s.viscous.second_piola(F, self.coordinates.grad(s.v_n)))
         force = -self._stress(F, S, deta)
         if self.support is not None:
             force -= self._support(s.eta_n, s.v_n, deta)
@@ -289,7 +290,7 @@ class SolidResidual:
             force += self._source(deta)
         if s.bcs_data.pressure is not None:
             force -= self._follower_pressure(self.pressure_n, F, deta)
-        return s.rho * ufl.inner(da, deta) * self.dx, force
+        return self._density() * ufl.inner(da, deta) * self.dx, force
 
     # -- the terms
 
@@ -298,31 +299,48 @@ class SolidResidual:
         plus the Kelvin–Voigt stress of η̇_{n+1-αf} (if any); and η̇_{n+1-αf}."""
         s, scheme = self.solver, self.solver.scheme
         af = scheme.alpha_f
-        S_alpha = scheme.at(s.law.second_piola(F_new), s.law.second_piola(F_old), af)
+        S_alpha = scheme.at(
+            s.law.second_piola(self._elastic(F_new)), s.law.second_piola(self._elastic(F_old)), af
+        )
         # η̇ at n+1-αf, with η̇_{n+1} the scheme's function of the unknown η_{n+1}.
         v_alpha = scheme.at(scheme.velocity(s.eta, s.eta_n, s.v_n, s.a_n, s.dt), s.v_n, af)
         if s.viscous is not None:
             # The rate pulled back with the mid-step F̄: Ė = (E_{n+1} − E_n)/dt exactly when
             # η̇_{n+1-αf} = (η_{n+1} − η_n)/dt (trapezoidal, quasi-static): see the docstring.
-            S_alpha = S_alpha + s.viscous.second_piola(
-                scheme.at(F_new, F_old, 0.5), self.coordinates.grad(v_alpha)
+            S_alpha = S_alpha + self._viscous(
+                s.viscous.second_piola(scheme.at(F_new, F_old, 0.5), self.coordinates.grad(v_alpha))
             )
         return S_alpha, v_alpha
 
     def _stress(self, F, S, deta):
         """``∫ F S : ∇δη dx``, the first Piola stress ``F S`` tested (axisymmetric: 3×3, with
-        the hoop term ``P_θθ δη_r/r``)."""
-        return ufl.inner(F * S, self.coordinates.grad(deta)) * self.dx
+        the hoop term ``P_θθ δη_r/r``); prestressed, ``J₀⁻¹ F F₀ S F₀ᵀ`` with S the
+        reference's (fsi/physics/prestress.py)."""
+        P = F * S if self.prestress is None else self.prestress.first_piola(F, S)
+        return ufl.inner(P, self.coordinates.grad(deta)) * self.dx
+
+    def _elastic(self, F):
+        """The deformation gradient the law sees: F, or ``F F₀`` when prestressed."""
+        return F if self.prestress is None else self.prestress.total(F)
+
+    def _viscous(self, S_v):
+        """The viscous stress (of the drawn configuration's rate) as :meth:`_stress` takes it."""
+        return S_v if self.prestress is None else self.prestress.pull_back(S_v)
+
+    def _density(self):
+        """ρ per unit drawn volume: ρ, or ρ/J₀ when prestressed."""
+        rho = self.solver.rho
+        return rho if self.prestress is None else rho * self.prestress.volume_ratio
 
     def _inertia(self, deta):
         """``∫ ρ a_{n+1-αm}·δη dx``."""
         s, scheme = self.solver, self.solver.scheme
         a_new = scheme.acceleration(s.eta, s.eta_n, s.v_n, s.a_n, s.dt)
-        return s.rho * ufl.inner(scheme.at(a_new, s.a_n, scheme.alpha_m), deta) * self.dx
+        return self._density() * ufl.inner(scheme.at(a_new, s.a_n, scheme.alpha_m), deta) * self.dx
 
     def _body_force(self, deta):
         """``∫ ρ b·δη dx``."""
-        return self.solver.rho * ufl.inner(self.gravity, deta) * self.dx
+        return self._density() * ufl.inner(self.gravity, deta) * self.dx
 
     def _source(self, deta):
         """``∫ f(x)·δη dx`` (a manufactured solution's force per reference volume)."""

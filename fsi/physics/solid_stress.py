@@ -65,12 +65,12 @@ class StressFields:
     :meth:`region_maxima`; and ``region``, the cell's region tag (geometry/tags.py ``Region``).
     """
 
-    def __init__(self, solver: SolidDisplacement, law: HyperelasticLaw):
+    def __init__(self, solver: SolidDisplacement, law: HyperelasticLaw, prestress=None):
         self.solver = solver
         mesh = solver.domain.mesh
         degree = max(solver.degree - 1, 0)
         self.S = compat.function_space(mesh, "DG", degree)
-        sigma, s33 = self._cauchy(solver.coordinates, law, solver.eta)
+        sigma, s33 = self._cauchy(solver.coordinates, law, solver.eta, prestress)
         self.T = compat.function_space(mesh, "DG", degree, sigma.ufl_shape)
         s11, s22, s12 = sigma[0, 0], sigma[1, 1], sigma[0, 1]
         von_mises = ufl.sqrt(
@@ -108,10 +108,14 @@ class StressFields:
         region[self._cell_value] = solver.cell_region[: len(self._cell_value)]
 
     @staticmethod
-    def _cauchy(coordinates, law: HyperelasticLaw, eta):
+    def _cauchy(coordinates, law: HyperelasticLaw, eta, prestress=None):
         """The Cauchy stress of η and its out-of-plane principal component: plane, the 2×2
-        in-plane σ and the plane-strain ``σ₃₃ = J⁻¹ Σ₃₃``; axisymmetric, the 3×3 σ and σ_θθ."""
+        in-plane σ and the plane-strain ``σ₃₃ = J⁻¹ Σ₃₃``; axisymmetric, the 3×3 σ and σ_θθ.
+        ``prestress`` (fsi/physics/prestress.py): of the deformation ``F F₀`` from the
+        stress-free reference."""
         F = coordinates.identity() + coordinates.grad(eta)
+        if prestress is not None:
+            F = prestress.total(F)
         sigma = cauchy(law, F)
         if coordinates.axisymmetric:
             return sigma, sigma[2, 2]
