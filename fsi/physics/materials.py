@@ -15,7 +15,7 @@ plane, which a plane (longitudinal) section does not contain.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import ufl
 
@@ -56,6 +56,13 @@ class HyperelasticLaw(Protocol):
         """The out-of-plane component ``Σ₃₃`` that keeps the plane-strain constraint (2×2 F
         only)."""
         ...
+
+
+def has_volumetric_stress(law: HyperelasticLaw) -> bool:
+    """Whether ``law`` is nearly incompressible and names its volumetric Cauchy stress
+    ``volumetric_stress(F)`` (``U'(J)``, times I), which the structure's stresses take from a
+    projection (fsi/physics/solid_stress.py, ``RecoveredPressure``)."""
+    return bool(getattr(law, "nearly_incompressible", False))
 
 
 def cauchy(law: HyperelasticLaw, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
@@ -202,6 +209,7 @@ class HolzapfelGasserOgden:
     dispersion: Parameter
     fibres: tuple[Any, ...]
     name: str = "hgo"
+    nearly_incompressible: ClassVar[bool] = True
 
     @property
     def bulk_modulus(self):
@@ -227,6 +235,11 @@ class HolzapfelGasserOgden:
 
     def strain_energy(self, F):
         return self.isochoric_energy(F.T * F) + self.volumetric_energy(ufl.det(F))
+
+    def volumetric_stress(self, F):
+        """The Cauchy stress's volumetric part ``U'(J) = K/2 (J − 1/J)`` (times I)."""
+        J = ufl.det(F)
+        return 0.5 * self.bulk_modulus * (J - 1 / J)
 
     def second_piola(self, F):
         """``2 ∂W/∂C``, UFL's derivative of the energy in C."""

@@ -48,6 +48,7 @@ from fsi.physics.materials import (
     HyperelasticLaw,
     KelvinVoigt,
     axisymmetric_fibres,
+    has_volumetric_stress,
     lame,
     make_law,
 )
@@ -75,6 +76,16 @@ class RegionwiseLaw:
 
     def second_piola_zz(self, F):
         return self._sum("second_piola_zz", F)
+
+    @property
+    def nearly_incompressible(self) -> bool:
+        return any(has_volumetric_stress(law) for _, law in self.parts)
+
+    def volumetric_stress(self, F):
+        """The volumetric Cauchy stress of the nearly incompressible laws in their regions."""
+        return sum(
+            chi * law.volumetric_stress(F) for chi, law in self.parts if has_volumetric_stress(law)
+        )
 
 
 @dataclass(frozen=True)
