@@ -65,6 +65,7 @@ from fsi.config.structure_section import (
     GeneralizedAlpha,
     Material,
     Newmark,
+    PrestressLoad,
     QuasiStatic,
     StructuralTimeIntegration,
     Structure,
@@ -134,6 +135,7 @@ __all__ = [
     "Newmark",
     "QuasiStatic",
     "TissueSupport",
+    "PrestressLoad",
     # time, coupling, mesh motion, output; solver settings
     "AdaptiveStepping",
     "Time",

@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
-from fsi.config.reader import checked, non_negative, open_interval, positive
+from fsi.config.reader import at_least, checked, non_negative, open_interval, positive
 from fsi.config.solver_settings import SolverSettings, quadrature
 
 
@@ -105,6 +105,18 @@ class TissueSupport:
 
 
 @dataclass(frozen=True)
+class PrestressLoad:
+    """The load at which the drawn geometry is in equilibrium (docs/arterial-wall.md): the
+    structure is solved from the stress-free reference that this ``pressure`` (Pa) on the
+    interface takes to the drawn geometry (inverse elastostatics, fsi/physics/prestress.py),
+    found by raising the pressure from 0 in ``load_steps`` steps; every run starts from it.
+    E.g. the diastolic pressure of the artery the geometry was imaged at."""
+
+    pressure: float = positive(10.7e3, "Pa")
+    load_steps: int = at_least(20, 1)
+
+
+@dataclass(frozen=True)
 class Structure:
     """``fixed_wall``: vessel wall held, plaque deforms; ``moving_wall``: wall and plaque deform
     (clamped at the wall ends; the Turek–Hron flag at its joint with the cylinder); ``rigid``: no
@@ -115,7 +127,9 @@ class Structure:
     ``degree`` the Lagrange degree of the displacement (P1 locks in bending).
     ``interface_load``: ``fluid`` couples the structure to the blood; ``inlet_pressure`` solves
     the structure alone under the follower pressure P(t) of ``fluid.inlet`` on the interface
-    (no fluid solve); ``none`` solves it alone under ``body_force`` only (Turek–Hron CSM)."""
+    (no fluid solve); ``none`` solves it alone under ``body_force`` only (Turek–Hron CSM).
+    ``prestress`` (:class:`PrestressLoad`, null: none): the geometry is drawn under that load,
+    and the structure is solved from the stress-free reference it does not draw."""
 
     mode: Literal["fixed_wall", "moving_wall", "rigid"] = "fixed_wall"
     interface_load: Literal["fluid", "inlet_pressure", "none"] = "fluid"
@@ -131,3 +145,4 @@ class Structure:
     degree: int = checked(2, lambda v: 1 <= v <= 3, "an integer in [1, 3]")
     quadrature_degree: int = quadrature(4)
     solver: SolverSettings = field(default_factory=SolverSettings)
+    prestress: PrestressLoad | None = None

@@ -40,6 +40,7 @@ def validate(case: Case) -> None:
     _validate_geometry(case)
     _validate_structure_load(case)
     _validate_materials(case)
+    _validate_prestress(case)
     _validate_cell_count(case)  # before the size order: mesh.size 1e-6 gets the estimate
     if case.mesh.local_size > case.mesh.size:
         raise ConfigError(
@@ -208,6 +209,27 @@ def _validate_materials(case: Case) -> None:
                 ": true) vessel has",
                 material.law,
             )
+
+
+def _validate_prestress(case: Case) -> None:
+    """A prestress needs a structure, drawn as a vessel under pressure (not the Turek–Hron flag)."""
+    s = case.structure
+    if s.prestress is None:
+        return
+    if s.mode == "rigid":
+        raise ConfigError(
+            "",
+            "structure.prestress",
+            "null when structure.mode is 'rigid' (there is no structure to prestress)",
+            "a prestress",
+        )
+    if isinstance(case.geometry, TurekHronGeometry):
+        raise ConfigError(
+            "",
+            "structure.prestress",
+            "null for geometry.kind 'turek_hron' (the flag is not drawn under a pressure)",
+            "a prestress",
+        )
 
 
 def _validate_structure_load(case: Case) -> None:

@@ -41,7 +41,7 @@ from fsi.numerics.newton import Newton
 log = logging.getLogger(__name__)
 
 
-class Prestress:
+class StressFreeReference:
     """``U₀`` (:attr:`offset`, in the displacement space V) and the UFL of ``F₀⁻¹ = I − ∇U₀``
     (:attr:`F0_inv`), ``F₀`` and ``1/J₀ = det F₀⁻¹`` (:attr:`volume_ratio`, drawn over
     reference volume's inverse: ρ_drawn = ρ · volume_ratio)."""
@@ -132,7 +132,7 @@ def backward_displacement(
     """Sellier's fixed point for ``solver.prestress.offset`` (the module docstring).
 
     ``solver``: a quasi-static :class:`~fsi.physics.solid.SolidSolver` with a
-    :class:`Prestress` whose loads at t = 1 are the reference ones (the follower pressure
+    :class:`StressFreeReference` whose loads at t = 1 are the reference ones (the follower pressure
     ``P(t) = P_ref t``). Each iteration solves from η = 0 to t = 1 (in ``load_steps`` steps
     in the first, where the drawn geometry is stress-free, and again in that many if one step
     fails), then ``U₀ ← U₀ + η``. Converged when max |η| ≤ ``tolerance`` (m). Collective.

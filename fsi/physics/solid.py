@@ -41,12 +41,12 @@ from fsi.config import (
     is_axisymmetric,
 )
 from fsi.geometry.tags import STRUCTURE_REGIONS, Boundary, Region
-from fsi.numerics.newton import DirichletLifting, Newton, SolveResult, petsc_options
+from fsi.numerics.newton import DirichletLifting, Newton, SolveFailed, SolveResult, petsc_options
 from fsi.numerics.timestepping import NewmarkFamily, structural_scheme
 from fsi.physics import mesh as fsi_mesh
 from fsi.physics.coordinates import Coordinates
 from fsi.physics.mesh import TaggedMesh
-from fsi.physics.prestress import Prestress
+from fsi.physics.prestress import StressFreeReference, solve_reference
 from fsi.physics.solid_residual import SolidResidual, material_fields
 from fsi.physics.solid_stress import StressFields
 
@@ -377,7 +377,7 @@ class SolidSolver:
         self.dirichlet = DirichletConditions(domain, self.V, bcs.dirichlet)
         self._build_interface()
         # The stress-free reference of a geometry drawn under load (U₀ = 0 until computed).
-        self.prestress = Prestress(self.V, self.coordinates) if prestressed else None
+        self.prestress = StressFreeReference(self.V, self.coordinates) if prestressed else None
         self.residual = SolidResidual(self, quadrature_degree)
         self.problem = _Problem(
             self.residual.form, self.eta, self.dirichlet.bcs, self.residual.jacobian, self._nodal
@@ -577,13 +577,40 @@ def build(
         tagged = fsi_mesh.build(case, comm)
     domain = structure_mesh(tagged, structure_regions(case))
     s = case.structure
-    return SolidSolver(
-        domain,
-        region_materials(case),
-        bcs or boundary_conditions(case, pressure),
-        scheme or structural_scheme(s.time_integration),
-        degree=s.degree,
-        quadrature_degree=s.quadrature_degree,
-        solver=s.solver,
-        axisymmetric=is_axisymmetric(case.geometry),
-    )
+    bcs = bcs or boundary_conditions(case, pressure)
+
+    def solver(bcs: SolidBoundaryConditions, scheme: NewmarkFamily) -> SolidSolver:
+        return SolidSolver(
+            domain,
+            region_materials(case),
+            bcs,
+            scheme,
+            degree=s.degree,
+            quadrature_degree=s.quadrature_degree,
+            solver=s.solver,
+            axisymmetric=is_axisymmetric(case.geometry),
+            prestressed=s.prestress is not None,
+        )
+
+    structure = solver(bcs, scheme or structural_scheme(s.time_integration))
+    if s.prestress is not None:
+        # The stress-free reference under the prestress pressure alone, quasi-static.
+        reference_pressure = s.prestress.pressure
+        loaded = solver(
+            replace(bcs, pressure=lambda t: reference_pressure * t), NewmarkFamily.quasi_static()
+        )
+        result = solve_reference(loaded, s.prestress.load_steps)
+        if not result.converged:
+            raise SolveFailed(
+                f"structure.prestress: no stress-free reference found for "
+                f"{reference_pressure:g} Pa (the solve failed at {result.iterations} of "
+                f"{s.prestress.load_steps} load steps; try more load_steps)"
+            )
+        structure.prestress.offset.x.array[:] = loaded.prestress.offset.x.array
+        log.info(
+            "structure.prestress: the stress-free reference of %g Pa is %.3g m from the drawn "
+            "geometry at most",
+            reference_pressure,
+            result.mismatch,
+        )
+    return structure
