@@ -11,16 +11,17 @@ meaning) and the material sees the whole deformation from X*::
     F_total = F F₀,   F = I + ∇η,   P = J₀⁻¹ F F₀ Σ(F F₀) F₀ᵀ,   ρ_drawn = ρ / J₀,   J₀ = det F₀
 
 (the first Piola stress and the density per unit drawn volume: the energy ∫_{Ω*} W dX* written
-on the drawn mesh). With U₀ = 0 this is the plain structure, form for form.
+on the drawn mesh). A structure without a prestress builds none of this: its forms are the
+plain ones.
 
-:func:`backward_displacement` finds U₀ by the fixed point of Sellier (2011) and Bols et al.
-(2013): solve the structure, quasi-static, under the reference pressure from the current
-reference; the drawn geometry moves by η; move the reference back by as much (U₀ ← U₀ + η);
-repeat until η vanishes. At its limit the drawn geometry is in equilibrium with the reference
-pressure and the stress is the one of a body whose stress-free state is X*, exactly (a MULF
-prestress tensor, Gee et al. 2010, is path-dependent and not a gradient: its stress is only
-approximately the one of any stress-free state). It needs only forward solves of the solver the
-run uses.
+:func:`solve_reference` finds U₀ by inverse elastostatics (Govindjee & Mihalic 1996): the
+structure's residual at η = 0, the drawn geometry, solved for U₀, the load raised from 0 in
+steps. At its solution the drawn geometry is in equilibrium with the load and the stress is the
+one of a body whose stress-free state is X*, exactly. Sellier's backward-displacement fixed point
+(Sellier 2011; Bols et al. 2013), which moves the reference back by a forward solve's
+displacement and repeats, was tried first and failed on a soft HGO tube: the reference its first
+iteration makes is one from which the next forward solve cannot start (docs/arterial-wall.md).
+A MULF prestress tensor (Gee et al. 2010) is path-dependent and not the gradient of a map.
 """
 
 from __future__ import annotations
@@ -70,8 +71,8 @@ class StressFreeReference:
 
 @dataclass(frozen=True)
 class PrestressResult:
-    """The fixed point's outcome: ``converged``; ``iterations``; ``mismatch``, the last
-    max |η| (m) over the structure (the drawn geometry's move under the reference pressure)."""
+    """The inverse solve's outcome: ``converged``; ``iterations``, the load steps taken;
+    ``mismatch``, max |U₀| (m), how far the stress-free reference is from the drawn geometry."""
 
     converged: bool
     iterations: int
@@ -126,50 +127,8 @@ def solve_reference(solver, load_steps: int = 20) -> PrestressResult:
     return PrestressResult(True, load_steps, max_norm(offset))
 
 
-def backward_displacement(
-    solver, tolerance: float, max_iterations: int = 50, load_steps: int = 10
-) -> PrestressResult:
-    """Sellier's fixed point for ``solver.prestress.offset`` (the module docstring).
-
-    ``solver``: a quasi-static :class:`~fsi.physics.solid.SolidSolver` with a
-    :class:`StressFreeReference` whose loads at t = 1 are the reference ones (the follower pressure
-    ``P(t) = P_ref t``). Each iteration solves from η = 0 to t = 1 (in ``load_steps`` steps
-    in the first, where the drawn geometry is stress-free, and again in that many if one step
-    fails), then ``U₀ ← U₀ + η``. Converged when max |η| ≤ ``tolerance`` (m). Collective.
-    """
-    offset = solver.prestress.offset
-    mismatch = np.inf
-    for k in range(1, max_iterations + 1):
-        ok = _solve_to_reference_load(solver, 1 if k > 1 else load_steps)
-        if not ok and k > 1:
-            ok = _solve_to_reference_load(solver, load_steps)
-        if not ok:
-            log.warning("prestress: the structure's solve failed in iteration %d", k)
-            return PrestressResult(False, k, mismatch)
-        mismatch = max_norm(solver.eta)
-        offset.x.array[:] += solver.eta.x.array
-        offset.x.scatter_forward()
-        log.info("prestress: iteration %d, the drawn geometry moved by %.3g m", k, mismatch)
-        if mismatch <= tolerance:
-            _reset(solver)
-            return PrestressResult(True, k, mismatch)
-    _reset(solver)
-    return PrestressResult(False, max_iterations, mismatch)
-
-
 def _reset(solver) -> None:
     """η and the committed state back to the drawn geometry at rest, t = 0."""
     for f in (solver.eta, solver.eta_n, solver.v_n, solver.a_n, solver.v, solver.a):
         f.x.array[:] = 0.0
     solver.t = 0.0
-
-
-def _solve_to_reference_load(solver, steps: int) -> bool:
-    """From the drawn geometry at rest (η = 0, t = 0) to t = 1 in ``steps`` equal steps."""
-    _reset(solver)
-    for j in range(1, steps + 1):
-        result = solver.step(j / steps, 1 / steps)
-        if not result.converged:
-            return False
-        solver.advance()
-    return True
