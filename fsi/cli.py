@@ -598,7 +598,12 @@ def _stopped(request: RunRequest, e: Exception) -> RunOutcome:
     else:
         status = EXIT_SOLVE_FAILED
         reason = f"solve failed: {e}"
-        lines = [f"fsi: {reason} (the finished steps are in {request.out / 'metrics.csv'})"]
+        where = (
+            "before the first step"
+            if not e.started
+            else f"the finished steps are in {request.out / 'metrics.csv'}"
+        )
+        lines = [f"fsi: {reason} ({where})"]
     if e.checkpoint is None:
         lines.append("fsi: no checkpoint could be written.")
     else:

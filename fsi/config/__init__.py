@@ -61,10 +61,12 @@ from fsi.config.solver_settings import (
     SolverSettings,
 )
 from fsi.config.structure_section import (
+    Fibres,
     FlagMaterial,
     GeneralizedAlpha,
     Material,
     Newmark,
+    PrestressLoad,
     QuasiStatic,
     StructuralTimeIntegration,
     Structure,
@@ -128,6 +130,7 @@ __all__ = [
     # structure
     "Structure",
     "Material",
+    "Fibres",
     "WallMaterial",
     "FlagMaterial",
     "StructuralTimeIntegration",
@@ -135,6 +138,7 @@ __all__ = [
     "Newmark",
     "QuasiStatic",
     "TissueSupport",
+    "PrestressLoad",
     # time, coupling, mesh motion, output; solver settings
     "AdaptiveStepping",
     "Time",

@@ -401,6 +401,8 @@ def _build_union(tp: Any, value: Any, key: str) -> Any:
     others = [o for o in options if o is not type(None)]
     if isinstance(value, list) and len(others) == 1 and typing.get_origin(others[0]) is tuple:
         return build(others[0], value, key)  # an optional list: its item's own message
+    if isinstance(value, dict) and len(others) == 1 and dataclasses.is_dataclass(others[0]):
+        return build(others[0], value, key)  # an optional section: its keys' own messages
     for option in options:
         try:
             return build(option, value, key)

@@ -9,8 +9,22 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
-from fsi.config.reader import checked, non_negative, open_interval, positive
+from fsi.config.reader import at_least, checked, non_negative, open_interval, positive
 from fsi.config.solver_settings import SolverSettings, quadrature
+
+
+@dataclass(frozen=True)
+class Fibres:
+    """The collagen fibres of an ``hgo`` material (Holzapfel, Gasser & Ogden 2000; Gasser,
+    Ogden & Holzapfel 2006; fsi/physics/materials.py): two families at ±``angle`` degrees from
+    the circumferential direction in the circumferential–axial plane, stiffness ``k1`` (Pa) and
+    exponent ``k2`` (dimensionless), ``dispersion`` κ (0: every fibre along its family's mean
+    direction; 1/3: isotropic)."""
+
+    k1: float = non_negative(2.3632e3, "Pa")
+    k2: float = positive(0.8393)
+    angle: float = checked(29.0, lambda v: 0 <= v <= 90, "a number in [0, 90]", "degrees")
+    dispersion: float = checked(0.0, lambda v: 0 <= v <= 1 / 3, "a number in [0, 1/3]")
 
 
 @dataclass(frozen=True)
@@ -20,13 +34,18 @@ class Material:
     ``neo_hookean``, plane strain.
     ``viscous_relaxation_time`` τ (s) adds the Kelvin–Voigt viscous stress
     ``S_v = τ (λ tr Ė I + 2μ Ė)`` (docs/wall-damping.md): every small-amplitude mode of
-    angular frequency ω gets the damping ratio ζ = ωτ/2; 0 (the default) is purely elastic."""
+    angular frequency ω gets the damping ratio ζ = ωτ/2; 0 (the default) is purely elastic.
+    ``hgo``: the fibre-reinforced arterial wall (docs/arterial-wall.md), whose ground matrix
+    has the shear modulus ``c = E/(2(1 + ν))`` and the bulk modulus ``K = E/(3(1 − 2ν))`` of
+    ``young_modulus`` and ``poisson_ratio``, and whose ``fibres`` (:class:`Fibres`, required
+    with ``hgo`` and refused otherwise) stiffen it in stretch; axisymmetric cases only."""
 
-    law: Literal["svk", "neo_hookean"] = "svk"
+    law: Literal["svk", "neo_hookean", "hgo"] = "svk"
     density: float = positive(1200.0, "kg/m^3")
     young_modulus: float = positive(1.6e6, "Pa")
     poisson_ratio: float = open_interval(0.45, -1.0, 0.5)
     viscous_relaxation_time: float = non_negative(0.0, "s")
+    fibres: Fibres | None = None
 
 
 @dataclass(frozen=True)
@@ -86,6 +105,18 @@ class TissueSupport:
 
 
 @dataclass(frozen=True)
+class PrestressLoad:
+    """The load at which the drawn geometry is in equilibrium (docs/arterial-wall.md): the
+    structure is solved from the stress-free reference that this ``pressure`` (Pa) on the
+    interface takes to the drawn geometry (inverse elastostatics, fsi/physics/prestress.py),
+    found by raising the pressure from 0 in ``load_steps`` steps; every run starts from it.
+    E.g. the diastolic pressure of the artery the geometry was imaged at."""
+
+    pressure: float = positive(10.7e3, "Pa")
+    load_steps: int = at_least(20, 1)
+
+
+@dataclass(frozen=True)
 class Structure:
     """``fixed_wall``: vessel wall held, plaque deforms; ``moving_wall``: wall and plaque deform
     (clamped at the wall ends; the Turek–Hron flag at its joint with the cylinder); ``rigid``: no
@@ -96,7 +127,9 @@ class Structure:
     ``degree`` the Lagrange degree of the displacement (P1 locks in bending).
     ``interface_load``: ``fluid`` couples the structure to the blood; ``inlet_pressure`` solves
     the structure alone under the follower pressure P(t) of ``fluid.inlet`` on the interface
-    (no fluid solve); ``none`` solves it alone under ``body_force`` only (Turek–Hron CSM)."""
+    (no fluid solve); ``none`` solves it alone under ``body_force`` only (Turek–Hron CSM).
+    ``prestress`` (:class:`PrestressLoad`, null: none): the geometry is drawn under that load,
+    and the structure is solved from the stress-free reference it does not draw."""
 
     mode: Literal["fixed_wall", "moving_wall", "rigid"] = "fixed_wall"
     interface_load: Literal["fluid", "inlet_pressure", "none"] = "fluid"
@@ -112,3 +145,4 @@ class Structure:
     degree: int = checked(2, lambda v: 1 <= v <= 3, "an integer in [1, 3]")
     quadrature_degree: int = quadrature(4)
     solver: SolverSettings = field(default_factory=SolverSettings)
+    prestress: PrestressLoad | None = None

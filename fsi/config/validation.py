@@ -10,7 +10,13 @@ import math
 
 from fsi.config.boundary_data import FormulaError, periodic, sample_times, time_function
 from fsi.config.case import Case, heartbeat_period, run_time
-from fsi.config.domain import StenosisGeometry, TubeGeometry, TurekHronGeometry, dimension
+from fsi.config.domain import (
+    StenosisGeometry,
+    TubeGeometry,
+    TurekHronGeometry,
+    dimension,
+    is_axisymmetric,
+)
 from fsi.config.fluid_section import (
     FLOW_RATE_INLETS,
     TABLE_INLETS,
@@ -35,6 +41,8 @@ def validate(case: Case) -> None:
     inlet."""
     _validate_geometry(case)
     _validate_structure_load(case)
+    _validate_materials(case)
+    _validate_prestress(case)
     _validate_cell_count(case)  # before the size order: mesh.size 1e-6 gets the estimate
     if case.mesh.local_size > case.mesh.size:
         raise ConfigError(
@@ -228,6 +236,59 @@ def _validate_turek_hron(g: TurekHronGeometry) -> None:
             "geometry.flag_length",
             f"a flag tip (x = centre + radius + length) before the outlet x = {g.length} m",
             g.flag_length,
+        )
+
+
+def _validate_materials(case: Case) -> None:
+    """``hgo`` needs its ``fibres`` (and no other law takes them), a 3×3 deformation
+    (axisymmetric: the fibres lie in the circumferential–axial plane, which a plane section does
+    not contain) and a region that is part of the geometry's structure."""
+    s = case.structure
+    for region in ("wall", "cap", "lipid", "flag"):
+        material = getattr(s, region)
+        key = f"structure.{region}"
+        if material.law == "hgo" and material.fibres is None:
+            raise ConfigError(
+                "", f"{key}.fibres", "the fibres of law 'hgo' (k1, k2, angle, dispersion)", None
+            )
+        if material.law != "hgo" and material.fibres is not None:
+            raise ConfigError(
+                "",
+                f"{key}.law",
+                "'hgo' when fibres are given (only the HGO law has fibres)",
+                material.law,
+            )
+        if material.law != "hgo" or s.mode == "rigid":
+            continue
+        if region == "flag" or not is_axisymmetric(case.geometry):
+            raise ConfigError(
+                "",
+                f"{key}.law",
+                "'svk' or 'neo_hookean' in a plane model: the HGO fibres lie in the "
+                "circumferential-axial plane, which only an axisymmetric (geometry.axisymmetric"
+                ": true) vessel has",
+                material.law,
+            )
+
+
+def _validate_prestress(case: Case) -> None:
+    """A prestress needs a structure, drawn as a vessel under pressure (not the Turek–Hron flag)."""
+    s = case.structure
+    if s.prestress is None:
+        return
+    if s.mode == "rigid":
+        raise ConfigError(
+            "",
+            "structure.prestress",
+            "null when structure.mode is 'rigid' (there is no structure to prestress)",
+            "a prestress",
+        )
+    if isinstance(case.geometry, TurekHronGeometry):
+        raise ConfigError(
+            "",
+            "structure.prestress",
+            "null for geometry.kind 'turek_hron' (the flag is not drawn under a pressure)",
+            "a prestress",
         )
 
 

@@ -7,13 +7,15 @@ which linearise to Hooke's law with the same ``λ, μ`` (:func:`lame`), and the 
 structure (the hoop stretch ``F_θθ = 1 + η_r/r``, fsi/physics/solid_residual.py) as they are:
 every identity, trace and the neo-Hookean energy's ``d`` follow ``F.ufl_shape``, so they are
 then the 3D laws. The parameters may be numbers, :class:`dolfinx.fem.Constant` or DG0 fields
-(per-region values): the laws only build UFL.
+(per-region values): the laws only build UFL. :class:`HolzapfelGasserOgden`, the fibre-reinforced
+arterial wall, needs the 3×3 F (axisymmetric or 3D): its fibres lie in the circumferential–axial
+plane, which a plane (longitudinal) section does not contain.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import ufl
 
@@ -54,6 +56,13 @@ class HyperelasticLaw(Protocol):
         """The out-of-plane component ``Σ₃₃`` that keeps the plane-strain constraint (2×2 F
         only)."""
         ...
+
+
+def has_volumetric_stress(law: HyperelasticLaw) -> bool:
+    """Whether ``law`` is nearly incompressible and names its volumetric Cauchy stress
+    ``volumetric_stress(F)`` (``U'(J)``, times I), which the structure's stresses take from a
+    projection (fsi/physics/solid_stress.py, ``RecoveredPressure``)."""
+    return bool(getattr(law, "nearly_incompressible", False))
 
 
 def cauchy(law: HyperelasticLaw, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
@@ -155,13 +164,108 @@ class KelvinVoigt:
         return self.lmbda * ufl.tr(rate) * ufl.Identity(F.ufl_shape[0]) + 2 * self.mu * rate
 
 
-LAWS: dict[str, type] = {"svk": StVenantKirchhoff, "neo_hookean": NeoHookean}
+def axisymmetric_fibres(sin_angle: Parameter, cos_angle: Parameter) -> tuple[Any, Any]:
+    """The two fibre families at ±β from the circumferential direction in the
+    circumferential–axial plane, as unit vectors of the axisymmetric frame (z, r, θ) of
+    fsi/physics/coordinates.py: ``a± = (±sin β, 0, cos β)``."""
+    return (
+        ufl.as_vector([sin_angle, 0, cos_angle]),
+        ufl.as_vector([-sin_angle, 0, cos_angle]),
+    )
+
+
+@dataclass(frozen=True)
+class HolzapfelGasserOgden:
+    """The Holzapfel–Gasser–Ogden arterial wall with the fibre dispersion of Gasser, Ogden &
+    Holzapfel (2006), nearly incompressible (3×3 F: axisymmetric or 3D)::
+
+        W = c/2 (Ī₁ − 3) + Σ_f k₁/(2k₂) (exp(k₂ Ē_f²) − 1) [Ī₄f > 1] + K/4 (J² − 1 − 2 ln J),
+        Ē_f = κ (Ī₁ − 3) + (1 − 3κ)(Ī₄f − 1),   Ī₁ = tr C̄,   Ī₄f = a_f·C̄ a_f,   C̄ = J^(−2/3) C,
+
+    with the ground matrix's shear modulus ``c = mu`` and bulk modulus ``K = λ + 2μ/3``
+    (:func:`lame` of the region's E and ν: small strains of the matrix obey Hooke's law with
+    them), fibre stiffness ``k1`` (Pa) and ``k2`` (> 0), dispersion κ ∈ [0, 1/3] (0: aligned
+    fibres, the HGO 2000 model; 1/3: isotropic) and ``fibres`` the reference unit directions
+    a_f (:func:`axisymmetric_fibres`). A family carries load only while its mean direction is
+    stretched, Ī₄f > 1 (fibres buckle in compression). The fibre terms use the isochoric Ī₄, as
+    Abaqus' and FEBio's HGO do; the near-incompressibility (K ≫ c) makes the difference from
+    the full I₄ negligible (Sansour 2008 shows the isochoric form's spurious volumetric response
+    when K is small).
+
+    Locking: the displacement is P2 (``structure.degree``) and every term is integrated at the
+    structure's quadrature degree. The inflated tube (tests/test_hgo_tube.py) shows no locking
+    at the shipped degree: its error is the same on 4 and 8 cells across the wall and falls as
+    1/K (the compressibility, not the mesh), so K must stand well above the stiffened fibres'
+    stress (ν = 0.49999 for a carotid at 25 kPa; docs/arterial-wall.md). A one-point
+    integration of the volumetric term (P2–P0) was tried and dropped: dolfinx 0.5's form
+    compiler assembles an integrand split over two quadrature degrees wrongly (10 % off the
+    sum of the parts, measured), and its Newton then converged only linearly.
+    """
+
+    lmbda: Parameter
+    mu: Parameter
+    k1: Parameter
+    k2: Parameter
+    dispersion: Parameter
+    fibres: tuple[Any, ...]
+    name: str = "hgo"
+    nearly_incompressible: ClassVar[bool] = True
+
+    @property
+    def bulk_modulus(self):
+        """``K = λ + 2μ/3``."""
+        return self.lmbda + 2 * self.mu / 3
+
+    def isochoric_energy(self, C):
+        """``W_iso(C)``: the matrix and the fibres, in terms of C̄ = J^(−2/3) C."""
+        C_bar = ufl.det(C) ** (-1.0 / 3.0) * C
+        I1 = ufl.tr(C_bar)
+        W = 0.5 * self.mu * (I1 - 3)
+        kappa = self.dispersion
+        for a in self.fibres:
+            I4 = ufl.inner(a, C_bar * a)
+            E = kappa * (I1 - 3) + (1 - 3 * kappa) * (I4 - 1)
+            fibre = self.k1 / (2 * self.k2) * (ufl.exp(self.k2 * E**2) - 1)
+            W += ufl.conditional(ufl.gt(I4, 1), fibre, 0)
+        return W
+
+    def volumetric_energy(self, J):
+        """``U(J) = K/4 (J² − 1 − 2 ln J)``."""
+        return 0.25 * self.bulk_modulus * (J**2 - 1 - 2 * ufl.ln(J))
+
+    def strain_energy(self, F):
+        return self.isochoric_energy(F.T * F) + self.volumetric_energy(ufl.det(F))
+
+    def volumetric_stress(self, F):
+        """The Cauchy stress's volumetric part ``U'(J) = K/2 (J − 1/J)`` (times I)."""
+        J = ufl.det(F)
+        return 0.5 * self.bulk_modulus * (J - 1 / J)
+
+    def second_piola(self, F):
+        """``2 ∂W/∂C``, UFL's derivative of the energy in C."""
+        C = ufl.variable(F.T * F)
+        W = self.isochoric_energy(C) + self.volumetric_energy(ufl.sqrt(ufl.det(C)))
+        return 2 * ufl.diff(W, C)
+
+    def second_piola_zz(self, F):
+        raise ValueError(
+            "the HGO law has fibres in the circumferential-axial plane: it needs a 3×3 F "
+            "(axisymmetric or 3D), not plane strain"
+        )
+
+
+LAWS: dict[str, type] = {
+    "svk": StVenantKirchhoff,
+    "neo_hookean": NeoHookean,
+    "hgo": HolzapfelGasserOgden,
+}
 """The laws by their configuration name (``structure.<region>.law``)."""
 
 
-def make_law(name: str, lmbda: Parameter, mu: Parameter) -> HyperelasticLaw:
-    """The law called ``name`` with Lamé parameters ``λ, μ``."""
+def make_law(name: str, lmbda: Parameter, mu: Parameter, **parameters: Any) -> HyperelasticLaw:
+    """The law called ``name`` with Lamé parameters ``λ, μ`` (and, for ``hgo``, the fibres'
+    ``k1, k2, dispersion, fibres``)."""
     try:
-        return LAWS[name](lmbda, mu)
+        return LAWS[name](lmbda, mu, **parameters)
     except KeyError:
         raise ValueError(f"unknown material law {name!r} (one of {', '.join(LAWS)})") from None

@@ -41,11 +41,12 @@ from fsi.config import (
     is_axisymmetric,
 )
 from fsi.geometry.tags import STRUCTURE_REGIONS, Boundary, Region
-from fsi.numerics.newton import DirichletLifting, Newton, SolveResult, petsc_options
+from fsi.numerics.newton import DirichletLifting, Newton, SolveFailed, SolveResult, petsc_options
 from fsi.numerics.timestepping import NewmarkFamily, structural_scheme
 from fsi.physics import mesh as fsi_mesh
 from fsi.physics.coordinates import Coordinates
 from fsi.physics.mesh import TaggedMesh
+from fsi.physics.prestress import StressFreeReference, solve_reference
 from fsi.physics.solid_residual import SolidResidual, material_fields
 from fsi.physics.solid_stress import StressFields
 
@@ -102,10 +103,12 @@ class Roller:
     """η_``component`` = 0 on the facets of ``boundaries``, the other component free: a
     boundary that slides along itself (``component`` its normal's axis, 0 for x, 1 for y),
     e.g. the ends z = const of a tube section in plane strain (ε_zz = 0), or η_r = 0 where
-    an axisymmetric solid meets its axis."""
+    an axisymmetric solid meets its axis. ``value`` (m, default 0) moves the boundary along its
+    normal by that much: the end of a tube stretched axially."""
 
     boundaries: tuple[Boundary, ...]
     component: int
+    value: float = 0.0
 
 
 Dirichlet = Clamp | HoldRegions | PrescribedDisplacement | Roller
@@ -262,8 +265,10 @@ class DirichletConditions:
                 rows = dolfinx.fem.locate_dofs_topological(
                     sub, tdim - 1, _facets(domain, item.boundaries)
                 )
-                bc = dolfinx.fem.dirichletbc(PETSc.ScalarType(0), rows, sub)
+                bc = dolfinx.fem.dirichletbc(PETSc.ScalarType(item.value), rows, sub)
                 self.bcs.append(bc)
+                if item.value != 0:
+                    bc = dolfinx.fem.dirichletbc(PETSc.ScalarType(0), rows, sub)
                 self.homogeneous.append(bc)
                 constrained.append(rows)
                 continue
@@ -318,6 +323,8 @@ class SolidSolver:
         axisymmetric: the mesh is the meridian half-plane (x = z, y = r) of a body of
             revolution (fsi/physics/coordinates.py): 3×3 F with the hoop stretch, integrals
             weighted by 2πR; False (the default): plane strain per unit depth.
+        prestressed: the mesh is drawn under load, from a stress-free reference
+            (``prestress``, fsi/physics/prestress.py; U₀ = 0 until it is computed).
 
     Parts: ``coordinates`` (:class:`~fsi.physics.coordinates.Coordinates`), ``rho``, ``law``,
     ``viscous`` (:func:`material_fields`), ``dirichlet`` (:class:`DirichletConditions`),
@@ -336,6 +343,7 @@ class SolidSolver:
         solver: SolverSettings = DEFAULT_SOLVER,
         prefix: str = "solid_",
         axisymmetric: bool = False,
+        prestressed: bool = False,
     ):
         mesh = domain.mesh
         self.domain, self.bcs_data, self.scheme, self.prefix = domain, bcs, scheme, prefix
@@ -363,11 +371,13 @@ class SolidSolver:
         self.traction = function("traction")  # t₀ at t_{n+1} (first Piola, on the interface)
         self.traction_n = function("traction_n")
 
-        m = material_fields(domain, materials)
+        m = material_fields(domain, materials, axisymmetric)
         self.regions, self.rho, self.law, self.viscous = m.regions, m.rho, m.law, m.viscous
         self.Q0, self.cell_region = m.cells, m.cell_region
         self.dirichlet = DirichletConditions(domain, self.V, bcs.dirichlet)
         self._build_interface()
+        # The stress-free reference of a geometry drawn under load (U₀ = 0 until computed).
+        self.prestress = StressFreeReference(self.V, self.coordinates) if prestressed else None
         self.residual = SolidResidual(self, quadrature_degree)
         self.problem = _Problem(
             self.residual.form, self.eta, self.dirichlet.bcs, self.residual.jacobian, self._nodal
@@ -375,7 +385,7 @@ class SolidSolver:
         # dolfinx's "residual" test divides by the first increment's norm (mixed units), so test
         # the increments: converged when |δη_k| < atol (m) or |δη_k| < rtol |δη_1|.
         self.newton = Newton(self.comm, self.problem, solver, self.prefix, "incremental")
-        self.stress = StressFields(self, self.law)
+        self.stress = StressFields(self, self.law, self.prestress)
         self._det_F = None
 
     def _build_interface(self) -> None:
@@ -567,13 +577,40 @@ def build(
         tagged = fsi_mesh.build(case, comm)
     domain = structure_mesh(tagged, structure_regions(case))
     s = case.structure
-    return SolidSolver(
-        domain,
-        region_materials(case),
-        bcs or boundary_conditions(case, pressure),
-        scheme or structural_scheme(s.time_integration),
-        degree=s.degree,
-        quadrature_degree=s.quadrature_degree,
-        solver=s.solver,
-        axisymmetric=is_axisymmetric(case.geometry),
-    )
+    bcs = bcs or boundary_conditions(case, pressure)
+
+    def solver(bcs: SolidBoundaryConditions, scheme: NewmarkFamily) -> SolidSolver:
+        return SolidSolver(
+            domain,
+            region_materials(case),
+            bcs,
+            scheme,
+            degree=s.degree,
+            quadrature_degree=s.quadrature_degree,
+            solver=s.solver,
+            axisymmetric=is_axisymmetric(case.geometry),
+            prestressed=s.prestress is not None,
+        )
+
+    structure = solver(bcs, scheme or structural_scheme(s.time_integration))
+    if s.prestress is not None:
+        # The stress-free reference under the prestress pressure alone, quasi-static.
+        reference_pressure = s.prestress.pressure
+        loaded = solver(
+            replace(bcs, pressure=lambda t: reference_pressure * t), NewmarkFamily.quasi_static()
+        )
+        result = solve_reference(loaded, s.prestress.load_steps)
+        if not result.converged:
+            raise SolveFailed(
+                f"structure.prestress: no stress-free reference found for "
+                f"{reference_pressure:g} Pa (the solve failed at {result.iterations} of "
+                f"{s.prestress.load_steps} load steps; try more load_steps)"
+            )
+        structure.prestress.offset.x.array[:] = loaded.prestress.offset.x.array
+        log.info(
+            "structure.prestress: the stress-free reference of %g Pa is %.3g m from the drawn "
+            "geometry at most",
+            reference_pressure,
+            result.mismatch,
+        )
+    return structure

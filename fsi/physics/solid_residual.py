@@ -28,6 +28,7 @@ pressure's ``J F⁻ᵀ N`` is :meth:`SolidResidual.area_normal`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -43,7 +44,14 @@ from fsi import compat
 from fsi.config import Material
 from fsi.geometry.tags import Boundary, Region
 from fsi.physics.coordinates import Coordinates
-from fsi.physics.materials import HyperelasticLaw, KelvinVoigt, lame, make_law
+from fsi.physics.materials import (
+    HyperelasticLaw,
+    KelvinVoigt,
+    axisymmetric_fibres,
+    has_volumetric_stress,
+    lame,
+    make_law,
+)
 from fsi.physics.mesh import TaggedMesh
 
 # --------------------------------------------------------------------------------------------
@@ -69,6 +77,16 @@ class RegionwiseLaw:
     def second_piola_zz(self, F):
         return self._sum("second_piola_zz", F)
 
+    @property
+    def nearly_incompressible(self) -> bool:
+        return any(has_volumetric_stress(law) for _, law in self.parts)
+
+    def volumetric_stress(self, F):
+        """The volumetric Cauchy stress of the nearly incompressible laws in their regions."""
+        return sum(
+            chi * law.volumetric_stress(F) for chi, law in self.parts if has_volumetric_stress(law)
+        )
+
 
 @dataclass(frozen=True)
 class MaterialFields:
@@ -89,9 +107,30 @@ class MaterialFields:
     cell_region: np.ndarray
 
 
-def material_fields(domain: TaggedMesh, materials: Mapping[Region, Material]) -> MaterialFields:
-    """The :class:`MaterialFields` of ``materials`` on ``domain``'s cell tags. Collective; a
-    ValueError names the regions present without a material."""
+def _fibre_fields(dg0, mats: Mapping[int, Material], axisymmetric: bool) -> dict[str, Any]:
+    """The HGO law's fibre parameters as DG0 fields (k₁, k₂, κ, the directions of ±β); in
+    the regions of other laws k₁ = 0 (no fibre energy) and k₂ = 1 (no 0/0)."""
+    if not axisymmetric:
+        raise ValueError("the HGO law needs an axisymmetric (or 3D) structure")
+    fibres = {r: m.fibres for r, m in mats.items() if m.law == "hgo"}
+    angle = {r: math.radians(f.angle) for r, f in fibres.items()}
+    return {
+        "k1": dg0({r: f.k1 for r, f in fibres.items()}, "fibre_k1"),
+        "k2": dg0({r: fibres[r].k2 if r in fibres else 1.0 for r in mats}, "fibre_k2"),
+        "dispersion": dg0({r: f.dispersion for r, f in fibres.items()}, "fibre_dispersion"),
+        "fibres": axisymmetric_fibres(
+            dg0({r: math.sin(a) for r, a in angle.items()}, "fibre_sin"),
+            dg0({r: math.cos(a) for r, a in angle.items()}, "fibre_cos"),
+        ),
+    }
+
+
+def material_fields(
+    domain: TaggedMesh, materials: Mapping[Region, Material], axisymmetric: bool = False
+) -> MaterialFields:
+    """The :class:`MaterialFields` of ``materials`` on ``domain``'s cell tags (``axisymmetric``:
+    the fibres of an HGO material in the axisymmetric frame). Collective; a ValueError names
+    the regions present without a material."""
     mesh, tags = domain.mesh, domain.cell_tags
     present = [
         int(r) for r in np.unique(np.concatenate(mesh.comm.allgather(np.unique(tags.values))))
@@ -115,14 +154,17 @@ def material_fields(domain: TaggedMesh, materials: Mapping[Region, Material]) ->
     lmbda = dg0({r: lm[0] for r, lm in lmbda_mu.items()}, "lambda")
     mu = dg0({r: lm[1] for r, lm in lmbda_mu.items()}, "mu")
     laws = sorted({m.law for m in mats.values()})
+    parameters = {name: {} for name in laws}
+    if "hgo" in laws:
+        parameters["hgo"] = _fibre_fields(dg0, mats, axisymmetric)
     if len(laws) == 1:
-        law: HyperelasticLaw = make_law(laws[0], lmbda, mu)
+        law: HyperelasticLaw = make_law(laws[0], lmbda, mu, **parameters[laws[0]])
     else:
         law = RegionwiseLaw(
             tuple(
                 (
                     dg0({r: 1.0 for r, m in mats.items() if m.law == name}, f"chi_{name}"),
-                    make_law(name, lmbda, mu),
+                    make_law(name, lmbda, mu, **parameters[name]),
                 )
                 for name in laws
             )
@@ -207,6 +249,7 @@ class SolidResidual:
                 dolfinx.fem.Constant(mesh, PETSc.ScalarType(bcs.support.damping)),
                 self._ds(bcs.support.boundaries),
             )
+        self.prestress = getattr(solver, "prestress", None)
         self.form = self._residual()
         self.jacobian = ufl.derivative(self.form, solver.eta, ufl.TrialFunction(solver.V))
 
@@ -246,9 +289,9 @@ class SolidResidual:
         s = self.solver
         deta, da = ufl.TestFunction(s.V), ufl.TrialFunction(s.V)
         F = self.deformation_gradient(s.eta_n)
-        S = s.law.second_piola(F)
+        S = s.law.second_piola(self._elastic(F))
         if s.viscous is not None:
-            S = S + s.viscous.second_piola(F, self.coordinates.grad(s.v_n))
+            S = S + self._viscous(s.viscous.second_piola(F, self.coordinates.grad(s.v_n)))
         force = -self._stress(F, S, deta)
         if self.support is not None:
             force -= self._support(s.eta_n, s.v_n, deta)
@@ -258,7 +301,7 @@ class SolidResidual:
             force += self._source(deta)
         if s.bcs_data.pressure is not None:
             force -= self._follower_pressure(self.pressure_n, F, deta)
-        return s.rho * ufl.inner(da, deta) * self.dx, force
+        return self._density() * ufl.inner(da, deta) * self.dx, force
 
     # -- the terms
 
@@ -267,31 +310,48 @@ class SolidResidual:
         plus the Kelvin–Voigt stress of η̇_{n+1-αf} (if any); and η̇_{n+1-αf}."""
         s, scheme = self.solver, self.solver.scheme
         af = scheme.alpha_f
-        S_alpha = scheme.at(s.law.second_piola(F_new), s.law.second_piola(F_old), af)
+        S_alpha = scheme.at(
+            s.law.second_piola(self._elastic(F_new)), s.law.second_piola(self._elastic(F_old)), af
+        )
         # η̇ at n+1-αf, with η̇_{n+1} the scheme's function of the unknown η_{n+1}.
         v_alpha = scheme.at(scheme.velocity(s.eta, s.eta_n, s.v_n, s.a_n, s.dt), s.v_n, af)
         if s.viscous is not None:
             # The rate pulled back with the mid-step F̄: Ė = (E_{n+1} − E_n)/dt exactly when
             # η̇_{n+1-αf} = (η_{n+1} − η_n)/dt (trapezoidal, quasi-static): see the docstring.
-            S_alpha = S_alpha + s.viscous.second_piola(
-                scheme.at(F_new, F_old, 0.5), self.coordinates.grad(v_alpha)
+            S_alpha = S_alpha + self._viscous(
+                s.viscous.second_piola(scheme.at(F_new, F_old, 0.5), self.coordinates.grad(v_alpha))
             )
         return S_alpha, v_alpha
 
     def _stress(self, F, S, deta):
         """``∫ F S : ∇δη dx``, the first Piola stress ``F S`` tested (axisymmetric: 3×3, with
-        the hoop term ``P_θθ δη_r/r``)."""
-        return ufl.inner(F * S, self.coordinates.grad(deta)) * self.dx
+        the hoop term ``P_θθ δη_r/r``); prestressed, ``J₀⁻¹ F F₀ S F₀ᵀ`` with S the
+        reference's (fsi/physics/prestress.py)."""
+        P = F * S if self.prestress is None else self.prestress.first_piola(F, S)
+        return ufl.inner(P, self.coordinates.grad(deta)) * self.dx
+
+    def _elastic(self, F):
+        """The deformation gradient the law sees: F, or ``F F₀`` when prestressed."""
+        return F if self.prestress is None else self.prestress.total(F)
+
+    def _viscous(self, S_v):
+        """The viscous stress (of the drawn configuration's rate) as :meth:`_stress` takes it."""
+        return S_v if self.prestress is None else self.prestress.pull_back(S_v)
+
+    def _density(self):
+        """ρ per unit drawn volume: ρ, or ρ/J₀ when prestressed."""
+        rho = self.solver.rho
+        return rho if self.prestress is None else rho * self.prestress.volume_ratio
 
     def _inertia(self, deta):
         """``∫ ρ a_{n+1-αm}·δη dx``."""
         s, scheme = self.solver, self.solver.scheme
         a_new = scheme.acceleration(s.eta, s.eta_n, s.v_n, s.a_n, s.dt)
-        return s.rho * ufl.inner(scheme.at(a_new, s.a_n, scheme.alpha_m), deta) * self.dx
+        return self._density() * ufl.inner(scheme.at(a_new, s.a_n, scheme.alpha_m), deta) * self.dx
 
     def _body_force(self, deta):
         """``∫ ρ b·δη dx``."""
-        return self.solver.rho * ufl.inner(self.gravity, deta) * self.dx
+        return self._density() * ufl.inner(self.gravity, deta) * self.dx
 
     def _source(self, deta):
         """``∫ f(x)·δη dx`` (a manufactured solution's force per reference volume)."""

@@ -17,6 +17,7 @@ class RunStopped(Exception):
     checkpoint: Path | None = None
     step: int | None = None
     t: float | None = None
+    started: bool = True  # False: it stopped while it was being set up, before any step
 
 
 class StepFailed(RunStopped):

@@ -18,6 +18,7 @@ from mpi4py import MPI
 
 from fsi import config
 from fsi.config import boundary_data
+from fsi.numerics import newton
 from fsi.numerics.timestepping import AdaptiveSteps, Step, StepSizeControl, steps
 from fsi.output import io
 from fsi.run import checkpoint, time_errors
@@ -71,12 +72,17 @@ def run(
     CheckpointError` when ``restart``'s arrays do not fit the case (before anything is
     written). Collective."""
     start = wallclock.perf_counter()
-    if case.structure.mode == "rigid":
-        stepper: Stepper = RigidStepper(case, comm)
-    elif case.structure.interface_load != "fluid":
-        stepper = StructureStepper(case, comm)
-    else:
-        stepper = CoupledStepper(case, comm)
+    try:
+        if case.structure.mode == "rigid":
+            stepper: Stepper = RigidStepper(case, comm)
+        elif case.structure.interface_load != "fluid":
+            stepper = StructureStepper(case, comm)
+        else:
+            stepper = CoupledStepper(case, comm)
+    except newton.SolveFailed as e:  # before the first step (the prestress): nothing to save
+        failed = StepFailed(str(e))
+        failed.started = False
+        raise failed from None
     return march(case, out, comm, stepper, start, restart, stop_requested)
 
 

@@ -175,14 +175,27 @@ def structure_layouts(solver: solid.SolidSolver) -> dict[str, Layout]:
         },
         "solid.forces": forces,
         "solid.forces_n": forces,
+        **({"solid.reference_offset": nodes} if solver.prestress is not None else {}),
     }
 
 
+def solid_arrays(solver: solid.SolidSolver) -> dict[str, np.ndarray]:
+    """The solid's state as ``solid.*`` arrays (:class:`fsi.physics.solid.SolidState`) and, when
+    prestressed, the stress-free reference's offset U₀ (``solid.reference_offset``)."""
+    arrays = to_arrays("solid.", solver.save_state())
+    if solver.prestress is not None:
+        arrays["solid.reference_offset"] = solver.prestress.offset.x.array.copy()
+    return arrays
+
+
 def load_solid(solver: solid.SolidSolver, state: dict[str, np.ndarray]) -> None:
-    """The solid's state from ``solid.*`` arrays; the rates of the last step η̇, η̈ (outputs,
+    """The solid's state from ``solid.*`` arrays (and the prestress's reference, which the
+    checkpoint holds, over the one the run computed); the rates of the last step η̇, η̈ (outputs,
     recomputed by every step) as :meth:`fsi.physics.solid.SolidSolver.advance` leaves them;
     stresses."""
     solver.restore_state(from_arrays(solid.SolidState, "solid.", state))
+    if solver.prestress is not None and "solid.reference_offset" in state:
+        solver.prestress.offset.x.array[:] = state["solid.reference_offset"]
     solver.v.x.array[:] = solver.v_n.x.array
     solver.a.x.array[:] = solver.a_n.x.array
     solver.stress.update()

@@ -386,7 +386,7 @@ class CoupledStepper(_Checkpointed):
         return {
             **state_arrays.to_arrays("fluid.", problem.fluid.save_state()),
             **self.outputs.state(),
-            **state_arrays.to_arrays("solid.", problem.solid.save_state()),
+            **state_arrays.solid_arrays(problem.solid),
             **{f"coupling.{k}": v for k, v in problem.acceleration.state().items()},
             **{f"predictor.{k}": v for k, v in problem.predictor.state().items()},
             "counters.coupling_iterations": np.array(self.iterations, dtype=np.int64),
@@ -484,7 +484,7 @@ class StructureStepper(_Checkpointed):
 
     def state(self) -> dict[str, np.ndarray]:
         return {
-            **state_arrays.to_arrays("solid.", self.solver.save_state()),
+            **state_arrays.solid_arrays(self.solver),
             **self.time_errors.state(),
         }
 
