@@ -78,8 +78,9 @@ class Coordinates:
         return ufl.sym(self.grad(u))
 
     def identity(self):
-        """The identity of the tensors of :meth:`grad`: 2×2 or 3×3."""
-        return ufl.Identity(3 if self.axisymmetric else 2)
+        """The identity of the tensors of :meth:`grad`: the mesh's dimension (2×2 plane, 3×3
+        in 3D), or 3×3 when axisymmetric."""
+        return ufl.Identity(3 if self.axisymmetric else self.mesh.geometry.dim)
 
     def div_symmetric(self, T, hoop=None):
         """∇·T of a symmetric tensor field given by its in-plane block ``T`` (2×2) and, when

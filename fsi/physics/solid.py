@@ -111,7 +111,18 @@ class Roller:
     value: float = 0.0
 
 
-Dirichlet = Clamp | HoldRegions | PrescribedDisplacement | Roller
+@dataclass(frozen=True)
+class SymmetryPlane:
+    """η_``component`` = 0 at every node on the plane x_``component`` = 0 (wherever the mesh has
+    them, inside or on the boundary): a plane of mirror symmetry of the problem, or the
+    points where one crosses the body. A 3D tube's pressure load has the planes through its
+    axis as such planes; holding the nodes on them removes the rigid motions that rollers on
+    its ends leave free (the rotation about the axis, the translations across it)."""
+
+    component: int
+
+
+Dirichlet = Clamp | HoldRegions | PrescribedDisplacement | Roller | SymmetryPlane
 
 
 @dataclass(frozen=True)
@@ -240,6 +251,21 @@ def _facets(domain: TaggedMesh, boundaries: Sequence[Boundary] | None) -> np.nda
     return domain.facets(*boundaries)
 
 
+def _plane_dofs(mesh, sub, component: int) -> np.ndarray:
+    """The dofs of the subspace ``sub`` on the mesh's vertices, edges, ... (every entity below
+    the cells) that lie on the plane x_``component`` = 0, to a millionth of the mesh's extent."""
+    x = mesh.geometry.x
+    tolerance = 1e-6 * float(mesh.comm.allreduce(np.ptp(x, axis=0).max(initial=0.0), op=MPI.MAX))
+    rows = []
+    for dim in range(mesh.topology.dim):
+        mesh.topology.create_entities(dim)
+        entities = dolfinx.mesh.locate_entities(
+            mesh, dim, lambda p: np.abs(p[component]) <= tolerance
+        )
+        rows.append(dolfinx.fem.locate_dofs_topological(sub, dim, entities))
+    return np.unique(np.concatenate(rows))
+
+
 class DirichletConditions:
     """The structure's :data:`Dirichlet` conditions on the displacement space ``V``.
 
@@ -269,6 +295,14 @@ class DirichletConditions:
                 self.bcs.append(bc)
                 if item.value != 0:
                     bc = dolfinx.fem.dirichletbc(PETSc.ScalarType(0), rows, sub)
+                self.homogeneous.append(bc)
+                constrained.append(rows)
+                continue
+            if isinstance(item, SymmetryPlane):
+                sub = V.sub(item.component)
+                rows = _plane_dofs(domain.mesh, sub, item.component)
+                bc = dolfinx.fem.dirichletbc(PETSc.ScalarType(0), rows, sub)
+                self.bcs.append(bc)
                 self.homogeneous.append(bc)
                 constrained.append(rows)
                 continue
@@ -396,7 +430,8 @@ class SolidSolver:
             self.V, mesh.topology.dim - 1, self.interface_facets
         )
         self.interface_dofs = dofs[dofs < self.V.dofmap.index_map.size_local]
-        self.interface_points = self.V.tabulate_dof_coordinates()[self.interface_dofs, :2]
+        gdim = mesh.geometry.dim
+        self.interface_points = self.V.tabulate_dof_coordinates()[self.interface_dofs, :gdim]
         bs = self.V.dofmap.index_map_bs
         rows = self.interface_dofs[:, None] * bs + np.arange(bs)
         free = ~np.isin(rows, self.dirichlet.constrained)  # (n, bs): the free components
@@ -526,11 +561,12 @@ class SolidSolver:
 
     def interface_displacement(self) -> np.ndarray:
         """η at the owned interface dofs, (n, 2), in the order of ``interface_points``."""
-        return self.eta.x.array.reshape(-1, 2)[self.interface_dofs].copy()
+        bs = self.V.dofmap.index_map_bs
+        return self.eta.x.array.reshape(-1, bs)[self.interface_dofs].copy()
 
     def _owned_block_values(self, f: dolfinx.fem.Function) -> np.ndarray:
         n = self.V.dofmap.index_map.size_local
-        return f.x.array.reshape(-1, 2)[:n]
+        return f.x.array.reshape(-1, self.V.dofmap.index_map_bs)[:n]
 
     def max_displacement(self, regions: Sequence[Region] | None = None) -> float:
         """max |η| over the dofs (of the cells of ``regions``), over all ranks."""

@@ -237,9 +237,10 @@ class SolidResidual:
             ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags, metadata=metadata)
         )
         self.ds_interface = self._ds(bcs.interface)
-        self.gravity = dolfinx.fem.Constant(
-            mesh, np.asarray(bcs.body_force, dtype=PETSc.ScalarType)
-        )
+        # The body force's components in the mesh's dimension (a 3D mesh: g_z = 0).
+        gravity = np.zeros(mesh.geometry.dim, dtype=PETSc.ScalarType)
+        gravity[: len(bcs.body_force)] = bcs.body_force
+        self.gravity = dolfinx.fem.Constant(mesh, gravity)
         self.pressure = dolfinx.fem.Constant(mesh, PETSc.ScalarType(0.0))
         self.pressure_n = dolfinx.fem.Constant(mesh, PETSc.ScalarType(0.0))
         self.support = None

@@ -78,29 +78,26 @@ class StressFields:
         self.pressure = None
         if has_volumetric_stress(law):
             self.pressure = RecoveredPressure(solver, law.volumetric_stress(F))
+        self.three_d = mesh.geometry.dim == 3
         sigma, s33 = self._cauchy(solver.coordinates, law, F, self.pressure)
         self.T = compat.function_space(mesh, "DG", degree, sigma.ufl_shape)
-        s11, s22, s12 = sigma[0, 0], sigma[1, 1], sigma[0, 1]
-        von_mises = ufl.sqrt(
-            ((s11 - s22) ** 2 + (s22 - s33) ** 2 + (s33 - s11) ** 2) / 2 + 3 * s12**2
-        )
-        in_plane = (s11 + s22) / 2 + ufl.sqrt(((s11 - s22) / 2) ** 2 + s12**2)
-        principal = ufl.max_value(in_plane, s33)
         self.sigma = dolfinx.fem.Function(self.T)
         self.sigma.name = "sigma"
         self.fields = {}
         self._expressions = [
             (self.sigma, dolfinx.fem.Expression(sigma, compat.interpolation_points(self.T)))
         ]
-        for name, expr in (("sss", s12), ("von_mises", von_mises), ("max_principal", principal)):
+        for name, expr in self._measures(sigma, s33):
             f = dolfinx.fem.Function(self.S)
             f.name = name
             self.fields[name] = f
-            self._expressions.append(
-                (f, dolfinx.fem.Expression(expr, compat.interpolation_points(self.S)))
-            )
+            if expr is not None:
+                self._expressions.append(
+                    (f, dolfinx.fem.Expression(expr, compat.interpolation_points(self.S)))
+                )
         dofs = compat.cell_dofs(self.S)
-        self._dof_points = self.S.tabulate_dof_coordinates()[:, :2].copy()  # reference config.
+        gdim = mesh.geometry.dim
+        self._dof_points = self.S.tabulate_dof_coordinates()[:, :gdim].copy()  # reference.
         n_owned = mesh.topology.index_map(mesh.topology.dim).size_local
         self._all_cell_dofs = dofs
         self._cell_dofs = dofs[:n_owned]
@@ -114,6 +111,35 @@ class StressFields:
             self.cell_fields[name] = f
         region = self.cell_fields["region"].x.array
         region[self._cell_value] = solver.cell_region[: len(self._cell_value)]
+
+    def _measures(self, sigma, s33):
+        """(name, UFL) of the fields ``sss``, ``von_mises``, ``max_principal``. In 3D the UFL
+        is None: :meth:`update` takes them from σ's eigenvalues at each node (largest shear
+        (σ₁ − σ₃)/2 in place of the plane σ₁₂)."""
+        if self.three_d:
+            return [("sss", None), ("von_mises", None), ("max_principal", None)]
+        s11, s22, s12 = sigma[0, 0], sigma[1, 1], sigma[0, 1]
+        von_mises = ufl.sqrt(
+            ((s11 - s22) ** 2 + (s22 - s33) ** 2 + (s33 - s11) ** 2) / 2 + 3 * s12**2
+        )
+        in_plane = (s11 + s22) / 2 + ufl.sqrt(((s11 - s22) / 2) ** 2 + s12**2)
+        return [
+            ("sss", s12),
+            ("von_mises", von_mises),
+            ("max_principal", ufl.max_value(in_plane, s33)),
+        ]
+
+    def _principal_fields(self) -> None:
+        """3D: the fields of :meth:`_measures` from the eigenvalues σ₁ ≥ σ₂ ≥ σ₃ of σ at each
+        DG node: von Mises ``sqrt(((σ₁−σ₂)² + (σ₂−σ₃)² + (σ₃−σ₁)²)/2)``, σ₁, (σ₁ − σ₃)/2."""
+        tensors = self.sigma.x.array.reshape(-1, 3, 3)
+        values = np.linalg.eigvalsh(0.5 * (tensors + tensors.transpose(0, 2, 1)))
+        s3, s2, s1 = values[:, 0], values[:, 1], values[:, 2]
+        self.fields["max_principal"].x.array[:] = s1
+        self.fields["sss"].x.array[:] = 0.5 * (s1 - s3)
+        self.fields["von_mises"].x.array[:] = np.sqrt(
+            ((s1 - s2) ** 2 + (s2 - s3) ** 2 + (s3 - s1) ** 2) / 2
+        )
 
     @staticmethod
     def _cauchy(coordinates, law: HyperelasticLaw, F, pressure=None):
@@ -129,6 +155,8 @@ class StressFields:
             sigma = sigma + where * (pressure.field - law.volumetric_stress(F)) * ufl.Identity(3)
         if coordinates.axisymmetric:
             return sigma, sigma[2, 2]
+        if F.ufl_shape[0] == 3:  # 3D: the principal stresses come from σ itself
+            return sigma, None
         return sigma, cauchy_zz(law, F)
 
     def update(self) -> None:
@@ -137,6 +165,8 @@ class StressFields:
             self.pressure.update()
         for f, expr in self._expressions:
             f.interpolate(expr)
+        if self.three_d:
+            self._principal_fields()
         for name, f in self.fields.items():
             values = f.x.array[self._all_cell_dofs]  # (cells, dofs per cell)
             if name == "sss":  # signed: the value of largest magnitude
@@ -175,17 +205,17 @@ class StressFields:
         first. Collective."""
         values = self.fields[name].x.array
         dofs = self._cell_dofs[np.isin(self._cell_region, [int(region)])].ravel()
-        best = (-np.inf, np.nan, np.nan)
+        gdim = self._dof_points.shape[1]
+        best = (-np.inf, *([np.nan] * gdim))
         if len(dofs):
             top = values[dofs].max()
             points = self._dof_points[dofs[values[dofs] == top]]
-            x, y = min(map(tuple, points))
-            best = (float(top), float(x), float(y))
+            best = (float(top), *(float(c) for c in min(map(tuple, points))))
         found = [b for b in self.solver.comm.allgather(best) if b[0] > -np.inf]
         if not found:
-            return (np.nan, np.nan, np.nan)
+            return (np.nan, *([np.nan] * gdim))
         top = max(b[0] for b in found)
-        return min((b for b in found if b[0] == top), key=lambda b: (b[1], b[2]))
+        return min((b for b in found if b[0] == top), key=lambda b: b[1:])
 
 
 class RecoveredPressure:
