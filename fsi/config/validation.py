@@ -260,13 +260,15 @@ def _validate_materials(case: Case) -> None:
             )
         if material.law != "hgo" or s.mode == "rigid":
             continue
-        if region == "flag" or not is_axisymmetric(case.geometry):
+        if region == "flag" or not (
+            is_axisymmetric(case.geometry) or dimension(case.geometry) == 3
+        ):
             raise ConfigError(
                 "",
                 f"{key}.law",
                 "'svk' or 'neo_hookean' in a plane model: the HGO fibres lie in the "
                 "circumferential-axial plane, which only an axisymmetric (geometry.axisymmetric"
-                ": true) vessel has",
+                ": true) or a 3D (geometry.dimension: 3) vessel has",
                 material.law,
             )
 

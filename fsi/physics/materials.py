@@ -174,6 +174,16 @@ def axisymmetric_fibres(sin_angle: Parameter, cos_angle: Parameter) -> tuple[Any
     )
 
 
+def cylindrical_fibres(x, sin_angle: Parameter, cos_angle: Parameter) -> tuple[Any, Any]:
+    """The two fibre families of a 3D vessel whose axis is the x axis (geometry/vessel_3d.py):
+    ``a± = cos β e_θ ± sin β e_x`` with the circumferential ``e_θ = (0, −z, y)/√(y² + z²)``
+    at the point ``x`` (UFL's spatial coordinate of the reference configuration)."""
+    radius = ufl.sqrt(x[1] ** 2 + x[2] ** 2)
+    e_theta = ufl.as_vector([0, -x[2] / radius, x[1] / radius])
+    e_axial = ufl.as_vector([1, 0, 0])
+    return (cos_angle * e_theta + sin_angle * e_axial, cos_angle * e_theta - sin_angle * e_axial)
+
+
 @dataclass(frozen=True)
 class HolzapfelGasserOgden:
     """The Holzapfel–Gasser–Ogden arterial wall with the fibre dispersion of Gasser, Ogden &

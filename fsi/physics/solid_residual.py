@@ -48,6 +48,7 @@ from fsi.physics.materials import (
     HyperelasticLaw,
     KelvinVoigt,
     axisymmetric_fibres,
+    cylindrical_fibres,
     has_volumetric_stress,
     lame,
     make_law,
@@ -107,21 +108,26 @@ class MaterialFields:
     cell_region: np.ndarray
 
 
-def _fibre_fields(dg0, mats: Mapping[int, Material], axisymmetric: bool) -> dict[str, Any]:
-    """The HGO law's fibre parameters as DG0 fields (k₁, k₂, κ, the directions of ±β); in
+def _fibre_fields(dg0, mats: Mapping[int, Material], mesh, axisymmetric: bool) -> dict[str, Any]:
+    """The HGO law's fibre parameters as DG0 fields (k₁, k₂, κ, the directions of ±β: in the
+    axisymmetric frame, or in 3D about the vessel's axis x, :func:`cylindrical_fibres`); in
     the regions of other laws k₁ = 0 (no fibre energy) and k₂ = 1 (no 0/0)."""
-    if not axisymmetric:
-        raise ValueError("the HGO law needs an axisymmetric (or 3D) structure")
+    if not axisymmetric and mesh.geometry.dim != 3:
+        raise ValueError("the HGO law needs an axisymmetric or a 3D structure")
     fibres = {r: m.fibres for r, m in mats.items() if m.law == "hgo"}
     angle = {r: math.radians(f.angle) for r, f in fibres.items()}
+    sin_angle = dg0({r: math.sin(a) for r, a in angle.items()}, "fibre_sin")
+    cos_angle = dg0({r: math.cos(a) for r, a in angle.items()}, "fibre_cos")
+    directions = (
+        axisymmetric_fibres(sin_angle, cos_angle)
+        if axisymmetric
+        else cylindrical_fibres(ufl.SpatialCoordinate(mesh), sin_angle, cos_angle)
+    )
     return {
         "k1": dg0({r: f.k1 for r, f in fibres.items()}, "fibre_k1"),
         "k2": dg0({r: fibres[r].k2 if r in fibres else 1.0 for r in mats}, "fibre_k2"),
         "dispersion": dg0({r: f.dispersion for r, f in fibres.items()}, "fibre_dispersion"),
-        "fibres": axisymmetric_fibres(
-            dg0({r: math.sin(a) for r, a in angle.items()}, "fibre_sin"),
-            dg0({r: math.cos(a) for r, a in angle.items()}, "fibre_cos"),
-        ),
+        "fibres": directions,
     }
 
 
@@ -156,7 +162,7 @@ def material_fields(
     laws = sorted({m.law for m in mats.values()})
     parameters = {name: {} for name in laws}
     if "hgo" in laws:
-        parameters["hgo"] = _fibre_fields(dg0, mats, axisymmetric)
+        parameters["hgo"] = _fibre_fields(dg0, mats, mesh, axisymmetric)
     if len(laws) == 1:
         law: HyperelasticLaw = make_law(laws[0], lmbda, mu, **parameters[laws[0]])
     else:
