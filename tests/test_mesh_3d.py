@@ -263,7 +263,7 @@ def test_run_check_and_sweep_refuse_a_3d_case(shared_tmp, capsys, command):
     assert cli.main([command, str(SAMPLE), *more]) == cli.EXIT_USAGE
     if MPI.COMM_WORLD.rank == 0:
         err = capsys.readouterr().err
-        assert "geometry.dimension: 3 is only supported by `fsi mesh` so far" in err
+        assert "geometry.dimension: 3 is only supported by `fsi mesh` and the structure" in err
     assert not out.exists()
 
 

@@ -53,13 +53,20 @@ def stress_columns(solver: solid.SolidSolver) -> list[str]:
             for region in solver.regions
             for name in ("max_sss", "max_von_mises", "max_principal")
         ]
-        + (CAP_LOCATION_COLUMNS if Region.CAP in solver.regions else [])
+        + (cap_location_columns(solver) if Region.CAP in solver.regions else [])
     )
 
 
 CAP_LOCATION_COLUMNS = ["max_principal_cap_x", "max_principal_cap_y"]
 """Where ``max_principal_cap`` is attained: the reference coordinates (m) of the stress
-field's node that holds it (fsi.physics.solid_stress.StressFields.location_of_max)."""
+field's node that holds it (fsi.physics.solid_stress.StressFields.location_of_max); a 3D
+structure adds ``max_principal_cap_z``."""
+
+
+def cap_location_columns(solver: solid.SolidSolver) -> list[str]:
+    """:data:`CAP_LOCATION_COLUMNS` in the structure's dimension."""
+    three_d = solver.domain.mesh.geometry.dim == 3
+    return CAP_LOCATION_COLUMNS + (["max_principal_cap_z"] if three_d else [])
 
 
 def stress_row(solver: solid.SolidSolver) -> dict[str, float]:
@@ -76,8 +83,8 @@ def stress_row(solver: solid.SolidSolver) -> dict[str, float]:
             }
         )
     if Region.CAP in solver.regions:
-        _, x, y = solver.stress.location_of_max("max_principal", Region.CAP)
-        row.update(zip(CAP_LOCATION_COLUMNS, (x, y), strict=True))
+        _, *point = solver.stress.location_of_max("max_principal", Region.CAP)
+        row.update(zip(cap_location_columns(solver), point, strict=True))
     return row
 
 

@@ -21,7 +21,7 @@ import numpy as np
 
 from fsi import config
 from fsi.coupled import coupling, partitioned
-from fsi.geometry import tube, turek_hron
+from fsi.geometry import tube, turek_hron, vessel_3d
 from fsi.geometry.tags import Boundary, Region
 from fsi.numerics import newton
 from fsi.numerics.timestepping import Step
@@ -240,6 +240,8 @@ def displacement_point(case: config.Case) -> tuple[tuple[str, str], tuple[float,
     if isinstance(g, config.TurekHronGeometry):
         return ("ux_A", "uy_A"), turek_hron.point_a(g)
     if isinstance(g, config.TubeGeometry):
+        if config.dimension(g) == 3:  # on the lumen at mid-length on +y: u_x axial, u_y radial
+            return ("uz_A", "ur_A"), vessel_3d.point_a(g)
         return ("uz_A", "ur_A"), tube.point_a(g)
     return None
 
