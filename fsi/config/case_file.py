@@ -12,8 +12,6 @@ import typing
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from fsi.config.boundary_data import WaveformError, read_waveform
 from fsi.config.case import Case
 from fsi.config.fluid_section import WAVEFORM_FILES
@@ -22,6 +20,7 @@ from fsi.config.reader import (
     ConfigError,
     apply_overrides,
     build,
+    dump_yaml,
     read_case_file,
 )
 from fsi.config.validation import validate
@@ -146,7 +145,7 @@ def to_dict(case: Case) -> dict:
 
 def to_yaml(case: Case) -> str:
     """The resolved configuration as YAML text (``fsi run`` writes it as DIR/config.yaml)."""
-    return yaml.safe_dump(to_dict(case), sort_keys=False)
+    return dump_yaml(to_dict(case))
 
 
 def differences(stored: dict, now: dict, prefix: str = "") -> list[str]:
