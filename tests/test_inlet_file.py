@@ -261,3 +261,27 @@ def test_a_period_of_fewer_than_4_steps_is_warned_of(capsys):
         == 0
     )
     assert "warning" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "header, accepted",
+    [("t (s),Q (m^3/s)", True), ("t,Q [m³/s]", True), ("t,Q", True), ("t (s),Q (m^2/s)", False)],
+)
+def test_an_axisymmetric_flow_rate_file_is_checked_in_cubic_metres_per_second(
+    shared_tmp, capsys, header, accepted
+):
+    """An axisymmetric case's flow rate is a pipe's, m³/s (docs/axisymmetric.md): a header
+    saying so is accepted, one saying m²/s (the plane model's) refused, naming the unit the
+    file is read in; the check was the wrong way round."""
+    lines = open("configs/waveforms/carotid_flow_3d.csv").read().splitlines()
+    rows = [r for r in lines if r and not r.startswith("#")][1:]  # without its header "t,Q"
+    path = shared_tmp / f"flow_{'m3' if accepted else 'm2'}_{len(header)}.csv"
+    write(path, "\n".join([header, *rows]) + "\n")
+    case = "configs/axisymmetric/carotid_heartbeat.yaml"
+    capsys.readouterr()
+    status = cli.main(["check", case, "--set", f"fluid.inlet.file={path}"])
+    err = capsys.readouterr().err
+    assert status == (0 if accepted else 2), err
+    if not accepted and MPI.COMM_WORLD.rank == 0:
+        assert f"{path}: line 1: the header gives Q in 'm^2/s'" in err
+        assert "read with Q in m^3/s (an axisymmetric case's flow rate)" in err

@@ -198,9 +198,12 @@ class WaveformError(ValueError):
     line (``waveforms/x.csv: line 7: 'abc' is not a number``)."""
 
 
-def read_waveform(path: str | Path, quantity: str = "P") -> tuple[tuple[float, float], ...]:
+def read_waveform(
+    path: str | Path, quantity: str = "P", *, axisymmetric: bool = False
+) -> tuple[tuple[float, float], ...]:
     """The rows (t (s), P (Pa)) of the CSV file ``path``; ``quantity`` names the second column
-    in the messages (``Q`` for a flow rate, m²/s).
+    in the messages (``Q`` for a flow rate, m²/s; m³/s with ``axisymmetric``: the header's
+    unit is checked against it).
 
     Guaranteed on return: at least 2 rows, every value a finite float, t strictly increasing.
     The file: a regular file of UTF-8 text (a byte-order mark allowed) of at most
@@ -232,7 +235,7 @@ def read_waveform(path: str | Path, quantity: str = "P") -> tuple[tuple[float, f
         first, header_allowed = header_allowed, False
         values = [_number(cell) for cell in cells]
         if first and all(value is None for value in values):
-            _check_header_units(cells, quantity, f"{path}: line {number}")
+            _check_header_units(cells, quantity, f"{path}: line {number}", axisymmetric)
             continue  # the header
         where = f"{path}: line {number}"
         if len(cells) != 2:
@@ -261,17 +264,26 @@ HEADER_UNITS = {"t": ("s",), "P": ("Pa",), "Q": ("m^2/s", "m²/s", "m2/s")}
 """The units a waveform file's header may give (``t (s), P (Pa)``): the ones the file is read
 in. A header naming another (``t (ms)``, ``P (mmHg)``) is refused, not silently misread."""
 
+PIPE_FLOW_UNITS = ("m^3/s", "m³/s", "m3/s")
+"""The units of Q a header may give in an axisymmetric case, whose flow rate is a pipe's
+(docs/axisymmetric.md), where :data:`HEADER_UNITS` has the plane model's m²/s per unit depth."""
 
-def _check_header_units(cells: list[str], quantity: str, where: str) -> None:
+
+def _check_header_units(
+    cells: list[str], quantity: str, where: str, axisymmetric: bool = False
+) -> None:
     """Raise :class:`WaveformError` if a header cell names a unit, in parentheses or brackets,
-    other than the one its column is read in (t in s; P in Pa or Q in m²/s)."""
+    other than the one its column is read in (t in s; P in Pa or Q in m²/s, m³/s when
+    ``axisymmetric``)."""
     for cell, name in zip(cells, ("t", quantity)):
+        units = PIPE_FLOW_UNITS if axisymmetric and name == "Q" else HEADER_UNITS[name]
         found = re.search(r"[(\[]\s*([^)\]]*?)\s*[)\]]", cell)
-        if found is None or found.group(1) in HEADER_UNITS[name]:
+        if found is None or found.group(1) in units:
             continue
+        model = " (an axisymmetric case's flow rate)" if units is PIPE_FLOW_UNITS else ""
         raise WaveformError(
             f"{where}: the header gives {name} in {found.group(1)!r}; the file is read with "
-            f"{name} in {HEADER_UNITS[name][0]} (convert the column, or leave the unit out)"
+            f"{name} in {units[0]}{model} (convert the column, or leave the unit out)"
         )
 
 

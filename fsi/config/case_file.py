@@ -14,6 +14,7 @@ from typing import Any
 
 from fsi.config.boundary_data import WaveformError, read_waveform
 from fsi.config.case import Case
+from fsi.config.domain import is_axisymmetric
 from fsi.config.fluid_section import WAVEFORM_FILES
 from fsi.config.reader import (
     MAX_FILE_BYTES,
@@ -112,7 +113,7 @@ def _read_inlet_file(case: Case, source: str, overridden: set[str]) -> Case:
     if not path.is_absolute() and not from_command_line and source not in ("<dict>", "--set"):
         path = Path(source).parent / path
     try:
-        rows = read_waveform(path, inlet.quantity)
+        rows = read_waveform(path, inlet.quantity, axisymmetric=is_axisymmetric(case.geometry))
     except OSError as e:
         raise ConfigError(
             "", "fluid.inlet.file", reason=f"cannot read {path} ({e.strerror or type(e).__name__})"
