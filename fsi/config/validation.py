@@ -236,6 +236,7 @@ def _validate_schedule(case: Case) -> None:
             )
     _validate_step_control(case.time)
     period = heartbeat_period(case)
+    _validate_steps_per_period(case, period)
     _validate_cycles(case.time, period)
     if case.time.cycles >= 1 and period > 0:  # the schedule is one heartbeat's
         if schedule[-1].until < period * (1 - 1e-12):
@@ -274,6 +275,40 @@ def _validate_schedule(case: Case) -> None:
                 f"time.max_steps = {case.time.max_steps:,}: use larger dt, or {raise_limit}"
             ),
         )
+
+
+def _validate_steps_per_period(case: Case, period: float) -> None:
+    """A periodic inlet's period must hold at least the schedule's largest step: a step over
+    many heartbeats does work for each (the wall indices close one per heartbeat: 10⁵ per step
+    for a period of 1e-8 s and 1 ms steps, 10²⁹⁷ for 1e-300 s, which ran until memory ran
+    out), and samples the waveform at random phases anyway."""
+    largest = largest_step(case)
+    if 0 < period and period * (1 + 1e-12) < largest:
+        raise ConfigError(
+            "",
+            "fluid.inlet.period",
+            reason=(
+                f"{period:g} s is shorter than the schedule's largest step (dt = {largest:g} s): "
+                f"a step would span {largest / period:.3g} heartbeats; give the period in "
+                f"seconds, or steps of at most {period:g} s (time.schedule)"
+            ),
+        )
+
+
+def largest_step(case: Case) -> float:
+    """The longest step (s) of the run's schedule up to its end (:func:`run_time`): a segment
+    after the end is never stepped through, and one shorter than its dt is one step of its
+    length (:func:`fsi.numerics.timestepping.steps`)."""
+    run = run_time(case)
+    largest, start = 0.0, 0.0
+    for segment in run.schedule:
+        stop = min(segment.until, run.end)
+        if stop > start:
+            largest = max(largest, min(segment.dt, stop - start))
+        start = max(start, stop)
+        if run.end <= segment.until:
+            break
+    return largest or max(segment.dt for segment in run.schedule)
 
 
 def _validate_step_control(time: Time) -> None:
@@ -480,7 +515,7 @@ def cautions(case: Case) -> list[str]:
     :data:`STEPS_PER_PERIOD` of the schedule's largest steps."""
     found = []
     period = heartbeat_period(case)
-    largest = max(segment.dt for segment in case.time.schedule)
+    largest = largest_step(case)
     if 0 < period < STEPS_PER_PERIOD * largest:
         found.append(
             f"fluid.inlet.period = {period:g} s holds {period / largest:.3g} of the schedule's "
