@@ -665,6 +665,27 @@ def test_a_formula_that_cannot_be_compiled_raises_formula_error(formula, reason)
     assert error.value.t is None
 
 
+def test_a_long_flat_sum_is_a_formula_evaluated_as_python_does():
+    """A Fourier series of 100 terms (a flat sum, 100 levels deep as Python parses it) was
+    refused as "nested more than 100 levels deep"; now any sum or product within the 2,000
+    characters is accepted (1,000 terms), and its value is Python's, bit for bit: the same
+    operations in the same order."""
+    fourier = "+".join(f"{k % 7 - 3}*sin({k}*t)" for k in range(100))
+    product = "*".join(["(1+t/50)"] * 200)
+    mixed = "t" + "".join(f"{op}{k % 9 + 1}*t" for k, op in enumerate("+-*/" * 100))
+    flat = "t" + "+t" * 999
+    names = {"sin": math.sin, "pi": math.pi}
+    for formula in (fourier, product, mixed, flat):
+        assert len(formula) <= boundary_data.MAX_FORMULA_LENGTH
+        value = boundary_data.time_function(formula)
+        for t in (0.0, 0.0123, 0.5, 7.25):
+            assert value(t) == eval(formula, {**names, "t": t}), (formula[:40], t)
+    with pytest.raises(boundary_data.FormulaError, match="division by zero"):
+        boundary_data.time_function("1/(" + "t-" * 40 + "t*40)")(0.0)
+    with pytest.raises(boundary_data.FormulaError, match="nested more than 100 levels"):
+        boundary_data.time_function("sin(" * 101 + "t" + ")" * 101)
+
+
 def test_a_formula_is_checked_at_every_step_time_of_the_schedule(capsys):
     """The failing time is a late step of the schedule; a time after the end is not checked
     (nor one between steps: the run reports those if it gets there, e.g. in a retried step)."""

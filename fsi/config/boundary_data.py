@@ -41,16 +41,101 @@ class FormulaError(ValueError):
         super().__init__(f"formula {shorten(repr(formula), 60)}{at}: {reason}")
 
 
+LONG_CHAIN = 16
+"""Binary operations in a row through their left operands (``a + b - c * d``: a flat sum or
+product is one, as Python parses it) longer than this are evaluated as a loop
+(:func:`_flatten_chains`): a Fourier series of 100 terms is 100 levels deep as a tree, which
+Python 3.11 compiles only to about 1,000."""
+
+
+def _spine(node) -> tuple[object, list]:
+    """The left spine of the binary operation ``node``: its innermost left operand and the
+    (operator, right operand) pairs in evaluation order (``a + b - c`` → a, [(+, b), (−, c)])."""
+    import ast
+
+    pairs = []
+    while isinstance(node, ast.BinOp):
+        pairs.append((node.op, node.right))
+        node = node.left
+    return node, pairs[::-1]
+
+
 def _depth(tree) -> int:
-    """The depth of a syntax tree (without recursion: the tree may be deep)."""
+    """The depth of a syntax tree as it is compiled (without recursion: the tree may be deep):
+    a chain of more than :data:`LONG_CHAIN` binary operations counts as one level, since
+    :func:`_flatten_chains` makes it one call."""
     import ast
 
     deepest, stack = 0, [(tree, 1)]
     while stack:
         node, depth = stack.pop()
         deepest = max(deepest, depth)
+        if isinstance(node, ast.BinOp):
+            base, pairs = _spine(node)
+            if len(pairs) > LONG_CHAIN:
+                stack.extend((child, depth + 1) for child in (base, *(r for _, r in pairs)))
+                continue
         stack.extend((child, depth + 1) for child in ast.iter_child_nodes(node))
     return deepest
+
+
+def _flatten_chains(tree):
+    """``tree`` with every chain of more than :data:`LONG_CHAIN` binary operations replaced by
+    a call ``_chain(a, op₁, b₁, op₂, b₂, ...)`` that applies them in a loop, left to right as
+    Python does: the same operations in the same order, so the same float result, but one
+    level deep for the compiler (without recursion: the tree may be deep)."""
+    import ast
+
+    def flattened(node):
+        if not isinstance(node, ast.BinOp):
+            return node
+        base, pairs = _spine(node)
+        if len(pairs) <= LONG_CHAIN:
+            return node
+        args = [base]
+        for op, right in pairs:
+            args += [ast.Constant(_operator_index(op)), right]
+        return ast.Call(func=ast.Name(id="_chain", ctx=ast.Load()), args=args, keywords=[])
+
+    tree.body = flattened(tree.body)
+    stack = [tree.body]
+    while stack:
+        node = stack.pop()
+        for name, value in ast.iter_fields(node):
+            if isinstance(value, list):
+                value[:] = [flattened(v) if isinstance(v, ast.expr) else v for v in value]
+                stack.extend(v for v in value if isinstance(v, ast.AST))
+            elif isinstance(value, ast.expr):
+                setattr(node, name, flattened(value))
+                stack.append(getattr(node, name))
+    return ast.fix_missing_locations(tree)
+
+
+def _operator_functions() -> dict:
+    import ast
+    import operator
+
+    return {
+        ast.Add: operator.add,
+        ast.Sub: operator.sub,
+        ast.Mult: operator.mul,
+        ast.Div: operator.truediv,
+        ast.Pow: operator.pow,
+        ast.Mod: operator.mod,
+    }
+
+
+def _operator_index(op) -> int:
+    return list(_operator_functions()).index(type(op))
+
+
+def _chain(first, *rest):
+    """``first`` op₁ b₁ op₂ b₂ ... evaluated left to right (``rest``: operator index, operand)."""
+    functions = list(_operator_functions().values())
+    value = first
+    for i in range(0, len(rest), 2):
+        value = functions[rest[i]](value, rest[i + 1])
+    return value
 
 
 def time_function(formula: str) -> typing.Callable[[float], float]:
@@ -66,7 +151,7 @@ def time_function(formula: str) -> typing.Callable[[float], float]:
     tree = _parse_formula(formula)
     _check_formula_nodes(formula, tree)
     try:
-        code = compile(tree, "<formula>", "eval")
+        code = compile(_flatten_chains(tree), "<formula>", "eval")
     except (ValueError, RecursionError, MemoryError) as e:
         raise FormulaError(formula, f"cannot be compiled: {_nesting(e)}") from None
     return _formula_value(formula, code)
@@ -149,6 +234,7 @@ def _formula_value(formula: str, code) -> typing.Callable[[float], float]:
     """The function of t evaluating the checked, compiled ``code`` of ``formula``: it returns a
     finite float or raises :class:`FormulaError` naming the formula and t."""
     names = {"__builtins__": {}, "pi": math.pi, "e": math.e, "abs": abs, "min": min, "max": max}
+    names["_chain"] = _chain  # long chains of operations (not a name formulas may use)
     names.update({f: getattr(math, f) for f in FORMULA_NAMES if hasattr(math, f)})
 
     def value(t: float) -> float:
