@@ -145,6 +145,8 @@ BAD = [  # (CSV text or None for no file, inlet keys after the file, message aft
         "fluid.inlet.file: {dir}/x.csv: line 4: 'abc' is not a number",
     ),
     ("0,0\n0.1,x\n", "", "fluid.inlet.file: {dir}/x.csv: line 2: 'x' is not a number"),
+    ("0,0\n0.1,1_000\n", "", "fluid.inlet.file: {dir}/x.csv: line 2: '1_000' is not a number"),
+    ("0,0\n0x1,1\n", "", "fluid.inlet.file: {dir}/x.csv: line 2: '0x1' is not a number"),
     (
         "0,0\n# ok\n0.2,1\n0.1,2\n",
         "",

@@ -373,12 +373,19 @@ def _check_header_units(
         )
 
 
+_DECIMAL = re.compile(
+    r"[-+]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?|inf|infinity|nan)", re.IGNORECASE
+)
+"""A number as CSV files spell it: decimal, an exponent allowed; inf and nan are read and
+refused after, as not finite. Python's ``float`` also takes ``1_000`` (its digit grouping),
+which no spreadsheet writes: read as 1000 it would hide a typo, so it is not a number."""
+
+
 def _number(cell: str) -> float | None:
-    """The float ``cell`` spells, or None (``float`` also takes inf and nan: checked after)."""
-    try:
-        return float(cell)
-    except ValueError:
+    """The float ``cell`` spells (:data:`_DECIMAL`), or None."""
+    if not _DECIMAL.fullmatch(cell):
         return None
+    return float(cell)
 
 
 HARMONIC_SAMPLES = 256
