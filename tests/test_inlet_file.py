@@ -206,6 +206,21 @@ def test_a_missing_file_key_and_an_unloaded_inlet_are_refused():
         fluid_boundaries.inlet_pressure(config.InletPressureFile(file="w.csv"))
 
 
+@pytest.mark.parametrize(
+    "period, last, shown",
+    [(1.0000001, 1.0, "[0, 1] s, not the whole period [0, 1.0000001] s"),
+     (0.8, 0.79999999999, "[0, 0.79999999999] s, not the whole period [0, 0.8] s"),
+     (0.6, 0.5, "[0, 0.5] s, not the whole period [0, 0.6] s")],
+)  # fmt: skip
+def test_a_table_short_of_its_period_shows_them_apart(period, last, shown):
+    """``period: 1.0000001`` over rows to 1 said "cover t in [0, 1] s, not the whole period
+    [0, 1] s": the numbers are written with the digits that tell them apart."""
+    inlet = f"{{kind: pressure_table, table: [[0, 1], [{last!r}, 2]], period: {period!r}}}"
+    with pytest.raises(config.ConfigError) as error:
+        config.from_dict(reader.parse_yaml(f"fluid: {{inlet: {inlet}}}"), "case.yaml")
+    assert f"fluid.inlet.table cover t in {shown} (the first t" in str(error.value)
+
+
 def test_a_periodic_inline_table_must_cover_its_period():
     inlet = "{kind: pressure_table, table: [[0, 1], [0.5, 2]], period: 0.6}"
     with pytest.raises(

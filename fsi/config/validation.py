@@ -494,14 +494,26 @@ def _validate_period(inlet) -> None:
             if isinstance(inlet, WAVEFORM_FILES)
             else "fluid.inlet.table"
         )
+        shown_first, _ = _apart(first, 0.0)
+        shown_last, shown_period = _apart(last, period)
         raise ConfigError(
             "",
             "fluid.inlet.period",
             reason=(
-                f"{rows} cover t in [{first:g}, {last:g}] s, not the whole period "
-                f"[0, {period:g}] s (the first t must be <= 0 and the last >= period)"
+                f"{rows} cover t in [{shown_first}, {shown_last}] s, not the whole period "
+                f"[0, {shown_period}] s (the first t must be <= 0 and the last >= period)"
             ),
         )
+
+
+def _apart(a: float, b: float) -> tuple[str, str]:
+    """``a`` and ``b`` written with as few digits as tell them apart (``1`` and ``1.0000001``,
+    not ``1`` and ``1``): a message comparing two numbers must not show them equal."""
+    for digits in range(6, 18):
+        shown = f"{a:.{digits}g}", f"{b:.{digits}g}"
+        if shown[0] != shown[1] or a == b:
+            return shown
+    return repr(a), repr(b)
 
 
 STEPS_PER_PERIOD = 4
