@@ -45,7 +45,11 @@ def read(run_dir: Path, name: str, cycle: int | None = None) -> WallIndex:
         raise PlotError(f"{run_dir}: no such folder")
     try:
         with path.open(newline="") as f:
-            rows = list(csv.DictReader(f))
+            reader = csv.DictReader(f)
+            rows, line_numbers = [], []
+            for row in reader:
+                rows.append(row)
+                line_numbers.append(reader.line_num)
     except FileNotFoundError:
         raise PlotError(f"{path}: no such file (runs with a fluid write it)") from None
     except (OSError, UnicodeDecodeError, csv.Error) as e:
@@ -54,11 +58,11 @@ def read(run_dir: Path, name: str, cycle: int | None = None) -> WallIndex:
     if not rows or not needed <= set(rows[0]):
         raise PlotError(f"{path}: no rows with the columns {', '.join(sorted(needed))}")
     periodic = "cycle" in rows[0]
-    try:
-        beats = [int(r["cycle"]) if periodic else 0 for r in rows]
-        points = [(float(r["x"]), float(r[column])) for r in rows]
-    except (TypeError, ValueError) as e:
-        raise PlotError(f"{path}: a value is not a number ({e})") from None
+    beats, points = [], []
+    for r, line in zip(rows, line_numbers, strict=True):
+        where = f"{path}: line {line}"
+        beats.append(int(_cell(r, "cycle", where, integer=True)) if periodic else 0)
+        points.append((_cell(r, "x", where), _cell(r, column, where, empty=math.nan)))
     cycles = sorted(set(beats)) if periodic else []
     if periodic:
         cycle = cycles[-1] if cycle is None else cycle
@@ -75,6 +79,28 @@ def read(run_dir: Path, name: str, cycle: int | None = None) -> WallIndex:
         points.sort()
         lines[label] = ([x for x, _ in points], [v for _, v in points])
     return WallIndex(name, Path(run_dir).name, cycle if periodic else None, len(cycles), lines)
+
+
+def _cell(
+    row: dict, column: str, where: str, *, integer: bool = False, empty: float | None = None
+) -> float:
+    """The number in ``row``'s ``column`` (``empty`` for an empty cell where one is allowed:
+    the file writes a value that is not a number, such as OSI where TAWSS is 0, as an empty
+    cell), or :class:`PlotError` naming ``where`` (the file and line) and the column: a row
+    cut short (its last line, by a run killed while writing it) has no cell there."""
+    text = row.get(column)
+    if text is None:
+        raise PlotError(
+            f"{where}: the row ends before its {column} column (cut short? the run may have "
+            "been stopped while writing the file)"
+        )
+    if text.strip() == "" and empty is not None:
+        return empty
+    try:
+        return int(text) if integer else float(text)
+    except ValueError:
+        kind = "a whole number" if integer else "a number"
+        raise PlotError(f"{where}: {column} = {text!r} is not {kind}") from None
 
 
 def title(index: WallIndex) -> str:
