@@ -391,8 +391,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     return its exit status (the module docstring lists them)."""
     comm = MPI.COMM_WORLD
     _setup_logging(comm)
+    if argv is None:
+        argv = sys.argv[1:]
     try:
-        args = _parser().parse_args(argv)
+        args = _parser().parse_args(_joined_option_values(argv))
     except SystemExit as e:  # argparse has printed the message; --help exits 0
         return int(e.code or 0)
     try:
@@ -400,6 +402,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:  # Ctrl-C outside a run's steps (those stop at a step's end)
         print("fsi: interrupted", file=sys.stderr, flush=True)
         return 128 + signal.SIGINT
+
+
+DASHED_VALUES = ("--slurm-option",)
+"""Options whose value may itself start with a dash (``--slurm-option --time=1``, as sbatch
+spells it), which argparse would take for another option ("expected one argument")."""
+
+
+def _joined_option_values(argv: Sequence[str]) -> list[str]:
+    """``argv`` with ``--slurm-option VALUE`` written ``--slurm-option=VALUE`` where VALUE
+    starts with a dash, so that argparse reads it as the value."""
+    joined: list[str] = []
+    i = 0
+    while i < len(argv):
+        if argv[i] in DASHED_VALUES and i + 1 < len(argv) and argv[i + 1].startswith("-"):
+            joined.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            joined.append(argv[i])
+            i += 1
+    return joined
 
 
 def _command(args: argparse.Namespace, comm: MPI.Comm) -> int:

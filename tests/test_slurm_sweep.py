@@ -121,6 +121,19 @@ def test_bad_slurm_input_exits_2_with_one_line(shared_tmp, capsys, options, mess
     assert err.count("\n") == 1 and not out.exists()
 
 
+def test_a_slurm_option_spelled_as_sbatch_spells_it_is_taken(shared_tmp, capsys):
+    """``--slurm-option '--time=1'`` (sbatch's own spelling) got argparse's bare "expected one
+    argument": it is the option time=1; a value with a blank is still refused naming it."""
+    out = shared_tmp / "dashed"
+    vary = ["--vary", "fluid.density=1000,1060", "--scheduler", "slurm", "-n"]
+    assert sweep_main(CHANNEL, "--out", out, *vary, "--slurm-option", "--time=1") == 0
+    assert "#SBATCH --time=1" in (out / "sweep.sbatch").read_text().splitlines()
+    capsys.readouterr()
+    assert sweep_main(CHANNEL, "--out", out, *vary, "--slurm-option", "--time 1") == 2
+    err = rank0(capsys.readouterr().err)
+    assert err.startswith("fsi: error: --slurm-option '--time 1': ' ' is not allowed"), err
+
+
 def test_no_sbatch_exits_2(shared_tmp, capsys, monkeypatch):
     monkeypatch.setenv("PATH", str(shared_tmp))
     out = shared_tmp / "sweep"
