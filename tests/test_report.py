@@ -534,6 +534,23 @@ def test_runs_with_heartbeats_have_them_marked_and_said(folder):
     )
 
 
+def test_a_run_given_twice_is_refused(folder, capsys):
+    """``fsi report R R`` tabled every row twice without a word: a run folder given twice, as
+    the same or another spelling (``R/../R``), is refused, exit 2, naming it; nothing written."""
+    run = synthetic_run(folder / "R", stenosis_case("fixed_wall"), study_columns(300, 5e-6, 0))
+    out = folder / "twice"
+    for second, said in ((str(run), ""), (f"{run}/../R", f" (as {run})")):
+        capsys.readouterr()
+        assert cli.main(["report", str(run), second, "--out", str(out)]) == 2
+        if MPI.COMM_WORLD.rank == 0:
+            err = capsys.readouterr().err
+            assert (
+                err == f"fsi: error: RUN_DIR {Path(second)}: given twice{said}: each run is "
+                "tabled once\n"
+            ), err
+    assert not out.exists()
+
+
 def test_runs_in_folders_of_the_same_name_are_told_apart(folder, capsys):
     """``fsi report A/run B/run``: each run is named with as many parent folders as it takes,
     in the tables, the legends and the pictures' file names (none written over another)."""

@@ -83,7 +83,16 @@ def unique_names(paths: Sequence[Path]) -> list[str]:
 
 
 def load_runs(paths: Sequence[Path]) -> list[Run]:
-    """:func:`load_run` of each path, named by :func:`unique_names`."""
+    """:func:`load_run` of each path, named by :func:`unique_names`. Raises
+    :class:`ReportError` for a run folder given twice (also as another spelling of the same
+    folder, ``R`` and ``./R/``, or a link to it): its rows would be tabled twice."""
+    seen: dict[Path, Path] = {}
+    for path in paths:
+        key = Path(path).resolve()
+        if key in seen:
+            same = "" if str(seen[key]) == str(path) else f" (as {seen[key]})"
+            raise ReportError(f"RUN_DIR {path}: given twice{same}: each run is tabled once")
+        seen[key] = Path(path)
     return [
         dataclasses.replace(load_run(path), name=name)
         for path, name in zip(paths, unique_names(paths), strict=True)
