@@ -354,10 +354,12 @@ def _validate_cycles(time: Time, period: float) -> None:
             raise ConfigError(
                 "",
                 "time.end",
-                f"fluid.inlet.period = {period:g} s (one "
-                f"heartbeat) or time.cycles × period = {whole:g} s (the whole "
-                f"run) when time.cycles is {n}",
-                time.end,
+                reason=(
+                    f"expected fluid.inlet.period = {period:g} s (one heartbeat) or "
+                    f"time.cycles × period = {whole:g} s (the whole run) when time.cycles is "
+                    f"{n}, got {time.end!r}; to end at time.end instead (a short try), set "
+                    "time.cycles to 0 as well (--set time.cycles=0)"
+                ),
             )
 
 
