@@ -935,6 +935,26 @@ def test_a_runs_own_config_yaml_reloads_to_the_same_case_whatever_it_holds():
     assert len(accepted) > 50, len(accepted)
 
 
+def test_an_end_that_cuts_the_last_step_short_is_warned_of(capsys):
+    """``tube_womersley.yaml --set time.end=0.002`` cut its one step from 0.5 s to 2 ms, and
+    the coupling failed after 100 iterations without a word why: ``fsi check`` (and ``fsi
+    run``) warn, naming the segment, the step and what to give; an end on the steps is not
+    warned of."""
+    tube = str(ROOT / "configs/axisymmetric/tube_womersley.yaml")
+    capsys.readouterr()
+    assert cli.main(["check", tube, "--set", "time.end=0.002"]) == 0
+    err = capsys.readouterr().err
+    if MPI.COMM_WORLD.rank == 0:
+        assert (
+            "fsi: warning: time.end = 0.002 s cuts the last step of time.schedule[0] (dt = 0.5 s) "
+            "to 0.002 s, 250 times shorter: a case set up for its dt may not converge" in err
+        ), err
+        assert "--set 'time.schedule=[{until: 0.002, dt: ...}]'" in err
+    for end in ("1.0", "0.45", "100.0"):
+        assert cli.main(["check", tube, "--set", f"time.end={end}"]) == 0
+        assert "warning" not in capsys.readouterr().err, end
+
+
 def test_base_60_is_not_a_number(capsys):
     """YAML 1.1 reads ``1:30`` as 90: ``--set time.end=1:30`` is refused, not run for 90 s."""
     assert_refused(

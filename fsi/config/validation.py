@@ -518,6 +518,36 @@ def _apart(a: float, b: float) -> tuple[str, str]:
     return repr(a), repr(b)
 
 
+CUT_STEP = 0.1
+"""A run whose end cuts its last step to less than this fraction of the schedule's ``dt``
+is warned of (:func:`cautions`)."""
+
+
+def _cut_last_step(case: Case) -> list[str]:
+    """A caution when the run's end cuts its last step far below its segment's ``dt``
+    (``--set time.end=0.002`` on a case of 0.5 s steps makes its one step 250 times shorter,
+    which a coupled case set up for its ``dt`` may not converge at: the fluid's added mass on
+    the wall grows as the step shrinks)."""
+    run = run_time(case)
+    start = 0.0
+    for i, segment in enumerate(run.schedule):
+        if run.end <= segment.until * (1 + 1e-12):
+            span = run.end - start
+            last = span - math.floor(span / segment.dt * (1 + 1e-9)) * segment.dt
+            if last <= 1e-9 * segment.dt or last >= CUT_STEP * segment.dt:
+                return []
+            where = f"time.schedule[{i}]" if run is case.time else "the heartbeat's schedule"
+            return [
+                f"time.end = {run.end:g} s cuts the last step of {where} (dt = {segment.dt:g} s) "
+                f"to {last:.3g} s, {segment.dt / last:.3g} times shorter: a case set up for its "
+                "dt may not converge at such a step (a coupled one: the fluid's added mass on "
+                "the wall grows as the step shrinks); give steps that fit, --set "
+                f"'time.schedule=[{{until: {run.end:g}, dt: ...}}]'"
+            ]
+        start = max(start, segment.until)
+    return []
+
+
 STEPS_PER_PERIOD = 4
 """Fewer steps than this per period of a periodic inlet sample its waveform too coarsely to
 follow it (it is aliased): :func:`cautions` says so."""
@@ -525,9 +555,10 @@ follow it (it is aliased): :func:`cautions` says so."""
 
 def cautions(case: Case) -> list[str]:
     """What is valid in ``case`` but probably not meant, one message each (``fsi check`` and
-    ``fsi run`` print them as warnings): a periodic inlet whose period holds fewer than
+    ``fsi run`` print them as warnings): a last step cut by the end to less than
+    :data:`CUT_STEP` of its ``dt``; a periodic inlet whose period holds fewer than
     :data:`STEPS_PER_PERIOD` of the schedule's largest steps."""
-    found = []
+    found = _cut_last_step(case)
     period = heartbeat_period(case)
     largest = largest_step(case)
     if 0 < period < STEPS_PER_PERIOD * largest:
