@@ -356,6 +356,36 @@ def test_a_truncated_or_damaged_wall_indices_csv_is_refused_naming_the_line(shar
     assert all(math.isnan(v) for v in osi.lines["interface, lower"][1])
 
 
+def test_the_title_of_a_partial_heartbeat_says_so(shared_tmp):
+    """A run stopped in its second heartbeat (period 4 ms, metrics to 6 ms): TAWSS over that
+    heartbeat was titled "heartbeat 2 (the last in the file)" as if it were whole; now
+    "heartbeat 2 (partial: to t = 0.006 s of 0.008 s)". A finished beat keeps its title."""
+    from fsi import config
+    from fsi.output import wall_plot
+
+    run = shared_tmp / "partial"
+    if MPI.COMM_WORLD.rank == 0:
+        run.mkdir()
+        case = config.load(
+            "configs/channel_poiseuille.yaml",
+            [
+                "fluid.inlet={kind: pressure_table, table: [[0, 0], [0.004, 1]], period: 0.004}",
+                "time.end=0.008",
+                "time.schedule=[{until: 0.008, dt: 0.001}]",
+            ],
+        )
+        config.dump(case, run / "config.yaml")
+        rows = "".join(f"{k},{k * 0.001!r},0.001\n" for k in range(1, 7))
+        (run / "metrics.csv").write_text("step,t,dt\n" + rows)
+        lines = ["cycle,wall,side,x,y,TAWSS,OSI,RRT"]
+        lines += [f"{c},interface,lower,{x},0,1,0.1,1" for c in (1, 2) for x in (0.001, 0.002)]
+        (run / "wall_indices.csv").write_text("\n".join(lines) + "\n")
+    MPI.COMM_WORLD.barrier()
+    last = wall_plot.title(wall_plot.read(run, "tawss"))
+    assert last.endswith("over heartbeat 2 (partial: to t = 0.006 s of 0.008 s)"), last
+    assert wall_plot.title(wall_plot.read(run, "tawss", cycle=1)).endswith("over heartbeat 1")
+
+
 def test_a_heartbeat_of_the_wall_indices_is_chosen_with_cycle(shared_tmp, capsys):
     """With a ``cycle`` column the last heartbeat in the file is drawn unless ``--cycle K``
     names another; a heartbeat the file lacks, ``--cycle`` without heartbeats, and options that

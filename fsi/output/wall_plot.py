@@ -31,6 +31,7 @@ class WallIndex:
     cycle: int | None
     cycles: int
     lines: dict[str, tuple[list[float], list[float]]]
+    reached: tuple[float, float] | None = None  # a partial heartbeat: (its last t, its end)
 
 
 def read(run_dir: Path, name: str, cycle: int | None = None) -> WallIndex:
@@ -78,7 +79,28 @@ def read(run_dir: Path, name: str, cycle: int | None = None) -> WallIndex:
     for label, points in samples.items():
         points.sort()
         lines[label] = ([x for x, _ in points], [v for _, v in points])
-    return WallIndex(name, Path(run_dir).name, cycle if periodic else None, len(cycles), lines)
+    reached = _partial_beat(Path(run_dir), cycle) if periodic and cycle == cycles[-1] else None
+    return WallIndex(
+        name, Path(run_dir).name, cycle if periodic else None, len(cycles), lines, reached
+    )
+
+
+def _partial_beat(run_dir: Path, cycle: int) -> tuple[float, float] | None:
+    """(the last step's t, k T) when heartbeat ``cycle`` = k of the run in ``run_dir`` was not
+    finished (its metrics.csv ends before k T: stopped, or still running), else None; None
+    too when config.yaml or metrics.csv cannot tell."""
+    from fsi import config
+    from fsi.output import io
+
+    try:
+        period = config.heartbeat_period(config.load(run_dir / "config.yaml", run_config=True))
+        rows = io.read_metrics(run_dir / "metrics.csv")
+    except (OSError, config.ConfigError, io.MetricsError):
+        return None
+    end = cycle * period
+    if not rows or not period > 0 or rows[-1]["t"] >= end * (1 - 1e-9):
+        return None
+    return rows[-1]["t"], end
 
 
 def _cell(
@@ -106,7 +128,9 @@ def _cell(
 def title(index: WallIndex) -> str:
     """The run, the index and what it is averaged over."""
     over = "the whole run" if index.cycle is None else f"heartbeat {index.cycle}"
-    if index.cycle is not None and index.cycle == index.cycles:
+    if index.reached is not None:
+        over += f" (partial: to t = {index.reached[0]:g} s of {index.reached[1]:g} s)"
+    elif index.cycle is not None and index.cycle == index.cycles:
         over += " (the last in the file)"
     return f"{index.run}: {INDICES[index.name][1]} along the walls, over {over}"
 
