@@ -186,7 +186,7 @@ def test_the_womersley_profile_tends_to_the_parabola_as_omega_vanishes():
 
 
 @pytest.mark.parametrize("period, warned", [(0.01, True), (0.8, False)])
-def test_a_womersley_inlet_whose_flux_the_mesh_cannot_carry_is_warned_of(caplog, period, warned):
+def test_a_womersley_inlet_whose_flux_the_mesh_cannot_carry_is_warned_of(fsi_log, period, warned):
     """At period 0.01 s (α = 48) the boundary layers (0.07 mm) are far thinner than the 0.5 mm
     cells: the P2 interpolant of the profile carried 0.5 % less than Q without a word, where
     docs/boundary-conditions.md says its flux is Q. Now a warning names the error, the
@@ -198,9 +198,9 @@ def test_a_womersley_inlet_whose_flux_the_mesh_cannot_carry_is_warned_of(caplog,
         "period": period,
         "profile": "womersley",
     }
-    with caplog.at_level(logging.WARNING, logger="fsi"):
+    with fsi_log.at_level(logging.WARNING, logger="fsi"):
         _, solver = channel_solver(inlet, length=0.004)
-    said = [r.getMessage() for r in caplog.records if "fluid.inlet.profile womersley" in r.message]
+    said = [r.getMessage() for r in fsi_log.records if "fluid.inlet.profile womersley" in r.message]
     if MPI.COMM_WORLD.rank == 0:
         assert bool(said) == warned, said
     if warned and MPI.COMM_WORLD.rank == 0:
