@@ -840,7 +840,7 @@ AWKWARD_STRINGS = (
 """Strings that YAML would read as something else were they written plain (numbers of YAML 1.1
 or 1.2, base 60, bools, null, dates, indicators), and a few formulas."""
 
-AWKWARD_NUMBERS = (1e-300, 0.1 + 0.2, 1e16, 12)
+AWKWARD_NUMBERS = (1e-300, 0.1 + 0.2, 12)
 
 
 def _values_of(tp):

@@ -11,6 +11,7 @@ field (:func:`checked` and its shorthands) applied. Every failure is a :class:`C
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import re
 import reprlib
@@ -344,6 +345,13 @@ def _describe(tp: Any) -> str:
     return str(tp)
 
 
+@functools.cache
+def _type_hints(tp: Any) -> dict[str, Any]:
+    """``typing.get_type_hints`` of the schema's dataclass ``tp``, worked out once: it
+    evaluates every annotation anew on each call, most of the time of building a Case."""
+    return typing.get_type_hints(tp)
+
+
 def build(tp: Any, value: Any, key: str) -> Any:
     """Convert a YAML value to type ``tp`` strictly (no str→bool, no bool→number, no float→int,
     no inf or nan for any number)."""
@@ -394,7 +402,7 @@ def _build_dataclass(tp: Any, value: Any, key: str) -> Any:
         k = f"{key}.{unknown[0]}" if key else str(unknown[0])
         raise ConfigError("", k, "one of the keys " + ", ".join(fields), "unknown key")
     kwargs = {}
-    hints = typing.get_type_hints(tp)
+    hints = _type_hints(tp)
     for name, f in fields.items():
         if name not in value:
             continue
@@ -450,10 +458,10 @@ def _build_float(value: Any, key: str) -> float:
 def _build_tagged(options: tuple, value: Any, key: str) -> Any:
     """Choose among dataclasses by their first field, a Literal tag (``kind``, ``model``)."""
     tag = dataclasses.fields(options[0])[0].name
-    choices = {typing.get_args(typing.get_type_hints(o)[tag])[0]: o for o in options}
+    choices = {typing.get_args(_type_hints(o)[tag])[0]: o for o in options}
     if not isinstance(value, dict):
         raise ConfigError("", key, "a mapping", value)
-    chosen = value.get(tag, typing.get_args(typing.get_type_hints(options[0])[tag])[0])
+    chosen = value.get(tag, typing.get_args(_type_hints(options[0])[tag])[0])
     if chosen not in choices:
         raise ConfigError("", f"{key}.{tag}", "one of " + ", ".join(map(repr, choices)), chosen)
     return build(choices[chosen], value, key)
