@@ -106,6 +106,9 @@ BAD = [
     ("output: {report_times: [-1, .nan]}", "output.report_times[1]", "a finite number, got nan"),
     ("output: {report_times: [-1, 0.1]}", "output.report_times", "times >= 0"),
     ("coupling: {tolerance: .inf}", "coupling.tolerance", "finite"),
+    # a length whose square overflows: a traceback in the cap's thickness check before
+    ("geometry: {height: 1.7e308}", "geometry.height", "a length of at most 1e+100 m"),
+    ("geometry: {kind: tube, radius: 1.0e+200}", "geometry.radius", "at most 1e+100 m"),
     (
         "geometry: {kind: turek_hron, cylinder_centre: [.nan, 0.2]}",
         "geometry.cylinder_centre[0]",

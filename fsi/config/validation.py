@@ -5,6 +5,7 @@ naming the key; :func:`fsi.config.from_dict` adds the file (or ``--set``).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 
@@ -48,8 +49,19 @@ def validate(case: Case) -> None:
     _validate_inlet(case)  # last: it walks the schedule, now known to be of bounded length
 
 
+MAX_LENGTH = 1.0e100
+"""The largest length (m) a geometry may give: the geometry's arithmetic squares lengths, and
+``geometry.height: 1.7e308`` overflowed into a traceback (exit 1) instead of a refusal."""
+
+
 def _validate_geometry(case: Case) -> None:
     g = case.geometry
+    for f in dataclasses.fields(g):
+        value = getattr(g, f.name)
+        if f.metadata.get("unit") == "m" and isinstance(value, float) and value > MAX_LENGTH:
+            raise ConfigError(
+                "", f"geometry.{f.name}", f"a length of at most {MAX_LENGTH:g} m", value
+            )
     if isinstance(g, StenosisGeometry):
         _validate_stenosis(g)
     elif isinstance(g, TurekHronGeometry):
