@@ -101,14 +101,71 @@ def _add_out(
     metavar: str = "DIR",
 ) -> None:
     """``--out``: where the command writes (a folder unless ``metavar`` says otherwise)."""
-    p.add_argument("--out", type=_path, required=required, metavar=metavar, help=help)
+    p.add_argument("--out", type=_out_path, required=required, metavar=metavar, help=help)
 
 
 def _path(text: str) -> Path:
-    """A path argument; an empty one is refused (it would mean the current directory)."""
+    """A path argument; an empty one is refused (it would mean the current directory), and so
+    is one the file system cannot name (:func:`_too_long`)."""
+    return _named_path(text, room=0)
+
+
+def _out_path(text: str) -> Path:
+    """``--out``: :func:`_path`, with room below it for the files a command writes there."""
+    return _named_path(text, room=OUT_PATH_ROOM)
+
+
+OUT_PATH_ROOM = 64
+"""Bytes an ``--out`` path leaves below ``PATH_MAX`` for what is written inside it (a sweep's
+run folders are checked on their own; ``checkpoint.partial/rank0000.npz`` is 29)."""
+
+
+def _named_path(text: str, room: int) -> Path:
     if not text.strip():
         raise argparse.ArgumentTypeError("expected a path, not an empty string")
+    why = _too_long(Path(text), room)
+    if why:
+        raise argparse.ArgumentTypeError(why)
     return Path(text)
+
+
+def _is_dir(path: Path) -> bool:
+    """``path.is_dir()``, False where the path itself is too long to look up."""
+    try:
+        return path.is_dir()
+    except OSError:
+        return False
+
+
+def _too_long(path: Path, room: int = 0) -> str | None:
+    """Why the file system would refuse ``path`` with ENAMETOOLONG (a name in it longer than
+    ``NAME_MAX``, or, as an absolute path with ``room`` bytes more, longer than ``PATH_MAX``),
+    or None. The limits are those of the nearest folder of ``path`` that exists (255 and
+    4096 bytes where it cannot say): each command then refuses it as a wrong argument, where
+    opening it raised OSError, a traceback, exit 1."""
+    absolute = Path(os.path.abspath(path))
+    existing = next((p for p in (absolute, *absolute.parents) if _is_dir(p)), Path("/"))
+    try:
+        name_max = os.pathconf(existing, "PC_NAME_MAX")
+        path_max = os.pathconf(existing, "PC_PATH_MAX")
+    except (OSError, ValueError):
+        name_max, path_max = 255, 4096
+    for name in path.parts:
+        size = len(os.fsencode(name))
+        if size > name_max:
+            shown = name if len(name) <= 24 else f"{name[:12]}...{name[-8:]}"
+            return (
+                f"the name {shown!r} in the path is {size} bytes long, longer than the "
+                f"{name_max} bytes a file name may have"
+            )
+    size = len(os.fsencode(str(absolute)))
+    if size + room >= path_max:
+        inside = f", less {room} for the files written inside it" if room else ""
+        return (
+            f"the path is {size} bytes long as an absolute path, longer than the "
+            f"{path_max - 1 - room} bytes allowed (PATH_MAX {path_max}{inside})"
+        )
+    return None
 
 
 def _add_run_arguments(p: argparse.ArgumentParser) -> None:
@@ -117,7 +174,7 @@ def _add_run_arguments(p: argparse.ArgumentParser) -> None:
     _add_out(p)
     p.add_argument(
         "--restart",
-        type=Path,
+        type=_path,
         metavar="DIR",
         help="continue from the checkpoint of an earlier run in DIR (DIR/checkpoint) with "
         "DIR/config.yaml, or the case file given, --set applied; any number of ranks; the "
@@ -146,7 +203,7 @@ def _add_mesh_arguments(p: argparse.ArgumentParser) -> None:
 
 def _add_report_arguments(p: argparse.ArgumentParser) -> None:
     """``fsi report``: run folders, ``--out``, ``--format``, ``--times``."""
-    p.add_argument("runs", type=Path, nargs="+", metavar="RUN_DIR")
+    p.add_argument("runs", type=_path, nargs="+", metavar="RUN_DIR")
     _add_out(
         p, "write DIR/report.md and the plots (default: print the tables only)", required=False
     )
@@ -167,7 +224,7 @@ def _add_report_arguments(p: argparse.ArgumentParser) -> None:
 
 def _add_plot_arguments(p: argparse.ArgumentParser) -> None:
     """``fsi plot``: a run folder, the field, time, view options and ``--out``."""
-    p.add_argument("run", type=Path, metavar="RUN_DIR")
+    p.add_argument("run", type=_path, metavar="RUN_DIR")
     p.add_argument(
         "--field",
         required=True,
@@ -334,8 +391,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     return its exit status (the module docstring lists them)."""
     comm = MPI.COMM_WORLD
     _setup_logging(comm)
+    if argv is None:
+        argv = sys.argv[1:]
     try:
-        args = _parser().parse_args(argv)
+        args = _parser().parse_args(_joined_option_values(argv))
     except SystemExit as e:  # argparse has printed the message; --help exits 0
         return int(e.code or 0)
     try:
@@ -343,6 +402,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:  # Ctrl-C outside a run's steps (those stop at a step's end)
         print("fsi: interrupted", file=sys.stderr, flush=True)
         return 128 + signal.SIGINT
+
+
+DASHED_VALUES = ("--slurm-option",)
+"""Options whose value may itself start with a dash (``--slurm-option --time=1``, as sbatch
+spells it), which argparse would take for another option ("expected one argument")."""
+
+
+def _joined_option_values(argv: Sequence[str]) -> list[str]:
+    """``argv`` with ``--slurm-option VALUE`` written ``--slurm-option=VALUE`` where VALUE
+    starts with a dash, so that argparse reads it as the value."""
+    joined: list[str] = []
+    i = 0
+    while i < len(argv):
+        if argv[i] in DASHED_VALUES and i + 1 < len(argv) and argv[i + 1].startswith("-"):
+            joined.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            joined.append(argv[i])
+            i += 1
+    return joined
 
 
 def _command(args: argparse.Namespace, comm: MPI.Comm) -> int:

@@ -3,9 +3,14 @@
 case from exhausting memory or hanging (steps, cells, quadrature, formula length) are cheap to
 check; inlet formulas fail validation, or raise FormulaError, never anything else."""
 
+import copy
+import dataclasses
 import math
 import time
+import typing
 from pathlib import Path
+from types import UnionType
+from typing import Union
 
 from mpi4py import MPI
 
@@ -101,6 +106,9 @@ BAD = [
     ("output: {report_times: [-1, .nan]}", "output.report_times[1]", "a finite number, got nan"),
     ("output: {report_times: [-1, 0.1]}", "output.report_times", "times >= 0"),
     ("coupling: {tolerance: .inf}", "coupling.tolerance", "finite"),
+    # a length whose square overflows: a traceback in the cap's thickness check before
+    ("geometry: {height: 1.7e308}", "geometry.height", "a length of at most 1e+100 m"),
+    ("geometry: {kind: tube, radius: 1.0e+200}", "geometry.radius", "at most 1e+100 m"),
     (
         "geometry: {kind: turek_hron, cylinder_centre: [.nan, 0.2]}",
         "geometry.cylinder_centre[0]",
@@ -660,6 +668,27 @@ def test_a_formula_that_cannot_be_compiled_raises_formula_error(formula, reason)
     assert error.value.t is None
 
 
+def test_a_long_flat_sum_is_a_formula_evaluated_as_python_does():
+    """A Fourier series of 100 terms (a flat sum, 100 levels deep as Python parses it) was
+    refused as "nested more than 100 levels deep"; now any sum or product within the 2,000
+    characters is accepted (1,000 terms), and its value is Python's, bit for bit: the same
+    operations in the same order."""
+    fourier = "+".join(f"{k % 7 - 3}*sin({k}*t)" for k in range(100))
+    product = "*".join(["(1+t/50)"] * 200)
+    mixed = "t" + "".join(f"{op}{k % 9 + 1}*t" for k, op in enumerate("+-*/" * 100))
+    flat = "t" + "+t" * 999
+    names = {"sin": math.sin, "pi": math.pi}
+    for formula in (fourier, product, mixed, flat):
+        assert len(formula) <= boundary_data.MAX_FORMULA_LENGTH
+        value = boundary_data.time_function(formula)
+        for t in (0.0, 0.0123, 0.5, 7.25):
+            assert value(t) == eval(formula, {**names, "t": t}), (formula[:40], t)
+    with pytest.raises(boundary_data.FormulaError, match="division by zero"):
+        boundary_data.time_function("1/(" + "t-" * 40 + "t*40)")(0.0)
+    with pytest.raises(boundary_data.FormulaError, match="nested more than 100 levels"):
+        boundary_data.time_function("sin(" * 101 + "t" + ")" * 101)
+
+
 def test_a_formula_is_checked_at_every_step_time_of_the_schedule(capsys):
     """The failing time is a late step of the schedule; a time after the end is not checked
     (nor one between steps: the run reports those if it gets there, e.g. in a retried step)."""
@@ -801,3 +830,140 @@ def test_adaptive_steps_refuse_what_they_cannot_control(capsys):
     )
     assert_refused(status, err, "--set", "time.adaptive.tolerance", "positive")
     assert cli.main(["check", str(CHANNEL), *adaptive]) == 0
+
+
+# --------------------------------------------------------------------------------------------
+# A run's own config.yaml reloads to the same Case (issue #49)
+
+AWKWARD_STRINGS = (
+    *("1e-3", "2E+5", ".5", "5.", "-0", "+1", "1_000", "0x1F", "0o17", "017", "1:30", ".inf"),
+    *(".nan", "true", "No", "on", "y", "null", "~", "", "2001-12-14", "<<", "'1'", "#1", "a: b"),
+    *("*x", "é", "1\n2", "1e-3*t"),
+)
+"""Strings that YAML would read as something else were they written plain (numbers of YAML 1.1
+or 1.2, base 60, bools, null, dates, indicators), and a few formulas."""
+
+AWKWARD_NUMBERS = (1e-300, 0.1 + 0.2, 12)
+
+
+def _values_of(tp):
+    """What :func:`_round_trip_cases` tries at a key of type ``tp``: awkward strings for a string,
+    awkward numbers for a number (None for another type)."""
+    if tp is str:
+        return AWKWARD_STRINGS
+    if tp is float or tp is int:
+        return [v for v in AWKWARD_NUMBERS if tp is float or isinstance(v, int)]
+    return None
+
+
+def _schema_keys(tp, key="", tags=()):
+    """Every (key path, type, tags) of a scalar value of the schema below dataclass ``tp``:
+    ``tags`` the (key, value) pairs that choose the union options on the way (``fluid.inlet
+    .kind: flow_rate``); a ``dict[str, ...]`` (PETSc options) as the key path ``...*``."""
+    for f in dataclasses.fields(tp):
+        sub = f"{key}.{f.name}" if key else f.name
+        hint = typing.get_type_hints(tp)[f.name]
+        options = typing.get_args(hint) if typing.get_origin(hint) in (Union, UnionType) else ()
+        if dataclasses.is_dataclass(hint):
+            yield from _schema_keys(hint, sub, tags)
+        elif options and all(dataclasses.is_dataclass(o) for o in options):
+            for option in options:
+                tag = dataclasses.fields(option)[0]
+                yield from _schema_keys(option, sub, (*tags, (f"{sub}.{tag.name}", tag.default)))
+        elif typing.get_origin(hint) is dict:
+            for value_type in typing.get_args(typing.get_args(hint)[1]):
+                yield f"{sub}.*", value_type, tags
+        elif not options:
+            yield sub, hint, tags
+
+
+def _set(data: dict, key: str, value) -> None:
+    *parents, name = key.split(".")
+    for part in parents:
+        data = data.setdefault(part, {})
+    data[name] = value
+
+
+def test_a_runs_own_config_yaml_reloads_to_the_same_case_whatever_it_holds():
+    """Whatever a run accepts, its config.yaml (:func:`fsi.config.to_yaml`) reloads to the same
+    Case: every string and number field of the schema, under every union option, set to values
+    YAML would misread if written plain (``formula: 1e-3`` read back as the number 0.001 made
+    ``fsi run --restart`` and ``fsi report`` refuse the run's own folder). A value the schema
+    refuses is skipped; each string key (name, formulas, PETSc options) has values accepted.
+    The values accepted are gathered into as few cases as the schema allows (YAML is slow to
+    read: one round trip per value took 4 s), each written and read back."""
+    base = reader.read_case_file(CHANNEL)
+    petsc_names = {"int": "ksp_max_it", "float": "ksp_rtol", "str": "ksp_type"}
+    groups: dict[tuple, list[tuple[dict, set]]] = {}  # per union options: [(data, keys set)]
+    accepted: dict[str, int] = {}
+
+    def accepts(data: dict, key: str, value) -> dict | None:
+        trial = copy.deepcopy(data)
+        _set(trial, key, value)
+        try:
+            config.from_dict(trial)
+        except config.ConfigError:
+            return None
+        return trial
+
+    for key, tp, tags in _schema_keys(config.Case):
+        values = _values_of(tp)
+        if values is None or key.endswith((".kind", ".model", ".file")):
+            continue  # a Literal or bool (YAML's own types); a file is written as its rows
+        key = key.replace("*", petsc_names[tp.__name__])
+        fresh = copy.deepcopy(base)
+        for tag_key, tag in tags:
+            _set(fresh, tag_key, tag)
+        cases = groups.setdefault(tags, [])
+        for value in values:
+            alone = accepts(fresh, key, value)
+            if alone is None:
+                continue
+            accepted[key] = accepted.get(key, 0) + 1
+            for i, (data, keys) in enumerate(cases):
+                trial = None if key in keys else accepts(data, key, value)
+                if trial is not None:
+                    cases[i] = (trial, keys | {key})
+                    break
+            else:
+                cases.append((alone, {key}))
+    for tags, cases in groups.items():
+        for data, keys in cases:
+            case = config.from_dict(data)
+            text = config.to_yaml(case)
+            again = config.from_dict(reader.parse_yaml(text), "config.yaml")
+            assert again == case, (tags, sorted(keys), text)
+    for key in ("name", "fluid.inlet.formula", "fluid.solver.petsc_options.ksp_type"):
+        assert accepted.get(key, 0) >= 5, (key, accepted.get(key))
+    assert len(accepted) > 50, len(accepted)
+
+
+def test_an_end_that_cuts_the_last_step_short_is_warned_of(capsys):
+    """``tube_womersley.yaml --set time.end=0.002`` cut its one step from 0.5 s to 2 ms, and
+    the coupling failed after 100 iterations without a word why: ``fsi check`` (and ``fsi
+    run``) warn, naming the segment, the step and what to give; an end on the steps is not
+    warned of."""
+    tube = str(ROOT / "configs/axisymmetric/tube_womersley.yaml")
+    capsys.readouterr()
+    assert cli.main(["check", tube, "--set", "time.end=0.002"]) == 0
+    err = capsys.readouterr().err
+    if MPI.COMM_WORLD.rank == 0:
+        assert (
+            "fsi: warning: time.end = 0.002 s cuts the last step of time.schedule[0] (dt = 0.5 s) "
+            "to 0.002 s, 250 times shorter: a case set up for its dt may not converge" in err
+        ), err
+        assert "--set 'time.schedule=[{until: 0.002, dt: ...}]'" in err
+    for end in ("1.0", "0.45", "100.0"):
+        assert cli.main(["check", tube, "--set", f"time.end={end}"]) == 0
+        assert "warning" not in capsys.readouterr().err, end
+
+
+def test_base_60_is_not_a_number(capsys):
+    """YAML 1.1 reads ``1:30`` as 90: ``--set time.end=1:30`` is refused, not run for 90 s."""
+    assert_refused(
+        *cli_error(capsys, "check", str(CHANNEL), "--set", "time.end=1:30"),
+        "--set",
+        "time.end",
+        "got '1:30'",
+    )
+    assert reader.parse_yaml("a: 1:30") == {"a": "1:30"}

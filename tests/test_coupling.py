@@ -423,3 +423,14 @@ def test_accelerations_from_the_configuration():
     assert isinstance(aitken, cp.Aitken) and (aitken.omega, aitken.omega_max) == (0.2, 0.8)
     with pytest.raises(config.ConfigError, match="coupling.max_relaxation"):
         config.from_dict({"coupling": {"initial_relaxation": 0.5, "max_relaxation": 0.4}})
+
+
+def test_a_coupling_failure_shows_the_ends_of_its_residuals():
+    """100 iterations made one line of 1,200 characters of residuals: the message shows the
+    first and last 4, how many are left out, and the smallest."""
+    residuals = [1.0] * 50 + [0.5**k for k in range(1, 51)]
+    message = str(cp.CouplingNotConverged(1, residuals, 1e-8))
+    assert "(residuals 1.00e+00, 1.00e+00, 1.00e+00, 1.00e+00, ... 92 more ..., " in message
+    assert "8.88e-16; smallest 8.88e-16)" in message and len(message) < 300, message
+    few = str(cp.CouplingNotConverged(2, [1.0, 0.5, 0.25], 1e-8))
+    assert "(residuals 1.00e+00, 5.00e-01, 2.50e-01; smallest 2.50e-01)" in few

@@ -339,6 +339,23 @@ def test_bad_cycles_exit_2_naming_the_key(overrides, message, shared_tmp, capsys
         assert len(err.strip().splitlines()) == 1
 
 
+def test_a_short_try_of_a_heartbeat_case_is_told_how(capsys):
+    """``fsi run configs/carotid_heartbeat.yaml --set time.end=0.01``, a newcomer's first try,
+    was refused without saying that ``--set time.cycles=0`` makes it possible: the message
+    says so, and with it the case is valid."""
+    case = "configs/carotid_heartbeat.yaml"
+    capsys.readouterr()
+    assert cli.main(["check", case, "--set", "time.end=0.01"]) == 2
+    if MPI.COMM_WORLD.rank == 0:
+        err = capsys.readouterr().err
+        assert "time.end: expected fluid.inlet.period = 0.917 s (one heartbeat) or " in err
+        assert (
+            "when time.cycles is 3, got 0.01; to end at time.end instead (a short try), set "
+            "time.cycles to 0 as well (--set time.cycles=0)\n"
+        ) in err, err
+    assert cli.main(["check", case, "--set", "time.end=0.01", "--set", "time.cycles=0"]) == 0
+
+
 def test_one_cycle_without_a_period_is_the_plain_run():
     case = config.load(CHANNEL, ["time.cycles=1"])
     assert config.run_time(case) is case.time

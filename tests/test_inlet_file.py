@@ -2,6 +2,7 @@
 
 import dataclasses
 import math
+import time
 
 from mpi4py import MPI
 
@@ -103,7 +104,12 @@ def test_a_run_with_the_csv_inlet_equals_one_with_the_table_inlet(shared_tmp):
 
 def test_the_dumped_configuration_is_a_table_that_loads_again(shared_tmp):
     write(shared_tmp / "w.csv", csv(ROWS))
-    case = config.load(case_file(shared_tmp, "{kind: pressure_file, file: w.csv, period: 0.003}"))
+    steps = "time: {end: 0.003, schedule: [{until: 0.003, dt: 0.001}]}\n"  # 3 steps a period
+    write(
+        shared_tmp / "case.yaml",
+        steps + "fluid: {inlet: {kind: pressure_file, file: w.csv, period: 0.003}}\n",
+    )
+    case = config.load(shared_tmp / "case.yaml")
     dumped = shared_tmp / "run" / "config.yaml"  # another folder, as a run's: no w.csv there
     if MPI.COMM_WORLD.rank == 0:
         dumped.parent.mkdir()
@@ -139,6 +145,8 @@ BAD = [  # (CSV text or None for no file, inlet keys after the file, message aft
         "fluid.inlet.file: {dir}/x.csv: line 4: 'abc' is not a number",
     ),
     ("0,0\n0.1,x\n", "", "fluid.inlet.file: {dir}/x.csv: line 2: 'x' is not a number"),
+    ("0,0\n0.1,1_000\n", "", "fluid.inlet.file: {dir}/x.csv: line 2: '1_000' is not a number"),
+    ("0,0\n0x1,1\n", "", "fluid.inlet.file: {dir}/x.csv: line 2: '0x1' is not a number"),
     (
         "0,0\n# ok\n0.2,1\n0.1,2\n",
         "",
@@ -198,6 +206,21 @@ def test_a_missing_file_key_and_an_unloaded_inlet_are_refused():
         fluid_boundaries.inlet_pressure(config.InletPressureFile(file="w.csv"))
 
 
+@pytest.mark.parametrize(
+    "period, last, shown",
+    [(1.0000001, 1.0, "[0, 1] s, not the whole period [0, 1.0000001] s"),
+     (0.8, 0.79999999999, "[0, 0.79999999999] s, not the whole period [0, 0.8] s"),
+     (0.6, 0.5, "[0, 0.5] s, not the whole period [0, 0.6] s")],
+)  # fmt: skip
+def test_a_table_short_of_its_period_shows_them_apart(period, last, shown):
+    """``period: 1.0000001`` over rows to 1 said "cover t in [0, 1] s, not the whole period
+    [0, 1] s": the numbers are written with the digits that tell them apart."""
+    inlet = f"{{kind: pressure_table, table: [[0, 1], [{last!r}, 2]], period: {period!r}}}"
+    with pytest.raises(config.ConfigError) as error:
+        config.from_dict(reader.parse_yaml(f"fluid: {{inlet: {inlet}}}"), "case.yaml")
+    assert f"fluid.inlet.table cover t in {shown} (the first t" in str(error.value)
+
+
 def test_a_periodic_inline_table_must_cover_its_period():
     inlet = "{kind: pressure_table, table: [[0, 1], [0.5, 2]], period: 0.6}"
     with pytest.raises(
@@ -242,9 +265,9 @@ def test_a_header_naming_other_units_is_refused(shared_tmp, capsys, header, mess
 
 
 def test_a_period_of_fewer_than_4_steps_is_warned_of(capsys):
-    """``period: 1e-9`` with 1 ms steps (a period in the wrong unit) samples the waveform
-    once every 10⁶ periods: ``fsi check`` warns, naming the key and the step."""
-    short = "fluid.inlet={kind: pressure_table, table: [[0, 0], [1.0e-9, 1]], period: 1.0e-9}"
+    """``period: 0.002`` with 1 ms steps samples the waveform twice a period: ``fsi check``
+    warns, naming the key and the step."""
+    short = "fluid.inlet={kind: pressure_table, table: [[0, 0], [0.002, 1]], period: 0.002}"
     capsys.readouterr()
     assert (
         cli.main(["check", CHANNEL, "--set", short, *sum([["--set", s] for s in THREE_STEPS], [])])
@@ -252,7 +275,7 @@ def test_a_period_of_fewer_than_4_steps_is_warned_of(capsys):
     )
     if MPI.COMM_WORLD.rank == 0:
         err = capsys.readouterr().err
-        assert "fsi: warning: fluid.inlet.period = 1e-09 s holds 1e-06 of the schedule's" in err
+        assert "fsi: warning: fluid.inlet.period = 0.002 s holds 2 of the schedule's" in err
         assert "largest steps (dt = 0.001 s)" in err
     ok = "fluid.inlet={kind: pressure_table, table: [[0, 0], [0.004, 1]], period: 0.004}"
     capsys.readouterr()
@@ -261,3 +284,55 @@ def test_a_period_of_fewer_than_4_steps_is_warned_of(capsys):
         == 0
     )
     assert "warning" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "header, accepted",
+    [("t (s),Q (m^3/s)", True), ("t,Q [m³/s]", True), ("t,Q", True), ("t (s),Q (m^2/s)", False)],
+)
+def test_an_axisymmetric_flow_rate_file_is_checked_in_cubic_metres_per_second(
+    shared_tmp, capsys, header, accepted
+):
+    """An axisymmetric case's flow rate is a pipe's, m³/s (docs/axisymmetric.md): a header
+    saying so is accepted, one saying m²/s (the plane model's) refused, naming the unit the
+    file is read in; the check was the wrong way round."""
+    lines = open("configs/waveforms/carotid_flow_3d.csv").read().splitlines()
+    rows = [r for r in lines if r and not r.startswith("#")][1:]  # without its header "t,Q"
+    path = shared_tmp / f"flow_{'m3' if accepted else 'm2'}_{len(header)}.csv"
+    write(path, "\n".join([header, *rows]) + "\n")
+    case = "configs/axisymmetric/carotid_heartbeat.yaml"
+    capsys.readouterr()
+    status = cli.main(["check", case, "--set", f"fluid.inlet.file={path}"])
+    err = capsys.readouterr().err
+    assert status == (0 if accepted else 2), err
+    if not accepted and MPI.COMM_WORLD.rank == 0:
+        assert f"{path}: line 1: the header gives Q in 'm^2/s'" in err
+        assert "read with Q in m^3/s (an axisymmetric case's flow rate)" in err
+
+
+@pytest.mark.parametrize(
+    "inlet",
+    [
+        "{kind: pressure_table, table: [[0, 0], [1.0e-9, 1]], period: 1.0e-9}",
+        "{kind: flow_rate, formula: '1e-3*sin(2*pi*t/1e-8)', period: 1.0e-8}",
+        "{kind: flow_rate, formula: '1e-3', period: 1.0e-300, profile: womersley}",
+        "{kind: flow_rate, formula: '1e-3', period: 5.0e-4, profile: womersley}",
+    ],
+)
+def test_a_period_shorter_than_a_step_is_refused(capsys, inlet):
+    """A period in the wrong unit (1e-9 s, 1e-300 s) with 1 ms steps made each step close
+    every heartbeat it spans (10⁶ per step; 10²⁹⁷ grew to 24 GB and had to be killed): refused
+    before anything runs, naming the key, the step and how many heartbeats a step would span;
+    a period of exactly one step is allowed."""
+    sets = sum([["--set", s] for s in THREE_STEPS], [])
+    capsys.readouterr()
+    start = time.perf_counter()
+    assert cli.main(["check", CHANNEL, "--set", f"fluid.inlet={inlet}", *sets]) == 2
+    assert time.perf_counter() - start < 10
+    err = capsys.readouterr().err
+    if MPI.COMM_WORLD.rank == 0:
+        assert err.startswith("fsi: error: --set: fluid.inlet.period: "), err
+        assert "is shorter than the schedule's largest step (dt = 0.001 s)" in err
+        assert "a step would span" in err and "heartbeats" in err
+    one_step = "fluid.inlet={kind: pressure_table, table: [[0, 0], [0.001, 1]], period: 0.001}"
+    assert cli.main(["check", CHANNEL, "--set", one_step, *sets]) == 0

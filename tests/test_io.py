@@ -30,6 +30,19 @@ def test_metrics_table_flushes_rows_and_restarts(shared_tmp):
     assert rows[1]["peak_velocity"] == 3.0 and rows[2]["peak_velocity"] == -1.0
 
 
+def test_a_negative_zero_is_written_as_zero(shared_tmp):
+    """A flow rate of no flow is −∫ 0 = −0.0, which metrics.csv wrote as "-0": now "0"."""
+    comm = MPI.COMM_WORLD
+    path = shared_tmp / "zero.csv"
+    table = io.MetricsTable(comm, path, ["step", "t", "inlet_flow_rate"])
+    table.write({"step": 1, "t": 0.001, "inlet_flow_rate": -0.0})
+    table.write({"step": 2, "t": 0.002, "inlet_flow_rate": -1.5e-300})
+    table.close()
+    comm.barrier()
+    lines = path.read_text().splitlines()
+    assert lines[1:] == ["1,0.001,0", "2,0.002,-1.5e-300"], lines
+
+
 def test_field_writer_writes_p2_and_dg_fields(shared_tmp):
     comm = MPI.COMM_WORLD
     mesh = dolfinx.mesh.create_unit_square(comm, 4, 4)

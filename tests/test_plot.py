@@ -1,6 +1,7 @@
 """``fsi plot``: field pictures from a run's XDMF/HDF5 files, checked against the files read
 directly with h5py."""
 
+import math
 import shutil
 import tempfile
 from pathlib import Path
@@ -317,6 +318,72 @@ def test_tawss_along_the_walls_is_drawn_from_wall_indices_csv(run_dir, capsys):
         for name in ("tawss", "osi"):
             assert is_png(out / f"{run_dir.name}_{name}.png")
             assert f"![{run_dir.name}_{name}.png]" in (out / "report.md").read_text()
+
+
+def test_a_truncated_or_damaged_wall_indices_csv_is_refused_naming_the_line(shared_tmp, capsys):
+    """A wall_indices.csv whose last row was cut short said "a value is not a number (float()
+    argument must be ... not 'NoneType')": now the file, the line and the column are named,
+    exit 2, nothing drawn. An empty cell (the file's way of writing a value that is not a
+    number, OSI where TAWSS is 0) is drawn as a gap, not refused."""
+    from fsi.output import wall_plot
+
+    header = "cycle,wall,side,x,y,TAWSS,OSI,RRT"
+    good = [f"1,interface,lower,{x},0,1.5,,2" for x in (0.001, 0.002)]
+    cases = {
+        "cut": ([*good, "1,interface,lower,0.003,0"], "line 4: the row ends before its TAWSS"),
+        "text": ([*good, "1,interface,lower,0.003,0,abc,0,1"], "line 4: TAWSS = 'abc' is not a"),
+        "beat": ([*good, "x,interface,lower,0.003,0,1,0,1"], "line 4: cycle = 'x' is not a whole"),
+    }
+    for name, (rows, message) in cases.items():
+        run = shared_tmp / name
+        if MPI.COMM_WORLD.rank == 0:
+            run.mkdir()
+            (run / "wall_indices.csv").write_text("\n".join([header, *rows]))
+        MPI.COMM_WORLD.barrier()
+        out = shared_tmp / f"{name}.png"
+        capsys.readouterr()
+        assert cli.main(["plot", str(run), "--field", "tawss", "--out", str(out)]) == 2
+        if MPI.COMM_WORLD.rank == 0:
+            err = capsys.readouterr().err
+            assert err.startswith(f"fsi: error: {run / 'wall_indices.csv'}: {message}"), err
+            assert err.count("\n") == 1 and not out.exists(), err
+    run = shared_tmp / "gaps"
+    if MPI.COMM_WORLD.rank == 0:
+        run.mkdir()
+        (run / "wall_indices.csv").write_text("\n".join([header, *good]) + "\n")
+    MPI.COMM_WORLD.barrier()
+    osi = wall_plot.read(run, "osi")
+    assert all(math.isnan(v) for v in osi.lines["interface, lower"][1])
+
+
+def test_the_title_of_a_partial_heartbeat_says_so(shared_tmp):
+    """A run stopped in its second heartbeat (period 4 ms, metrics to 6 ms): TAWSS over that
+    heartbeat was titled "heartbeat 2 (the last in the file)" as if it were whole; now
+    "heartbeat 2 (partial: to t = 0.006 s of 0.008 s)". A finished beat keeps its title."""
+    from fsi import config
+    from fsi.output import wall_plot
+
+    run = shared_tmp / "partial"
+    if MPI.COMM_WORLD.rank == 0:
+        run.mkdir()
+        case = config.load(
+            "configs/channel_poiseuille.yaml",
+            [
+                "fluid.inlet={kind: pressure_table, table: [[0, 0], [0.004, 1]], period: 0.004}",
+                "time.end=0.008",
+                "time.schedule=[{until: 0.008, dt: 0.001}]",
+            ],
+        )
+        config.dump(case, run / "config.yaml")
+        rows = "".join(f"{k},{k * 0.001!r},0.001\n" for k in range(1, 7))
+        (run / "metrics.csv").write_text("step,t,dt\n" + rows)
+        lines = ["cycle,wall,side,x,y,TAWSS,OSI,RRT"]
+        lines += [f"{c},interface,lower,{x},0,1,0.1,1" for c in (1, 2) for x in (0.001, 0.002)]
+        (run / "wall_indices.csv").write_text("\n".join(lines) + "\n")
+    MPI.COMM_WORLD.barrier()
+    last = wall_plot.title(wall_plot.read(run, "tawss"))
+    assert last.endswith("over heartbeat 2 (partial: to t = 0.006 s of 0.008 s)"), last
+    assert wall_plot.title(wall_plot.read(run, "tawss", cycle=1)).endswith("over heartbeat 1")
 
 
 def test_a_heartbeat_of_the_wall_indices_is_chosen_with_cycle(shared_tmp, capsys):

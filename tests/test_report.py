@@ -66,11 +66,15 @@ def test_tables_hold_the_rows_at_the_report_times(run_dir, capsys):
 
 def test_cli_writes_report_and_plots(run_dir, capsys):
     out = run_dir.parent / f"report{MPI.COMM_WORLD.rank}"
-    assert cli.main(["report", str(run_dir), str(run_dir), "--out", str(out)]) == 0
+    again = run_dir.parent / "rigid_again"  # a second run (a folder given twice is refused)
+    if MPI.COMM_WORLD.rank == 0 and not again.exists():
+        shutil.copytree(run_dir, again, ignore=shutil.ignore_patterns("fields*", "solid*"))
+    MPI.COMM_WORLD.barrier()
+    assert cli.main(["report", str(run_dir), str(again), "--out", str(out)]) == 0
     if MPI.COMM_WORLD.rank == 0:
         text = (out / "report.md").read_text()
         assert "Table 1: Peak velocity" in text and "Table 3: Peak displacement" in text
-        assert text.startswith(report.markdown([report.load_run(run_dir)] * 2))
+        assert text.startswith(report.markdown(report.load_runs([run_dir, again])))
         assert (out / "peak_velocity.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert (out / "flow_rate.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert not (out / "max_sss.png").exists()  # a rigid run has no structure stress
@@ -513,6 +517,7 @@ def test_runs_with_heartbeats_have_them_marked_and_said(folder):
         {
             "name": "beats",
             "structure": {"mode": "rigid"},
+            "time": {"end": STEPS * DT, "schedule": [{"until": STEPS * DT, "dt": DT}]},
             "fluid": {
                 "inlet": {
                     "kind": "pressure_table",
@@ -532,6 +537,42 @@ def test_runs_with_heartbeats_have_them_marked_and_said(folder):
     assert (
         "Dotted vertical lines" not in report.write(plain, folder / "plain_report")[0].read_text()
     )
+
+
+def test_a_run_given_twice_is_refused(folder, capsys):
+    """``fsi report R R`` tabled every row twice without a word: a run folder given twice, as
+    the same or another spelling (``R/../R``), is refused, exit 2, naming it; nothing written."""
+    run = synthetic_run(folder / "R", stenosis_case("fixed_wall"), study_columns(300, 5e-6, 0))
+    out = folder / "twice"
+    for second, said in ((str(run), ""), (f"{run}/../R", f" (as {run})")):
+        capsys.readouterr()
+        assert cli.main(["report", str(run), second, "--out", str(out)]) == 2
+        if MPI.COMM_WORLD.rank == 0:
+            err = capsys.readouterr().err
+            assert (
+                err == f"fsi: error: RUN_DIR {Path(second)}: given twice{said}: each run is "
+                "tabled once\n"
+            ), err
+    assert not out.exists()
+
+
+def test_report_times_after_a_short_run_are_said_to_be_unreached(folder, capsys):
+    """``fsi report`` without ``--times`` on a run that stops before the case's report times
+    printed tables of '–' without a word: a note names the times, the runs' end and
+    ``--times``; with ``--times`` within the run, or report times it reaches, no note."""
+    case = replace(stenosis_case("fixed_wall"), output=config.Output(
+        report_times=(0.005, 0.02, 0.05)))  # fmt: skip
+    run = synthetic_run(folder / "short", case, study_columns(300, 5e-6, 0))  # to 10 ms
+    text = report.markdown(report.load_runs([run]))
+    assert text.startswith(
+        "**Note**: no run reaches the report times 0.02, 0.05 s (output.report_times of short): "
+        "the runs end by t = 0.01 s, and those columns hold '–'. Give times within the runs: "
+        "`fsi report ... --times T ...`."
+    ), text[:300]
+    assert "Note" not in report.markdown(report.load_runs([run]), [0.005])
+    reached = replace(case, name="reached", output=config.Output(report_times=(0.005,)))
+    other = synthetic_run(folder / "reached", reached, study_columns(300, 5e-6, 0))
+    assert "Note" not in report.markdown(report.load_runs([other]))
 
 
 def test_runs_in_folders_of_the_same_name_are_told_apart(folder, capsys):

@@ -1,6 +1,7 @@
 """``fsi run`` end to end on a short rigid-structure stenosis case: files, columns, 1 = N ranks."""
 
 import json
+import time
 from pathlib import Path
 
 from mpi4py import MPI
@@ -309,6 +310,47 @@ def test_a_second_run_into_a_folder_being_written_is_refused(shared_tmp, capsys)
         assert sorted(p.name for p in out.iterdir()) == ["run.lock"]
     assert cli.main(["run", CASE, "--out", str(out), *short]) == 0
     assert (out / "summary.json").is_file()
+
+
+def test_paths_the_file_system_cannot_name_exit_2_naming_the_option(shared_tmp, capsys):
+    """A name in a path over 255 bytes, or a path over PATH_MAX, made every command that opens
+    it end with OSError [Errno 36], a traceback and exit 1: now each is refused as a wrong
+    argument (exit 2, naming the option and the limit) before anything is read or written."""
+    comm = MPI.COMM_WORLD
+    long_name = shared_tmp / ("a" * 300)
+    deep = shared_tmp.joinpath(*["b" * 200] * 21)  # each name allowed, the whole > 4096 bytes
+    commands = {
+        "--out": [
+            ["run", CASE, "--out", str(long_name)],
+            ["mesh", CASE, "--out", str(long_name)],
+            ["report", str(shared_tmp), "--out", str(long_name)],
+            ["sweep", CASE, "--vary", "mesh.size=1e-3", "--out", str(long_name)],
+            [
+                "plot",
+                str(shared_tmp),
+                "--field",
+                "velocity",
+                "--time",
+                "0",
+                "--out",
+                f"{long_name}.png",
+            ],
+            ["run", CASE, "--out", str(deep)],
+        ],  # fmt: skip
+        "--restart": [["run", "--restart", str(long_name), "--out", str(shared_tmp / "r")]],
+        "RUN_DIR": [["report", str(long_name)], ["plot", str(deep), "--field", "velocity"]],
+    }
+    for option, argvs in commands.items():
+        for argv in argvs:
+            capsys.readouterr()
+            start = time.perf_counter()
+            assert cli.main(argv) == 2, argv
+            assert time.perf_counter() - start < 5, argv
+            err = capsys.readouterr().err
+            assert "Traceback" not in err and f"error: argument {option}: the " in err, err
+            assert "255 bytes a file name may have" in err or "(PATH_MAX 4096" in err, err
+    assert sorted(p.name for p in shared_tmp.iterdir()) == []  # nothing written
+    comm.barrier()
 
 
 def test_paths_that_cannot_hold_the_output_exit_2_not_4(shared_tmp, capsys):

@@ -3,6 +3,7 @@ one line, an array task's outcome in the collected table, and a real one-node Sl
 (tests/slurm_cluster.py) running a sweep whose table equals the same sweep run in-process."""
 
 import csv
+import json
 import os
 import shlex
 import subprocess
@@ -120,6 +121,19 @@ def test_bad_slurm_input_exits_2_with_one_line(shared_tmp, capsys, options, mess
     assert err.count("\n") == 1 and not out.exists()
 
 
+def test_a_slurm_option_spelled_as_sbatch_spells_it_is_taken(shared_tmp, capsys):
+    """``--slurm-option '--time=1'`` (sbatch's own spelling) got argparse's bare "expected one
+    argument": it is the option time=1; a value with a blank is still refused naming it."""
+    out = shared_tmp / "dashed"
+    vary = ["--vary", "fluid.density=1000,1060", "--scheduler", "slurm", "-n"]
+    assert sweep_main(CHANNEL, "--out", out, *vary, "--slurm-option", "--time=1") == 0
+    assert "#SBATCH --time=1" in (out / "sweep.sbatch").read_text().splitlines()
+    capsys.readouterr()
+    assert sweep_main(CHANNEL, "--out", out, *vary, "--slurm-option", "--time 1") == 2
+    err = rank0(capsys.readouterr().err)
+    assert err.startswith("fsi: error: --slurm-option '--time 1': ' ' is not allowed"), err
+
+
 def test_no_sbatch_exits_2(shared_tmp, capsys, monkeypatch):
     monkeypatch.setenv("PATH", str(shared_tmp))
     out = shared_tmp / "sweep"
@@ -159,6 +173,60 @@ def test_a_failed_task_is_recorded_and_collected(shared_tmp, capsys):
     assert first["status"].startswith("failed: solve failed: fluid step to t = 0.001 s")
     assert second["status"] == "done" and float(second["peak_inlet_flow_rate"]) > 0
     assert "sweep 1/2: fluid.solver.max_iterations=1: failed: solve failed" in err
+
+
+def fake(folder: Path, name: str, script: str) -> None:
+    """An executable ``folder/name`` (rank 0) running the shell ``script``."""
+    if MPI.COMM_WORLD.rank == 0:
+        folder.mkdir(exist_ok=True)
+        (folder / name).write_text("#!/bin/sh\n" + script)
+        (folder / name).chmod(0o755)
+    MPI.COMM_WORLD.barrier()
+
+
+def test_a_missing_or_failing_squeue_is_not_taken_for_an_ended_task(
+    shared_tmp, capsys, monkeypatch
+):
+    """No ``squeue``, or one failing, said nothing of the queued tasks, which ``--collect``
+    then marked ``failed: ... ended without an outcome`` (exit 3) and a new submission gave to
+    ``sbatch`` again. Now their state is unknown: pending, not submitted again, said why;
+    Slurm's own "Invalid job id" (the job ended long ago) still means ended. ``sbatch`` output
+    that is not a job id is refused (exit 2), not recorded as a job."""
+    bin_ = shared_tmp / "bin"
+    calls = shared_tmp / "sbatch.calls"
+    fake(bin_, "sbatch", f"echo call >> {calls}\necho 4242\n")
+    monkeypatch.setenv("PATH", str(bin_))  # no squeue
+    out = shared_tmp / "sweep"
+    options = [CHANNEL, "--out", out, "--vary", "fluid.density=1000,1060"]
+    assert sweep_main(*options, "--scheduler", "slurm") == 0
+    capsys.readouterr()
+    assert sweep_main(out, "--collect") == 0
+    err = rank0(capsys.readouterr().err)
+    assert "failed" not in err, err
+    assert "pending: unknown, the state of its array task 4242_1 cannot be read (squeue not " in err
+    assert [row["status"].split(",")[0] for row in read_table(out)] == ["pending: unknown"] * 2
+    assert sweep_main(*options, "--scheduler", "slurm") == 0  # not submitted again
+    err = rank0(capsys.readouterr().err)
+    assert "2 runs submitted earlier not submitted again: squeue cannot tell" in err
+    assert rank0(calls.read_text() if MPI.COMM_WORLD.rank == 0 else "") == "call\n"
+    fake(bin_, "squeue", "echo 'slurm_load_jobs error: Unable to contact slurm controller' >&2\n"
+         "exit 1\n")  # fmt: skip
+    assert sweep_main(out, "--collect") == 0
+    assert "(squeue failed: slurm_load_jobs error: Unable to contact" in rank0(
+        capsys.readouterr().err
+    )
+    fake(bin_, "squeue", "echo 'slurm_load_jobs error: Invalid job id specified' >&2\nexit 1\n")
+    assert sweep_main(out, "--collect") == 3  # Slurm no longer knows the job: it ended
+    assert "failed: its array task 4242_1 ended without an outcome" in rank0(
+        capsys.readouterr().err
+    )
+    fake(bin_, "sbatch", "echo 'weird output'\n")
+    other = shared_tmp / "other"
+    assert sweep_main(CHANNEL, "--out", other, "--vary", "fluid.density=1000,1060",
+                      "--scheduler", "slurm") == 2  # fmt: skip
+    err = rank0(capsys.readouterr().err)
+    assert "fsi: error: sbatch printed 'weird output', not a job id: " in err, err
+    assert json.loads((other / "sweep.json").read_text())["jobs"] == {}  # no job recorded
 
 
 # --------------------------------------------------------------------------------------------

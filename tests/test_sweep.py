@@ -451,3 +451,22 @@ def test_a_long_validation_says_how_far_it_is(shared_tmp, capsys, monkeypatch):
         "sweep: validated 1 of 3 runs",
         "sweep: validated 2 of 3 runs",
     ]
+
+
+def test_a_sweep_plot_title_fits_its_figure():
+    """The headline's meaning as a one-panel plot's title (5 inches) was cut off at both
+    edges: each headline's title now lies within the figure, on as many lines as it takes."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    for h in sweep.HEADLINES:
+        figure, axes = plt.subplots(1, 1, figsize=(5.0, 3.8), squeeze=False)
+        sweep.suptitle(figure, h.meaning)
+        figure.tight_layout()
+        figure.canvas.draw()
+        box = figure._suptitle.get_window_extent(figure.canvas.get_renderer())
+        width, height = figure.bbox.width, figure.bbox.height
+        plt.close(figure)
+        assert 0 <= box.x0 and box.x1 <= width and box.y1 <= height, (h.name, box, width)

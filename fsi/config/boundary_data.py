@@ -41,16 +41,101 @@ class FormulaError(ValueError):
         super().__init__(f"formula {shorten(repr(formula), 60)}{at}: {reason}")
 
 
+LONG_CHAIN = 16
+"""Binary operations in a row through their left operands (``a + b - c * d``: a flat sum or
+product is one, as Python parses it) longer than this are evaluated as a loop
+(:func:`_flatten_chains`): a Fourier series of 100 terms is 100 levels deep as a tree, which
+Python 3.11 compiles only to about 1,000."""
+
+
+def _spine(node) -> tuple[object, list]:
+    """The left spine of the binary operation ``node``: its innermost left operand and the
+    (operator, right operand) pairs in evaluation order (``a + b - c`` → a, [(+, b), (−, c)])."""
+    import ast
+
+    pairs = []
+    while isinstance(node, ast.BinOp):
+        pairs.append((node.op, node.right))
+        node = node.left
+    return node, pairs[::-1]
+
+
 def _depth(tree) -> int:
-    """The depth of a syntax tree (without recursion: the tree may be deep)."""
+    """The depth of a syntax tree as it is compiled (without recursion: the tree may be deep):
+    a chain of more than :data:`LONG_CHAIN` binary operations counts as one level, since
+    :func:`_flatten_chains` makes it one call."""
     import ast
 
     deepest, stack = 0, [(tree, 1)]
     while stack:
         node, depth = stack.pop()
         deepest = max(deepest, depth)
+        if isinstance(node, ast.BinOp):
+            base, pairs = _spine(node)
+            if len(pairs) > LONG_CHAIN:
+                stack.extend((child, depth + 1) for child in (base, *(r for _, r in pairs)))
+                continue
         stack.extend((child, depth + 1) for child in ast.iter_child_nodes(node))
     return deepest
+
+
+def _flatten_chains(tree):
+    """``tree`` with every chain of more than :data:`LONG_CHAIN` binary operations replaced by
+    a call ``_chain(a, op₁, b₁, op₂, b₂, ...)`` that applies them in a loop, left to right as
+    Python does: the same operations in the same order, so the same float result, but one
+    level deep for the compiler (without recursion: the tree may be deep)."""
+    import ast
+
+    def flattened(node):
+        if not isinstance(node, ast.BinOp):
+            return node
+        base, pairs = _spine(node)
+        if len(pairs) <= LONG_CHAIN:
+            return node
+        args = [base]
+        for op, right in pairs:
+            args += [ast.Constant(_operator_index(op)), right]
+        return ast.Call(func=ast.Name(id="_chain", ctx=ast.Load()), args=args, keywords=[])
+
+    tree.body = flattened(tree.body)
+    stack = [tree.body]
+    while stack:
+        node = stack.pop()
+        for name, value in ast.iter_fields(node):
+            if isinstance(value, list):
+                value[:] = [flattened(v) if isinstance(v, ast.expr) else v for v in value]
+                stack.extend(v for v in value if isinstance(v, ast.AST))
+            elif isinstance(value, ast.expr):
+                setattr(node, name, flattened(value))
+                stack.append(getattr(node, name))
+    return ast.fix_missing_locations(tree)
+
+
+def _operator_functions() -> dict:
+    import ast
+    import operator
+
+    return {
+        ast.Add: operator.add,
+        ast.Sub: operator.sub,
+        ast.Mult: operator.mul,
+        ast.Div: operator.truediv,
+        ast.Pow: operator.pow,
+        ast.Mod: operator.mod,
+    }
+
+
+def _operator_index(op) -> int:
+    return list(_operator_functions()).index(type(op))
+
+
+def _chain(first, *rest):
+    """``first`` op₁ b₁ op₂ b₂ ... evaluated left to right (``rest``: operator index, operand)."""
+    functions = list(_operator_functions().values())
+    value = first
+    for i in range(0, len(rest), 2):
+        value = functions[rest[i]](value, rest[i + 1])
+    return value
 
 
 def time_function(formula: str) -> typing.Callable[[float], float]:
@@ -66,7 +151,7 @@ def time_function(formula: str) -> typing.Callable[[float], float]:
     tree = _parse_formula(formula)
     _check_formula_nodes(formula, tree)
     try:
-        code = compile(tree, "<formula>", "eval")
+        code = compile(_flatten_chains(tree), "<formula>", "eval")
     except (ValueError, RecursionError, MemoryError) as e:
         raise FormulaError(formula, f"cannot be compiled: {_nesting(e)}") from None
     return _formula_value(formula, code)
@@ -149,6 +234,7 @@ def _formula_value(formula: str, code) -> typing.Callable[[float], float]:
     """The function of t evaluating the checked, compiled ``code`` of ``formula``: it returns a
     finite float or raises :class:`FormulaError` naming the formula and t."""
     names = {"__builtins__": {}, "pi": math.pi, "e": math.e, "abs": abs, "min": min, "max": max}
+    names["_chain"] = _chain  # long chains of operations (not a name formulas may use)
     names.update({f: getattr(math, f) for f in FORMULA_NAMES if hasattr(math, f)})
 
     def value(t: float) -> float:
@@ -198,9 +284,12 @@ class WaveformError(ValueError):
     line (``waveforms/x.csv: line 7: 'abc' is not a number``)."""
 
 
-def read_waveform(path: str | Path, quantity: str = "P") -> tuple[tuple[float, float], ...]:
+def read_waveform(
+    path: str | Path, quantity: str = "P", *, axisymmetric: bool = False
+) -> tuple[tuple[float, float], ...]:
     """The rows (t (s), P (Pa)) of the CSV file ``path``; ``quantity`` names the second column
-    in the messages (``Q`` for a flow rate, m²/s).
+    in the messages (``Q`` for a flow rate, m²/s; m³/s with ``axisymmetric``: the header's
+    unit is checked against it).
 
     Guaranteed on return: at least 2 rows, every value a finite float, t strictly increasing.
     The file: a regular file of UTF-8 text (a byte-order mark allowed) of at most
@@ -232,7 +321,7 @@ def read_waveform(path: str | Path, quantity: str = "P") -> tuple[tuple[float, f
         first, header_allowed = header_allowed, False
         values = [_number(cell) for cell in cells]
         if first and all(value is None for value in values):
-            _check_header_units(cells, quantity, f"{path}: line {number}")
+            _check_header_units(cells, quantity, f"{path}: line {number}", axisymmetric)
             continue  # the header
         where = f"{path}: line {number}"
         if len(cells) != 2:
@@ -261,26 +350,42 @@ HEADER_UNITS = {"t": ("s",), "P": ("Pa",), "Q": ("m^2/s", "m²/s", "m2/s")}
 """The units a waveform file's header may give (``t (s), P (Pa)``): the ones the file is read
 in. A header naming another (``t (ms)``, ``P (mmHg)``) is refused, not silently misread."""
 
+PIPE_FLOW_UNITS = ("m^3/s", "m³/s", "m3/s")
+"""The units of Q a header may give in an axisymmetric case, whose flow rate is a pipe's
+(docs/axisymmetric.md), where :data:`HEADER_UNITS` has the plane model's m²/s per unit depth."""
 
-def _check_header_units(cells: list[str], quantity: str, where: str) -> None:
+
+def _check_header_units(
+    cells: list[str], quantity: str, where: str, axisymmetric: bool = False
+) -> None:
     """Raise :class:`WaveformError` if a header cell names a unit, in parentheses or brackets,
-    other than the one its column is read in (t in s; P in Pa or Q in m²/s)."""
+    other than the one its column is read in (t in s; P in Pa or Q in m²/s, m³/s when
+    ``axisymmetric``)."""
     for cell, name in zip(cells, ("t", quantity)):
+        units = PIPE_FLOW_UNITS if axisymmetric and name == "Q" else HEADER_UNITS[name]
         found = re.search(r"[(\[]\s*([^)\]]*?)\s*[)\]]", cell)
-        if found is None or found.group(1) in HEADER_UNITS[name]:
+        if found is None or found.group(1) in units:
             continue
+        model = " (an axisymmetric case's flow rate)" if units is PIPE_FLOW_UNITS else ""
         raise WaveformError(
             f"{where}: the header gives {name} in {found.group(1)!r}; the file is read with "
-            f"{name} in {HEADER_UNITS[name][0]} (convert the column, or leave the unit out)"
+            f"{name} in {units[0]}{model} (convert the column, or leave the unit out)"
         )
 
 
+_DECIMAL = re.compile(
+    r"[-+]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?|inf|infinity|nan)", re.IGNORECASE
+)
+"""A number as CSV files spell it: decimal, an exponent allowed; inf and nan are read and
+refused after, as not finite. Python's ``float`` also takes ``1_000`` (its digit grouping),
+which no spreadsheet writes: read as 1000 it would hide a typo, so it is not a number."""
+
+
 def _number(cell: str) -> float | None:
-    """The float ``cell`` spells, or None (``float`` also takes inf and nan: checked after)."""
-    try:
-        return float(cell)
-    except ValueError:
+    """The float ``cell`` spells (:data:`_DECIMAL`), or None."""
+    if not _DECIMAL.fullmatch(cell):
         return None
+    return float(cell)
 
 
 HARMONIC_SAMPLES = 256

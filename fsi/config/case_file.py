@@ -12,16 +12,16 @@ import typing
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from fsi.config.boundary_data import WaveformError, read_waveform
 from fsi.config.case import Case
+from fsi.config.domain import is_axisymmetric
 from fsi.config.fluid_section import WAVEFORM_FILES
 from fsi.config.reader import (
     MAX_FILE_BYTES,
     ConfigError,
     apply_overrides,
     build,
+    dump_yaml,
     read_case_file,
 )
 from fsi.config.validation import validate
@@ -113,7 +113,7 @@ def _read_inlet_file(case: Case, source: str, overridden: set[str]) -> Case:
     if not path.is_absolute() and not from_command_line and source not in ("<dict>", "--set"):
         path = Path(source).parent / path
     try:
-        rows = read_waveform(path, inlet.quantity)
+        rows = read_waveform(path, inlet.quantity, axisymmetric=is_axisymmetric(case.geometry))
     except OSError as e:
         raise ConfigError(
             "", "fluid.inlet.file", reason=f"cannot read {path} ({e.strerror or type(e).__name__})"
@@ -146,7 +146,7 @@ def to_dict(case: Case) -> dict:
 
 def to_yaml(case: Case) -> str:
     """The resolved configuration as YAML text (``fsi run`` writes it as DIR/config.yaml)."""
-    return yaml.safe_dump(to_dict(case), sort_keys=False)
+    return dump_yaml(to_dict(case))
 
 
 def differences(stored: dict, now: dict, prefix: str = "") -> list[str]:

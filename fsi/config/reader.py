@@ -11,6 +11,7 @@ field (:func:`checked` and its shorthands) applied. Every failure is a :class:`C
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import re
 import reprlib
@@ -42,11 +43,28 @@ class YAMLTooDeep(yaml.YAMLError):
         )
 
 
+_FLOAT = re.compile(
+    r"^[-+]?(?:[0-9][0-9_]*\.[0-9_]*(?:[eE][-+]?[0-9]+)?|\.[0-9_]+(?:[eE][-+]?[0-9]+)?"
+    r"|[0-9][0-9_]*[eE][-+]?[0-9]+|\.inf|\.Inf|\.INF|\.nan|\.NaN|\.NAN)$"
+)
+"""YAML 1.2 floats: PyYAML's YAML 1.1 ones need a dot (``1.0e-3``); these take ``4e6`` too."""
+
+_BASE_60 = re.compile(r"^[-+]?[0-9][0-9_]*(?::[0-5]?[0-9])+(?:\.[0-9_]*)?$")
+"""YAML 1.1's base-60 numbers (``1:30`` = 90), which YAML 1.2 dropped: read as strings, so a
+``time.end: 1:30`` is refused as not a number instead of being taken for 90 s."""
+
+
 class _Loader(yaml.SafeLoader):
-    """PyYAML's safe loader with YAML 1.2 floats (plain ``4e6`` and ``1.0e-3`` are numbers) and
-    a nesting limit of :data:`MAX_YAML_DEPTH` levels."""
+    """PyYAML's safe loader with YAML 1.2 floats (plain ``4e6`` and ``1.0e-3`` are numbers),
+    no base-60 numbers (``1:30`` is a string) and a nesting limit of :data:`MAX_YAML_DEPTH`
+    levels."""
 
     _depth = 0
+
+    def resolve(self, kind, value, implicit):
+        if kind is yaml.ScalarNode and implicit[0] and _BASE_60.match(value):
+            return "tag:yaml.org,2002:str"
+        return super().resolve(kind, value, implicit)
 
     def compose_node(self, parent, index):
         self._depth += 1
@@ -58,14 +76,22 @@ class _Loader(yaml.SafeLoader):
             self._depth -= 1
 
 
-_Loader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(
-        r"^[-+]?(?:[0-9][0-9_]*\.[0-9_]*(?:[eE][-+]?[0-9]+)?|\.[0-9_]+(?:[eE][-+]?[0-9]+)?"
-        r"|[0-9][0-9_]*[eE][-+]?[0-9]+|\.inf|\.Inf|\.INF|\.nan|\.NaN|\.NAN)$"
-    ),
-    list("-+0123456789."),
-)
+_Loader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT, list("-+0123456789."))
+
+
+class _Dumper(yaml.SafeDumper):
+    """PyYAML's safe dumper that also quotes the strings :class:`_Loader` reads as floats
+    (``'1e-3'``): PyYAML's own resolvers take ``1e-3`` for a string and would write it plain,
+    so that a run's ``config.yaml`` would read back a number where the run had a string."""
+
+
+_Dumper.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT, list("-+0123456789."))
+
+
+def dump_yaml(data: Any) -> str:
+    """``data`` as YAML text that :func:`parse_yaml` reads back as the same data (every string
+    that would read as a number, a bool, null or a date is quoted), keys in their order."""
+    return yaml.dump(data, Dumper=_Dumper, sort_keys=False)
 
 
 def parse_yaml(text: str, source: str = "<string>", key: str = ""):
@@ -319,6 +345,13 @@ def _describe(tp: Any) -> str:
     return str(tp)
 
 
+@functools.cache
+def _type_hints(tp: Any) -> dict[str, Any]:
+    """``typing.get_type_hints`` of the schema's dataclass ``tp``, worked out once: it
+    evaluates every annotation anew on each call, most of the time of building a Case."""
+    return typing.get_type_hints(tp)
+
+
 def build(tp: Any, value: Any, key: str) -> Any:
     """Convert a YAML value to type ``tp`` strictly (no str→bool, no bool→number, no float→int,
     no inf or nan for any number)."""
@@ -369,7 +402,7 @@ def _build_dataclass(tp: Any, value: Any, key: str) -> Any:
         k = f"{key}.{unknown[0]}" if key else str(unknown[0])
         raise ConfigError("", k, "one of the keys " + ", ".join(fields), "unknown key")
     kwargs = {}
-    hints = typing.get_type_hints(tp)
+    hints = _type_hints(tp)
     for name, f in fields.items():
         if name not in value:
             continue
@@ -427,10 +460,10 @@ def _build_float(value: Any, key: str) -> float:
 def _build_tagged(options: tuple, value: Any, key: str) -> Any:
     """Choose among dataclasses by their first field, a Literal tag (``kind``, ``model``)."""
     tag = dataclasses.fields(options[0])[0].name
-    choices = {typing.get_args(typing.get_type_hints(o)[tag])[0]: o for o in options}
+    choices = {typing.get_args(_type_hints(o)[tag])[0]: o for o in options}
     if not isinstance(value, dict):
         raise ConfigError("", key, "a mapping", value)
-    chosen = value.get(tag, typing.get_args(typing.get_type_hints(options[0])[tag])[0])
+    chosen = value.get(tag, typing.get_args(_type_hints(options[0])[tag])[0])
     if chosen not in choices:
         raise ConfigError("", f"{key}.{tag}", "one of " + ", ".join(map(repr, choices)), chosen)
     return build(choices[chosen], value, key)

@@ -5,6 +5,7 @@ naming the key; :func:`fsi.config.from_dict` adds the file (or ``--set``).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 
@@ -71,8 +72,19 @@ def mesh_only(case: Case) -> str | None:
     return None
 
 
+MAX_LENGTH = 1.0e100
+"""The largest length (m) a geometry may give: the geometry's arithmetic squares lengths, and
+``geometry.height: 1.7e308`` overflowed into a traceback (exit 1) instead of a refusal."""
+
+
 def _validate_geometry(case: Case) -> None:
     g = case.geometry
+    for f in dataclasses.fields(g):
+        value = getattr(g, f.name)
+        if f.metadata.get("unit") == "m" and isinstance(value, float) and value > MAX_LENGTH:
+            raise ConfigError(
+                "", f"geometry.{f.name}", f"a length of at most {MAX_LENGTH:g} m", value
+            )
     _validate_dimension(g)
     if isinstance(g, StenosisGeometry):
         _validate_stenosis(g)
@@ -365,6 +377,7 @@ def _validate_schedule(case: Case) -> None:
             )
     _validate_step_control(case.time)
     period = heartbeat_period(case)
+    _validate_steps_per_period(case, period)
     _validate_cycles(case.time, period)
     if case.time.cycles >= 1 and period > 0:  # the schedule is one heartbeat's
         if schedule[-1].until < period * (1 - 1e-12):
@@ -403,6 +416,40 @@ def _validate_schedule(case: Case) -> None:
                 f"time.max_steps = {case.time.max_steps:,}: use larger dt, or {raise_limit}"
             ),
         )
+
+
+def _validate_steps_per_period(case: Case, period: float) -> None:
+    """A periodic inlet's period must hold at least the schedule's largest step: a step over
+    many heartbeats does work for each (the wall indices close one per heartbeat: 10⁵ per step
+    for a period of 1e-8 s and 1 ms steps, 10²⁹⁷ for 1e-300 s, which ran until memory ran
+    out), and samples the waveform at random phases anyway."""
+    largest = largest_step(case)
+    if 0 < period and period * (1 + 1e-12) < largest:
+        raise ConfigError(
+            "",
+            "fluid.inlet.period",
+            reason=(
+                f"{period:g} s is shorter than the schedule's largest step (dt = {largest:g} s): "
+                f"a step would span {largest / period:.3g} heartbeats; give the period in "
+                f"seconds, or steps of at most {period:g} s (time.schedule)"
+            ),
+        )
+
+
+def largest_step(case: Case) -> float:
+    """The longest step (s) of the run's schedule up to its end (:func:`run_time`): a segment
+    after the end is never stepped through, and one shorter than its dt is one step of its
+    length (:func:`fsi.numerics.timestepping.steps`)."""
+    run = run_time(case)
+    largest, start = 0.0, 0.0
+    for segment in run.schedule:
+        stop = min(segment.until, run.end)
+        if stop > start:
+            largest = max(largest, min(segment.dt, stop - start))
+        start = max(start, stop)
+        if run.end <= segment.until:
+            break
+    return largest or max(segment.dt for segment in run.schedule)
 
 
 def _validate_step_control(time: Time) -> None:
@@ -448,10 +495,12 @@ def _validate_cycles(time: Time, period: float) -> None:
             raise ConfigError(
                 "",
                 "time.end",
-                f"fluid.inlet.period = {period:g} s (one "
-                f"heartbeat) or time.cycles × period = {whole:g} s (the whole "
-                f"run) when time.cycles is {n}",
-                time.end,
+                reason=(
+                    f"expected fluid.inlet.period = {period:g} s (one heartbeat) or "
+                    f"time.cycles × period = {whole:g} s (the whole run) when time.cycles is "
+                    f"{n}, got {time.end!r}; to end at time.end instead (a short try), set "
+                    "time.cycles to 0 as well (--set time.cycles=0)"
+                ),
             )
 
 
@@ -588,14 +637,56 @@ def _validate_period(inlet) -> None:
             if isinstance(inlet, WAVEFORM_FILES)
             else "fluid.inlet.table"
         )
+        shown_first, _ = _apart(first, 0.0)
+        shown_last, shown_period = _apart(last, period)
         raise ConfigError(
             "",
             "fluid.inlet.period",
             reason=(
-                f"{rows} cover t in [{first:g}, {last:g}] s, not the whole period "
-                f"[0, {period:g}] s (the first t must be <= 0 and the last >= period)"
+                f"{rows} cover t in [{shown_first}, {shown_last}] s, not the whole period "
+                f"[0, {shown_period}] s (the first t must be <= 0 and the last >= period)"
             ),
         )
+
+
+def _apart(a: float, b: float) -> tuple[str, str]:
+    """``a`` and ``b`` written with as few digits as tell them apart (``1`` and ``1.0000001``,
+    not ``1`` and ``1``): a message comparing two numbers must not show them equal."""
+    for digits in range(6, 18):
+        shown = f"{a:.{digits}g}", f"{b:.{digits}g}"
+        if shown[0] != shown[1] or a == b:
+            return shown
+    return repr(a), repr(b)
+
+
+CUT_STEP = 0.1
+"""A run whose end cuts its last step to less than this fraction of the schedule's ``dt``
+is warned of (:func:`cautions`)."""
+
+
+def _cut_last_step(case: Case) -> list[str]:
+    """A caution when the run's end cuts its last step far below its segment's ``dt``
+    (``--set time.end=0.002`` on a case of 0.5 s steps makes its one step 250 times shorter,
+    which a coupled case set up for its ``dt`` may not converge at: the fluid's added mass on
+    the wall grows as the step shrinks)."""
+    run = run_time(case)
+    start = 0.0
+    for i, segment in enumerate(run.schedule):
+        if run.end <= segment.until * (1 + 1e-12):
+            span = run.end - start
+            last = span - math.floor(span / segment.dt * (1 + 1e-9)) * segment.dt
+            if last <= 1e-9 * segment.dt or last >= CUT_STEP * segment.dt:
+                return []
+            where = f"time.schedule[{i}]" if run is case.time else "the heartbeat's schedule"
+            return [
+                f"time.end = {run.end:g} s cuts the last step of {where} (dt = {segment.dt:g} s) "
+                f"to {last:.3g} s, {segment.dt / last:.3g} times shorter: a case set up for its "
+                "dt may not converge at such a step (a coupled one: the fluid's added mass on "
+                "the wall grows as the step shrinks); give steps that fit, --set "
+                f"'time.schedule=[{{until: {run.end:g}, dt: ...}}]'"
+            ]
+        start = max(start, segment.until)
+    return []
 
 
 STEPS_PER_PERIOD = 4
@@ -605,11 +696,12 @@ follow it (it is aliased): :func:`cautions` says so."""
 
 def cautions(case: Case) -> list[str]:
     """What is valid in ``case`` but probably not meant, one message each (``fsi check`` and
-    ``fsi run`` print them as warnings): a periodic inlet whose period holds fewer than
+    ``fsi run`` print them as warnings): a last step cut by the end to less than
+    :data:`CUT_STEP` of its ``dt``; a periodic inlet whose period holds fewer than
     :data:`STEPS_PER_PERIOD` of the schedule's largest steps."""
-    found = []
+    found = _cut_last_step(case)
     period = heartbeat_period(case)
-    largest = max(segment.dt for segment in case.time.schedule)
+    largest = largest_step(case)
     if 0 < period < STEPS_PER_PERIOD * largest:
         found.append(
             f"fluid.inlet.period = {period:g} s holds {period / largest:.3g} of the schedule's "

@@ -397,8 +397,22 @@ class CouplingNotConverged(RuntimeError):
         super().__init__(
             f"coupling did not converge in step {step}: relative interface residual "
             f"{self.residuals[-1]:.3e} > tolerance {tolerance:.1e} after {len(self.residuals)} "
-            f"iterations (residuals {', '.join(f'{r:.2e}' for r in self.residuals)})"
+            f"iterations (residuals {_some(self.residuals)}; smallest {min(self.residuals):.2e})"
         )
+
+
+SHOWN_RESIDUALS = 4
+"""Residuals a coupling failure shows at each end of the list (100 iterations made a line of
+1,200 characters)."""
+
+
+def _some(residuals: Sequence[float]) -> str:
+    """The first and last :data:`SHOWN_RESIDUALS` of ``residuals``, the others counted."""
+    shown = [f"{r:.2e}" for r in residuals]
+    if len(shown) > 2 * SHOWN_RESIDUALS + 1:
+        hidden = len(shown) - 2 * SHOWN_RESIDUALS
+        shown = [*shown[:SHOWN_RESIDUALS], f"... {hidden} more ...", *shown[-SHOWN_RESIDUALS:]]
+    return ", ".join(shown)
 
 
 @dataclass

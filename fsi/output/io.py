@@ -331,7 +331,9 @@ class MetricsTable:
 
 
 def _format(value) -> str:
-    return f"{value:.10g}" if isinstance(value, float) else str(value)
+    """A metrics value as text: a float to 10 significant digits, −0 as 0 (a flow rate of no
+    flow is −∫ 0: "-0" reads as a sign that means nothing)."""
+    return f"{value + 0.0:.10g}" if isinstance(value, float) else str(value)
 
 
 def _parse(text: str) -> int | float | str:

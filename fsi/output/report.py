@@ -83,7 +83,16 @@ def unique_names(paths: Sequence[Path]) -> list[str]:
 
 
 def load_runs(paths: Sequence[Path]) -> list[Run]:
-    """:func:`load_run` of each path, named by :func:`unique_names`."""
+    """:func:`load_run` of each path, named by :func:`unique_names`. Raises
+    :class:`ReportError` for a run folder given twice (also as another spelling of the same
+    folder, ``R`` and ``./R/``, or a link to it): its rows would be tabled twice."""
+    seen: dict[Path, Path] = {}
+    for path in paths:
+        key = Path(path).resolve()
+        if key in seen:
+            same = "" if str(seen[key]) == str(path) else f" (as {seen[key]})"
+            raise ReportError(f"RUN_DIR {path}: given twice{same}: each run is tabled once")
+        seen[key] = Path(path)
     return [
         dataclasses.replace(load_run(path), name=name)
         for path, name in zip(paths, unique_names(paths), strict=True)
@@ -205,6 +214,24 @@ def peaks_table(
     return "\n".join(lines)
 
 
+def unreached_report_times(runs: Sequence[Run]) -> str | None:
+    """A note when the default report times (the first run's ``output.report_times``) lie
+    beyond the last step of every run, whose cells are then '–' (a short try of a case whose
+    report times are the study's: tables of dashes without a word); None otherwise."""
+    ends = [run.rows[-1]["t"] for run in runs if run.rows]
+    end = max(ends, default=0.0)
+    late = [t for t in runs[0].case.output.report_times if t > end * (1 + 1e-9)]
+    if not late:
+        return None
+    shown = ", ".join(f"{t:g}" for t in late)
+    return (
+        f"**Note**: no run reaches the report time{'s' if len(late) > 1 else ''} {shown} s "
+        f"(output.report_times of {runs[0].name or runs[0].path.name}): the runs end by "
+        f"t = {end:g} s, and those "
+        f"columns hold '–'. Give times within the runs: `fsi report ... --times T ...`."
+    )
+
+
 def effort_table(runs: Sequence[Run]) -> str:
     """Steps, simulated time, coupling iterations per step (mean, max) and wall time."""
     lines = [
@@ -288,6 +315,9 @@ def markdown(
         f"## Table {i + 1}: {title}\n\n{peaks_table(runs, column, title, quantity, times)}"
         for i, (column, title, quantity) in enumerate(TABLES)
     ]
+    late = None if times is not None else unreached_report_times(runs)
+    if late:
+        parts.insert(0, late)
     parts.append(f"## Solver effort\n\n{effort_table(runs)}")
     beats = [(run, cycles_table(run)) for run in runs]
     if any(table for _, table in beats):

@@ -121,7 +121,7 @@ class FluidOutputs:
         if self.lumen:
             row.update(metrics.wall_shear_summary(self.sampler.gather(samples)))
         for column, (form, sign) in self.flow_rates.items():
-            row[column] = sign * metrics.total(form, s.comm)
+            row[column] = sign * metrics.total(form, s.comm) + 0.0  # −0.0 (no flow) as 0
         for column, mean in self.pressures.items():
             row[column] = mean.value()
         row.update(s.outlet_values())  # a resistance or Windkessel outlet's P (and P_c)

@@ -31,6 +31,7 @@ class WallIndex:
     cycle: int | None
     cycles: int
     lines: dict[str, tuple[list[float], list[float]]]
+    reached: tuple[float, float] | None = None  # a partial heartbeat: (its last t, its end)
 
 
 def read(run_dir: Path, name: str, cycle: int | None = None) -> WallIndex:
@@ -45,7 +46,11 @@ def read(run_dir: Path, name: str, cycle: int | None = None) -> WallIndex:
         raise PlotError(f"{run_dir}: no such folder")
     try:
         with path.open(newline="") as f:
-            rows = list(csv.DictReader(f))
+            reader = csv.DictReader(f)
+            rows, line_numbers = [], []
+            for row in reader:
+                rows.append(row)
+                line_numbers.append(reader.line_num)
     except FileNotFoundError:
         raise PlotError(f"{path}: no such file (runs with a fluid write it)") from None
     except (OSError, UnicodeDecodeError, csv.Error) as e:
@@ -54,11 +59,11 @@ def read(run_dir: Path, name: str, cycle: int | None = None) -> WallIndex:
     if not rows or not needed <= set(rows[0]):
         raise PlotError(f"{path}: no rows with the columns {', '.join(sorted(needed))}")
     periodic = "cycle" in rows[0]
-    try:
-        beats = [int(r["cycle"]) if periodic else 0 for r in rows]
-        points = [(float(r["x"]), float(r[column])) for r in rows]
-    except (TypeError, ValueError) as e:
-        raise PlotError(f"{path}: a value is not a number ({e})") from None
+    beats, points = [], []
+    for r, line in zip(rows, line_numbers, strict=True):
+        where = f"{path}: line {line}"
+        beats.append(int(_cell(r, "cycle", where, integer=True)) if periodic else 0)
+        points.append((_cell(r, "x", where), _cell(r, column, where, empty=math.nan)))
     cycles = sorted(set(beats)) if periodic else []
     if periodic:
         cycle = cycles[-1] if cycle is None else cycle
@@ -74,13 +79,58 @@ def read(run_dir: Path, name: str, cycle: int | None = None) -> WallIndex:
     for label, points in samples.items():
         points.sort()
         lines[label] = ([x for x, _ in points], [v for _, v in points])
-    return WallIndex(name, Path(run_dir).name, cycle if periodic else None, len(cycles), lines)
+    reached = _partial_beat(Path(run_dir), cycle) if periodic and cycle == cycles[-1] else None
+    return WallIndex(
+        name, Path(run_dir).name, cycle if periodic else None, len(cycles), lines, reached
+    )
+
+
+def _partial_beat(run_dir: Path, cycle: int) -> tuple[float, float] | None:
+    """(the last step's t, k T) when heartbeat ``cycle`` = k of the run in ``run_dir`` was not
+    finished (its metrics.csv ends before k T: stopped, or still running), else None; None
+    too when config.yaml or metrics.csv cannot tell."""
+    from fsi import config
+    from fsi.output import io
+
+    try:
+        period = config.heartbeat_period(config.load(run_dir / "config.yaml", run_config=True))
+        rows = io.read_metrics(run_dir / "metrics.csv")
+    except (OSError, config.ConfigError, io.MetricsError):
+        return None
+    end = cycle * period
+    if not rows or not period > 0 or rows[-1]["t"] >= end * (1 - 1e-9):
+        return None
+    return rows[-1]["t"], end
+
+
+def _cell(
+    row: dict, column: str, where: str, *, integer: bool = False, empty: float | None = None
+) -> float:
+    """The number in ``row``'s ``column`` (``empty`` for an empty cell where one is allowed:
+    the file writes a value that is not a number, such as OSI where TAWSS is 0, as an empty
+    cell), or :class:`PlotError` naming ``where`` (the file and line) and the column: a row
+    cut short (its last line, by a run killed while writing it) has no cell there."""
+    text = row.get(column)
+    if text is None:
+        raise PlotError(
+            f"{where}: the row ends before its {column} column (cut short? the run may have "
+            "been stopped while writing the file)"
+        )
+    if text.strip() == "" and empty is not None:
+        return empty
+    try:
+        return int(text) if integer else float(text)
+    except ValueError:
+        kind = "a whole number" if integer else "a number"
+        raise PlotError(f"{where}: {column} = {text!r} is not {kind}") from None
 
 
 def title(index: WallIndex) -> str:
     """The run, the index and what it is averaged over."""
     over = "the whole run" if index.cycle is None else f"heartbeat {index.cycle}"
-    if index.cycle is not None and index.cycle == index.cycles:
+    if index.reached is not None:
+        over += f" (partial: to t = {index.reached[0]:g} s of {index.reached[1]:g} s)"
+    elif index.cycle is not None and index.cycle == index.cycles:
         over += " (the last in the file)"
     return f"{index.run}: {INDICES[index.name][1]} along the walls, over {over}"
 

@@ -11,6 +11,7 @@ Dirichlet conditions and boundary terms (docs/model.md, Fluid).
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -27,6 +28,8 @@ from fsi import compat, config
 from fsi.config import boundary_data
 from fsi.geometry.tags import Boundary
 from fsi.physics import inflow_profiles, outlets
+
+log = logging.getLogger(__name__)
 
 TractionFunction = Callable[
     [ufl.core.expr.Expr, ufl.core.expr.Expr, dolfinx.fem.Constant], ufl.core.expr.Expr
@@ -333,6 +336,37 @@ def parabolic_values(
     return lambda t: shape.x.array
 
 
+WOMERSLEY_FLUX_TOLERANCE = 1e-3
+"""The largest flux error of a Womersley inlet's interpolated velocity, relative to the peak of
+|Q|, that goes without a warning (:func:`womersley_flux_error`)."""
+
+
+def womersley_flux_error(
+    s: np.ndarray, modes: np.ndarray, degree: int, axisymmetric: bool = False
+) -> float:
+    """The largest |flux − Q(t)| over a period (m²/s; m³/s when ``axisymmetric``) of the
+    velocity interpolated at the inlet's nodes: Σ_k |∫ I(mode_k)|, where ``modes`` are
+    :class:`~fsi.physics.inflow_profiles.FlowRateProfile`'s (2 Q̂_k (φ_k − φ₀) at the distances
+    ``s`` of every node of the inlet, each once; their exact flux is 0) and I the interpolant
+    of ``degree`` 1 or 2 on the straight inlet's edges, integrated exactly (Simpson's rule on
+    each edge, with the midpoint's linear value for degree 1; ∫ ... 2π r dr, a cubic, when
+    ``axisymmetric``). At a high Womersley number α the profile's boundary layers, H/(2α)
+    thick, are thinner than the cells, and the interpolant's flux falls short of Q."""
+    order = np.argsort(s)
+    s, modes = s[order], modes[:, order]
+    if degree == 2:
+        left, middle, right = s[:-2:2], s[1:-1:2], s[2::2]
+        values = modes[:, :-2:2], modes[:, 1:-1:2], modes[:, 2::2]
+    else:
+        left, right = s[:-1], s[1:]
+        middle = (left + right) / 2
+        values = modes[:, :-1], (modes[:, :-1] + modes[:, 1:]) / 2, modes[:, 1:]
+    weights = [2 * np.pi * x if axisymmetric else np.ones_like(x) for x in (left, middle, right)]
+    integrand = values[0] * weights[0] + 4 * values[1] * weights[1] + values[2] * weights[2]
+    fluxes = (integrand * (right - left) / 6).sum(axis=1)
+    return float(np.abs(fluxes).sum())
+
+
 def flow_rate_values(
     V: dolfinx.fem.FunctionSpace,
     nodes: np.ndarray,
@@ -341,17 +375,24 @@ def flow_rate_values(
     density: float,
     viscosity: float | None,
     axisymmetric: bool = False,
+    degree: int = 2,
 ):
     """The function of t giving a flow-rate inlet's velocity array in V's layout: the
     :class:`~fsi.physics.inflow_profiles.FlowRateProfile` speed (m/s) times −n at the inlet's
     ``nodes``, 0 elsewhere; ``density`` (kg/m³) and ``viscosity`` (Pa s) shape a
     ``womersley`` profile (None for ``parabolic``); ``axisymmetric``: a pipe's profiles, Q in
-    m³/s."""
+    m³/s. A Womersley profile whose interpolant (V's ``degree``) carries a flux more than
+    :data:`WOMERSLEY_FLUX_TOLERANCE` of the peak |Q| off Q is warned of on rank 0
+    (:func:`womersley_flux_error`). Collective."""
     x = V.tabulate_dof_coordinates()[nodes]
     s = frame.radius(x) if axisymmetric else frame.distance(x)
     speed = inflow_profiles.FlowRateProfile(
         inlet_flow_rate(spec), s, frame.width, spec.period, density, viscosity, axisymmetric
     )
+    if viscosity is not None:
+        _warn_of_womersley_flux(
+            V.mesh.comm, spec, s, speed, frame.width, degree, axisymmetric, density, viscosity
+        )
     index_map, bs = V.dofmap.index_map, V.dofmap.index_map_bs
     array = np.zeros((index_map.size_local + index_map.num_ghosts) * bs)
     block = array.reshape(-1, bs)
@@ -362,3 +403,45 @@ def flow_rate_values(
         return array
 
     return values
+
+
+def _warn_of_womersley_flux(
+    comm: MPI.Comm,
+    spec: config.Inlet,
+    s: np.ndarray,
+    speed: inflow_profiles.FlowRateProfile,
+    width: float,
+    degree: int,
+    axisymmetric: bool,
+    density: float,
+    viscosity: float,
+) -> None:
+    """Warn (rank 0) when the Womersley inlet's interpolated velocity carries a flux more than
+    :data:`WOMERSLEY_FLUX_TOLERANCE` of the peak |Q| off Q (docs/boundary-conditions.md says
+    its flux is Q: it is on a mesh that resolves the boundary layers). Collective."""
+    gathered_s = np.concatenate(comm.allgather(s))
+    gathered = np.concatenate(comm.allgather(speed.modes), axis=1)
+    # A node on two ranks (owned, ghost) comes twice, its s computed on each to the last bit.
+    unique, first = np.unique(np.round(gathered_s / width, 12), return_index=True)
+    unique = gathered_s[first]
+    error = womersley_flux_error(unique, gathered[:, first], degree, axisymmetric)
+    peak = max(abs(speed.flow_rate(t)) for t in boundary_data.sample_times(spec.period))
+    if comm.rank != 0 or not peak > 0 or error <= WOMERSLEY_FLUX_TOLERANCE * peak:
+        return
+    layer = math.sqrt(viscosity / (speed.omega * density))  # (μ/ωρ)^½: the Stokes layer
+    alpha = (width if axisymmetric else width / 2) / layer
+    cells = np.diff(unique).max() * degree
+    unit = "m^3/s" if axisymmetric else "m^2/s"
+    log.warning(
+        "fsi: warning: fluid.inlet.profile womersley: on this mesh the inlet's velocity carries "
+        "a flux up to %.2g %s (%.2g %% of the peak |Q|) off Q: the boundary layers of its first "
+        "harmonic (Womersley number %.3g, %.2g mm thick) are thinner than the inlet's cells "
+        "(%.2g mm); refine the mesh at the inlet (mesh.size, mesh.level) or use profile "
+        "parabolic",
+        error,
+        unit,
+        100 * error / peak,
+        alpha,
+        1e3 * layer,
+        1e3 * cells,
+    )

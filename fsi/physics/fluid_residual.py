@@ -652,8 +652,9 @@ class FluidResidual:
             )
             womersley = spec.profile == "womersley"
             viscosity = womersley_viscosity(self.config.rheology) if womersley else None
+            degree = 1 if self.config.element == "p1p1" else 2
             values = flow_rate_values(
-                self.V, nodes, spec, frame, self.config.density, viscosity, axisymmetric
+                self.V, nodes, spec, frame, self.config.density, viscosity, axisymmetric, degree
             )
 
         ramped = self.scheme != "steady" and spec.ramp_time > 0

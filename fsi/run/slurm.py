@@ -246,14 +246,33 @@ def sbatch(out: Path) -> str:
     if done.returncode != 0:
         why = (done.stderr.strip().splitlines() or [f"exit status {done.returncode}"])[-1]
         raise SlurmError(f"sbatch refused {out / SCRIPT}: {why}")
-    return done.stdout.strip().split(";")[0]
+    job = done.stdout.strip().split(";")[0]
+    if not re.fullmatch(r"[0-9]+", job):  # --parsable prints "<id>" or "<id>;<cluster>"
+        raise SlurmError(
+            f"sbatch printed {_shown(done.stdout)}, not a job id: {out / SCRIPT} may have been "
+            "submitted all the same; see squeue before submitting the sweep again"
+        )
+    return job
 
 
-def queued(jobs: Mapping[str, str]) -> dict[str, str]:
+def _shown(text: str) -> str:
+    """Program output for a message: its first line, bounded, quoted."""
+    first = (text.strip().splitlines() or [""])[0]
+    return repr(first if len(first) <= 60 else first[:60] + "...")
+
+
+JOB_STATE = re.compile(r"([0-9]+(?:_[0-9]+)?) ([A-Z]+)")
+"""A line of ``squeue -h -r -o '%i %t'``: an array task (``<job>_<n>``) and its state code."""
+
+
+def queued(jobs: Mapping[str, str]) -> tuple[dict[str, str], dict[str, str]]:
     """The array tasks of ``jobs`` (:attr:`SlurmSweep.jobs`) still in Slurm's queue:
-    ``<job>_<number>`` → ``queued (job J)`` or ``running (job J)``, from ``squeue`` (jobs
-    that left the queue, or no squeue: none)."""
+    ``<job>_<number>`` → ``queued (job J)`` or ``running (job J)``, from ``squeue``; and the
+    jobs whose state ``squeue`` could not tell (job → why: no squeue, a timeout, an error
+    other than Slurm no longer knowing the job, output that is not a list of tasks). A job
+    that left the queue is in neither."""
     found: dict[str, str] = {}
+    unknown: dict[str, str] = {}
     for job in sorted({task.partition("_")[0] for task in jobs.values()}):
         try:
             done = subprocess.run(
@@ -263,12 +282,25 @@ def queued(jobs: Mapping[str, str]) -> dict[str, str]:
                 timeout=TIMEOUT,
                 check=False,
             )
-        except (OSError, subprocess.TimeoutExpired):
+        except FileNotFoundError:
+            unknown[job] = "squeue not found (is Slurm's client on the PATH?)"
             continue
-        for line in done.stdout.splitlines() if done.returncode == 0 else []:
-            task, _, state = line.partition(" ")
+        except (OSError, subprocess.TimeoutExpired) as e:
+            unknown[job] = f"squeue: {e}"
+            continue
+        if done.returncode != 0:
+            why = (done.stderr.strip().splitlines() or [f"exit status {done.returncode}"])[-1]
+            if "invalid job id" not in why.lower():  # that one: Slurm forgot the ended job
+                unknown[job] = f"squeue failed: {why}"
+            continue
+        lines = [JOB_STATE.fullmatch(line.strip()) for line in done.stdout.strip().splitlines()]
+        if not all(lines):
+            unknown[job] = f"squeue printed {_shown(done.stdout)}, not a list of tasks"
+            continue
+        for line in lines:
+            task, state = line.groups()
             found[task] = f"{'running' if state == 'R' else 'queued'} (job {job})"
-    return found
+    return found, unknown
 
 
 # --------------------------------------------------------------------------------------------
@@ -278,13 +310,15 @@ def queued(jobs: Mapping[str, str]) -> dict[str, str]:
 def statuses(definition: SlurmSweep, runs: Sequence[sweep.SweepRun]) -> list[str]:
     """Each run's status for the table: ``done`` (:func:`fsi.run.sweep.folder_state` would skip
     it), ``pending: queued/running (job J)``, its task's outcome (``failed: <why>``,
-    ``stopped``), ``failed: ...`` for a task that left the queue without one, else ``pending:
-    not submitted``. Rank 0."""
-    in_queue = queued(definition.jobs)
+    ``stopped``), ``pending: unknown, ...`` for a task whose state ``squeue`` cannot tell
+    (missing, failing), ``failed: ...`` for a task that left the queue without one, else
+    ``pending: not submitted``. Rank 0."""
+    in_queue, unknown = queued(definition.jobs)
     found = []
     for run in runs:
         outcome = run.folder / OUTCOME
         task = definition.jobs.get(run.folder.name, "")
+        job = task.partition("_")[0]
         if sweep.folder_state(run).action == "skip":
             status = "done"
         elif task in in_queue:
@@ -292,6 +326,11 @@ def statuses(definition: SlurmSweep, runs: Sequence[sweep.SweepRun]) -> list[str
         elif outcome.is_file():  # done: to another configuration or time.end than now
             told = (outcome.read_text().strip().splitlines() or [""])[0]
             status = told if told.startswith(("failed", "stopped")) else "pending: not submitted"
+        elif job in unknown:  # neither failed nor to be submitted again: it may be queued
+            status = (
+                f"pending: unknown, the state of its array task {task} cannot be read "
+                f"({unknown[job]}); not submitted again until it can"
+            )
         elif task:
             status = (
                 f"failed: its array task {task} ended without an outcome (cancelled, or "
@@ -334,11 +373,21 @@ def submit(
     their statuses) and, unless ``dry_run``, submit the script and record its job in
     ``DIR/sweep.json``; returns the job id (None: nothing to do, or a dry run). Rank 0; raises
     :class:`SlurmError` and OSError."""
+    waiting = ("pending: queued", "pending: running", "pending: unknown")
     todo = [
         run.index
         for run, status in zip(runs, found, strict=True)
-        if status != "done" and not status.startswith(("pending: queued", "pending: running"))
+        if status != "done" and not status.startswith(waiting)
     ]
+    unknown = sum(status.startswith("pending: unknown") for status in found)
+    if unknown:
+        log.warning(
+            "fsi: warning: %d run%s submitted earlier not submitted again: squeue cannot tell "
+            "whether %s still queued (see the table)",
+            unknown,
+            "s" if unknown > 1 else "",
+            "they are" if unknown > 1 else "it is",
+        )
     if not todo:
         log.info("sweep: every run is done or in Slurm's queue: nothing to submit")
         return None

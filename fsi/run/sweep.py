@@ -785,12 +785,22 @@ def write_plots(
             axis.set_xlabel(axis_label(runs[0].case, variations[panel].key))
             axis.set_ylabel(f"{h.label} ({unit.name})" if unit.name else h.label)
             axis.grid(True, alpha=0.3)
-        figure.suptitle(h.meaning, fontsize=9)
+        suptitle(figure, h.meaning)
         figure.tight_layout()
         figure.savefig(path, dpi=110)
         plt.close(figure)
         written.append(path)
     return written
+
+
+def suptitle(figure, text: str, fontsize: float = 9) -> None:
+    """``text`` as ``figure``'s title, broken into lines that fit its width (one 84-character
+    headline was cut off at both edges of a one-panel plot)."""
+    import textwrap
+
+    # ~0.55 em a character, with a margin: the characters that fit the figure's width
+    per_line = int(figure.get_figwidth() * 72 / (0.55 * fontsize) * 0.9)
+    figure.suptitle(textwrap.fill(text, per_line), fontsize=fontsize)
 
 
 def _panel(
