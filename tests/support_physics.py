@@ -13,11 +13,14 @@ from petsc4py import PETSc
 import dolfinx
 import dolfinx.fem
 import dolfinx.fem.petsc
+import dolfinx.mesh
 import numpy as np
 import ufl
 
+from fsi.geometry.tags import Boundary, Region
 from fsi.physics.fluid import FluidSolver
 from fsi.physics.fluid_boundaries import Velocity, as_tags
+from fsi.physics.mesh import TaggedMesh
 from fsi.physics.solid import SolidSolver
 
 # --------------------------------------------------------------------------------------------
@@ -154,3 +157,48 @@ def boundary_vector(mm, f=None) -> np.ndarray:
 def src_vector(imap, f) -> np.ndarray:
     """The interface vector of a function on an interface map's source space."""
     return f.x.array.reshape(-1, imap.bs)[imap.src_dofs].copy()
+
+
+# --------------------------------------------------------------------------------------------
+# A tube's wall as a meridian section (the axisymmetric structure's tests)
+
+
+def meridian_section(
+    inner: float,
+    outer: float,
+    length: float,
+    cells: tuple[int, int],
+    ends: tuple[Boundary, Boundary] = (Boundary.CLAMPED, Boundary.CLAMPED),
+    comm: MPI.Comm = MPI.COMM_WORLD,
+) -> TaggedMesh:
+    """The wall [0, length] × [inner, outer] (x = z, y = r) of ``cells`` (axial, radial)
+    triangles, region ``wall``; ``interface`` r = inner, ``exterior`` r = outer, and the ends
+    z = 0 and z = length tagged ``ends``."""
+    msh = dolfinx.mesh.create_rectangle(
+        comm,
+        [np.array([0.0, inner]), np.array([length, outer])],
+        list(cells),
+        dolfinx.mesh.CellType.triangle,
+    )
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    index_map = msh.topology.index_map(tdim)
+    n_cells = index_map.size_local + index_map.num_ghosts
+    cell_tags = dolfinx.mesh.meshtags(
+        msh, tdim, np.arange(n_cells, dtype=np.int32), np.full(n_cells, int(Region.WALL), np.int32)
+    )
+    sides = [
+        (Boundary.INTERFACE, lambda x: np.isclose(x[1], inner)),
+        (Boundary.EXTERIOR, lambda x: np.isclose(x[1], outer)),
+        (ends[0], lambda x: np.isclose(x[0], 0.0)),
+        (ends[1], lambda x: np.isclose(x[0], length)),
+    ]
+    facets, values = [], []
+    for tag, where in sides:
+        found = dolfinx.mesh.locate_entities_boundary(msh, tdim - 1, where)
+        facets.append(found)
+        values.append(np.full(len(found), int(tag), dtype=np.int32))
+    facets, values = np.concatenate(facets), np.concatenate(values)
+    facets, first = np.unique(facets, return_index=True)
+    facet_tags = dolfinx.mesh.meshtags(msh, tdim - 1, facets.astype(np.int32), values[first])
+    return TaggedMesh(msh, cell_tags, facet_tags)

@@ -29,6 +29,7 @@ import dolfinx.fem.petsc
 import dolfinx.mesh
 import numpy as np
 import pytest
+import support_physics
 import ufl
 
 from fsi import config
@@ -64,36 +65,9 @@ def meridian_section(comm: MPI.Comm = MPI.COMM_WORLD) -> mesh.TaggedMesh:
     """The wall's meridian section [0, L] × [a, b] (x = z, y = r), region ``wall``; tags:
     ``interface`` (r = a), ``exterior`` (r = b) and ``clamped`` (the ends z = 0, L, which the
     tests put on rollers)."""
-    msh = dolfinx.mesh.create_rectangle(
-        comm,
-        [np.array([0.0, INNER]), np.array([LENGTH, OUTER])],
-        [AXIAL_CELLS, RADIAL_CELLS],
-        dolfinx.mesh.CellType.triangle,
+    return support_physics.meridian_section(
+        INNER, OUTER, LENGTH, (AXIAL_CELLS, RADIAL_CELLS), comm=comm
     )
-    tdim = msh.topology.dim
-    msh.topology.create_connectivity(tdim - 1, tdim)
-    cells = msh.topology.index_map(tdim)
-    n_cells = cells.size_local + cells.num_ghosts
-    cell_tags = dolfinx.mesh.meshtags(
-        msh,
-        tdim,
-        np.arange(n_cells, dtype=np.int32),
-        np.full(n_cells, int(Region.WALL), dtype=np.int32),
-    )
-    sides = [
-        (Boundary.INTERFACE, lambda x: np.isclose(x[1], INNER)),
-        (Boundary.EXTERIOR, lambda x: np.isclose(x[1], OUTER)),
-        (Boundary.CLAMPED, lambda x: np.isclose(x[0], 0.0) | np.isclose(x[0], LENGTH)),
-    ]
-    facets, values = [], []
-    for tag, where in sides:
-        found = dolfinx.mesh.locate_entities_boundary(msh, tdim - 1, where)
-        facets.append(found)
-        values.append(np.full(len(found), int(tag), dtype=np.int32))
-    facets, values = np.concatenate(facets), np.concatenate(values)
-    facets, first = np.unique(facets, return_index=True)
-    facet_tags = dolfinx.mesh.meshtags(msh, tdim - 1, facets.astype(np.int32), values[first])
-    return mesh.TaggedMesh(msh, cell_tags, facet_tags)
 
 
 def thick_cylinder(law: str, pressure=lambda t: PRESSURE) -> solid.SolidSolver:

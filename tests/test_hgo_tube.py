@@ -29,6 +29,7 @@ import dolfinx.fem
 import dolfinx.fem.petsc
 import dolfinx.mesh
 import numpy as np
+import support_physics
 
 from fsi.benchmarks.hgo_tube import HGOParameters, Tube
 from fsi.config import Fibres, Material, SolverSettings
@@ -43,50 +44,28 @@ TIGHT = SolverSettings(rtol=1e-10, atol=1e-14, max_iterations=30)
 MEDIA = HGOParameters(c=C, k1=K1, k2=K2, angle=ANGLE)
 
 
-def section(radial_cells: int, comm: MPI.Comm = MPI.COMM_WORLD) -> mesh.TaggedMesh:
+def section(radial_cells: int) -> mesh.TaggedMesh:
     """[0, L] × [R_i, R_o] (x = z, y = r), region ``wall``: ``interface`` r = R_i, ``exterior``
     r = R_o, ``clamped`` z = 0 and ``outlet`` z = L (the stretched end)."""
-    msh = dolfinx.mesh.create_rectangle(
-        comm,
-        [np.array([0.0, R_I]), np.array([LENGTH, R_O])],
-        [2, radial_cells],
-        dolfinx.mesh.CellType.triangle,
+    return support_physics.meridian_section(
+        R_I, R_O, LENGTH, (2, radial_cells), ends=(Boundary.CLAMPED, Boundary.OUTLET)
     )
-    tdim = msh.topology.dim
-    msh.topology.create_connectivity(tdim - 1, tdim)
-    cells = msh.topology.index_map(tdim)
-    n_cells = cells.size_local + cells.num_ghosts
-    cell_tags = dolfinx.mesh.meshtags(
-        msh, tdim, np.arange(n_cells, dtype=np.int32), np.full(n_cells, int(Region.WALL), np.int32)
+
+
+def hgo_wall() -> Material:
+    """The media's HGO wall (module docstring): c = E/(2(1 + ν)) = 3 kPa, ν = 0.49999."""
+    return Material(
+        law="hgo",
+        density=1000.0,
+        young_modulus=2 * C * (1 + POISSON),
+        poisson_ratio=POISSON,
+        fibres=Fibres(k1=K1, k2=K2, angle=ANGLE, dispersion=0.0),
     )
-    sides = [
-        (Boundary.INTERFACE, lambda x: np.isclose(x[1], R_I)),
-        (Boundary.EXTERIOR, lambda x: np.isclose(x[1], R_O)),
-        (Boundary.CLAMPED, lambda x: np.isclose(x[0], 0.0)),
-        (Boundary.OUTLET, lambda x: np.isclose(x[0], LENGTH)),
-    ]
-    facets, values = [], []
-    for tag, where in sides:
-        found = dolfinx.mesh.locate_entities_boundary(msh, tdim - 1, where)
-        facets.append(found)
-        values.append(np.full(len(found), int(tag), dtype=np.int32))
-    facets, values = np.concatenate(facets), np.concatenate(values)
-    facets, first = np.unique(facets, return_index=True)
-    facet_tags = dolfinx.mesh.meshtags(msh, tdim - 1, facets.astype(np.int32), values[first])
-    return mesh.TaggedMesh(msh, cell_tags, facet_tags)
 
 
 def hgo_tube(radial_cells: int) -> solid.SolidSolver:
     """The quasi-static HGO tube under P(t) = 25 kPa t, ends on rollers, z = L moved by
     (λ_z − 1) L; the initial guess is the homogeneous stretch."""
-    young = 2 * C * (1 + POISSON)  # c = E/(2(1 + ν))
-    wall = Material(
-        law="hgo",
-        density=1000.0,
-        young_modulus=young,
-        poisson_ratio=POISSON,
-        fibres=Fibres(k1=K1, k2=K2, angle=ANGLE, dispersion=0.0),
-    )
     bcs = solid.SolidBoundaryConditions(
         dirichlet=(
             solid.Roller((Boundary.CLAMPED,), component=0),
@@ -96,7 +75,7 @@ def hgo_tube(radial_cells: int) -> solid.SolidSolver:
     )
     s = solid.SolidSolver(
         section(radial_cells),
-        {Region.WALL: wall},
+        {Region.WALL: hgo_wall()},
         bcs,
         NewmarkFamily.quasi_static(),
         solver=TIGHT,
@@ -180,21 +159,13 @@ LOAD_STEPS = 100
 def drawn_tube(prestressed: bool, radial_cells: int = 8) -> solid.SolidSolver:
     """The section drawn at [R_i, R_o], ends on rollers (no axial stretch), quasi-static,
     P(t) = 10.7 kPa t."""
-    young = 2 * C * (1 + POISSON)
-    wall = Material(
-        law="hgo",
-        density=1000.0,
-        young_modulus=young,
-        poisson_ratio=POISSON,
-        fibres=Fibres(k1=K1, k2=K2, angle=ANGLE, dispersion=0.0),
-    )
     bcs = solid.SolidBoundaryConditions(
         dirichlet=(solid.Roller((Boundary.CLAMPED, Boundary.OUTLET), component=0),),
         pressure=lambda t: REFERENCE_PRESSURE * t,
     )
     return solid.SolidSolver(
         section(radial_cells),
-        {Region.WALL: wall},
+        {Region.WALL: hgo_wall()},
         bcs,
         NewmarkFamily.quasi_static(),
         solver=TIGHT,

@@ -50,8 +50,8 @@ def lame(r=A_IN) -> dict:
     }
 
 
-@pytest.fixture(scope="module")
-def tube() -> solid.SolidSolver:
+def wall_domain():
+    """The tube's wall as tetrahedra (``geometry.kind: tube``, ``dimension: 3``)."""
     case = config.from_dict(
         {
             "geometry": {
@@ -66,19 +66,27 @@ def tube() -> solid.SolidSolver:
             "structure": {"mode": "moving_wall"},
         }
     )
-    domain = solid.structure_mesh(fsi_mesh.build(case, MPI.COMM_WORLD), (Region.WALL,))
-    bcs = solid.SolidBoundaryConditions(
+    return solid.structure_mesh(fsi_mesh.build(case, MPI.COMM_WORLD), (Region.WALL,))
+
+
+def lame_conditions(pressure) -> solid.SolidBoundaryConditions:
+    """Roller ends, the planes y = 0 and z = 0 held, the inner pressure ``pressure(t)``."""
+    return solid.SolidBoundaryConditions(
         dirichlet=(
             solid.Roller((Boundary.CLAMPED,), component=0),
             solid.SymmetryPlane(1),
             solid.SymmetryPlane(2),
         ),
-        pressure=lambda t: PRESSURE,
+        pressure=pressure,
     )
+
+
+@pytest.fixture(scope="module")
+def tube() -> solid.SolidSolver:
     s = solid.SolidSolver(
-        domain,
+        wall_domain(),
         {Region.WALL: Material(density=1000.0, young_modulus=YOUNG, poisson_ratio=POISSON)},
-        bcs,
+        lame_conditions(lambda t: PRESSURE),
         NewmarkFamily.quasi_static(),
         solver=SolverSettings(rtol=1e-10, atol=1e-15, max_iterations=20),
     )
@@ -153,21 +161,6 @@ def test_a_3d_hgo_tube_inflates_as_the_radial_equilibrium_says():
     from fsi.config import Fibres
 
     c, nu, pressure = 3.0e4, 0.4999, 2.0e3
-    case = config.from_dict(
-        {
-            "geometry": {
-                "kind": "tube",
-                "dimension": 3,
-                "axisymmetric": False,
-                "length": LENGTH,
-                "radius": A_IN,
-                "wall_thickness": B_OUT - A_IN,
-            },
-            "mesh": {"size": CELL, "local_size": CELL},
-            "structure": {"mode": "moving_wall"},
-        }
-    )
-    domain = solid.structure_mesh(fsi_mesh.build(case, MPI.COMM_WORLD), (Region.WALL,))
     wall = Material(
         law="hgo",
         density=1000.0,
@@ -175,18 +168,10 @@ def test_a_3d_hgo_tube_inflates_as_the_radial_equilibrium_says():
         poisson_ratio=nu,
         fibres=Fibres(k1=1.0e5, k2=1.0, angle=29.0),
     )
-    bcs = solid.SolidBoundaryConditions(
-        dirichlet=(
-            solid.Roller((Boundary.CLAMPED,), component=0),
-            solid.SymmetryPlane(1),
-            solid.SymmetryPlane(2),
-        ),
-        pressure=lambda t: pressure * t,
-    )
     s = solid.SolidSolver(
-        domain,
+        wall_domain(),
         {Region.WALL: wall},
-        bcs,
+        lame_conditions(lambda t: pressure * t),
         NewmarkFamily.quasi_static(),
         solver=SolverSettings(rtol=1e-10, atol=1e-15, max_iterations=20),
     )
