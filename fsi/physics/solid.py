@@ -259,6 +259,7 @@ def _plane_dofs(mesh, sub, component: int) -> np.ndarray:
     rows = []
     for dim in range(mesh.topology.dim):
         mesh.topology.create_entities(dim)
+        mesh.topology.create_connectivity(dim, mesh.topology.dim)  # dolfinx 0.9 needs it
         entities = dolfinx.mesh.locate_entities(
             mesh, dim, lambda p: np.abs(p[component]) <= tolerance
         )
