@@ -204,12 +204,14 @@ class HolzapfelGasserOgden:
 
     Locking: the displacement is P2 (``structure.degree``) and every term is integrated at the
     structure's quadrature degree. The inflated tube (tests/test_hgo_tube.py) shows no locking
-    at the shipped degree: its error is the same on 4 and 8 cells across the wall and falls as
+    at the shipped degree: its error is the same on 8 and 16 cells across the wall and falls as
     1/K (the compressibility, not the mesh), so K must stand well above the stiffened fibres'
-    stress (ν = 0.49999 for a carotid at 25 kPa; docs/arterial-wall.md). A one-point
-    integration of the volumetric term (P2–P0) was tried and dropped: dolfinx 0.5's form
-    compiler assembles an integrand split over two quadrature degrees wrongly (10 % off the
-    sum of the parts, measured), and its Newton then converged only linearly.
+    stress (ν = 0.49999 for a carotid at 25 kPa; docs/arterial-wall.md). Pointwise, the
+    volumetric stress :meth:`volumetric_stress` of a P2 displacement is noise: the structure's
+    stresses take its P1 projection (fsi/physics/solid_stress.py, ``RecoveredPressure``). A
+    one-point integration of the volumetric term (P2–P0) was tried and dropped: dolfinx 0.5's
+    form compiler assembles an integrand split over two quadrature degrees wrongly (10 % off
+    the sum of the parts, measured), and its Newton then converged only linearly.
     """
 
     lmbda: Parameter

@@ -29,12 +29,9 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 
-from mpi4py import MPI
-
 import dolfinx
 import dolfinx.fem
 import dolfinx.fem.petsc
-import numpy as np
 import ufl
 
 from fsi.numerics.newton import Newton
@@ -79,15 +76,6 @@ class PrestressResult:
     mismatch: float
 
 
-def max_norm(f: dolfinx.fem.Function) -> float:
-    """max over the nodes of |f| (a vector field), over all ranks."""
-    V = f.function_space
-    n, bs = V.dofmap.index_map.size_local, V.dofmap.index_map_bs
-    values = f.x.array[: n * bs].reshape(-1, bs)
-    local = float(np.sqrt((values**2).sum(axis=1)).max(initial=0.0))
-    return float(V.mesh.comm.allreduce(local, op=MPI.MAX))
-
-
 def solve_reference(solver, load_steps: int = 20) -> PrestressResult:
     """U₀ such that the drawn geometry (η = 0) is in equilibrium with ``solver``'s loads at
     t = 1 (the follower pressure ``P(t) = P_ref t`` on the drawn interface): the structure's
@@ -122,9 +110,9 @@ def solve_reference(solver, load_steps: int = 20) -> PrestressResult:
             log.warning(
                 "prestress: the inverse solve failed at %g of the load: %s", t, result.reason
             )
-            return PrestressResult(False, j, max_norm(offset))
-        log.info("prestress: %g of the load, max |U0| = %.3g m", t, max_norm(offset))
-    return PrestressResult(True, load_steps, max_norm(offset))
+            return PrestressResult(False, j, solver.max_norm(offset))
+        log.info("prestress: %g of the load, max |U0| = %.3g m", t, solver.max_norm(offset))
+    return PrestressResult(True, load_steps, solver.max_norm(offset))
 
 
 def _reset(solver) -> None:

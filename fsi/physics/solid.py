@@ -561,7 +561,7 @@ class SolidSolver:
     # -- outputs --------------------------------------------------------------------------
 
     def interface_displacement(self) -> np.ndarray:
-        """η at the owned interface dofs, (n, 2), in the order of ``interface_points``."""
+        """η at the owned interface dofs, (n, dimension), in the order of ``interface_points``."""
         bs = self.V.dofmap.index_map_bs
         return self.eta.x.array.reshape(-1, bs)[self.interface_dofs].copy()
 
@@ -571,7 +571,12 @@ class SolidSolver:
 
     def max_displacement(self, regions: Sequence[Region] | None = None) -> float:
         """max |η| over the dofs (of the cells of ``regions``), over all ranks."""
-        values = self._owned_block_values(self.eta)
+        return self.max_norm(self.eta, regions)
+
+    def max_norm(self, f: dolfinx.fem.Function, regions: Sequence[Region] | None = None) -> float:
+        """max |f| over the dofs (of the cells of ``regions``) of a function of the
+        displacement space (η, or the prestress's U₀), over all ranks."""
+        values = self._owned_block_values(f)
         if regions is not None:
             dofs = dolfinx.fem.locate_dofs_topological(
                 self.V, self.domain.mesh.topology.dim, self.domain.cells(*regions)

@@ -223,14 +223,15 @@ class RecoveredPressure:
     L² projection onto continuous P1, weighted as the structure's integrals (2πR when
     axisymmetric): :attr:`field`, which the stresses take in place of the pointwise value.
 
-    Why: a P2 displacement with K ≫ the stresses makes K(J − 1) noise pointwise; in the inflated
-    HGO tube (tests/test_hgo_tube.py, 8 cells across the wall, K = 150 MPa) the pointwise radial
+    Why: a P2 displacement with K ≫ the stresses makes K(J − 1) noise pointwise; in the HGO tube
+    of tests/test_hgo_tube.py inflated to 10.7 kPa (8 cells across the wall, K = 150 MPa) the
+    pointwise radial
     stress is off by +16 to +27 kPa (±20 kPa within a ring) where the exact one is −10.7 to
     0 kPa; the projection onto P1, the pressure space that pairs with P2 displacements
     (Taylor–Hood), filters that noise out: the radial stress within 3.3 kPa, the hoop stress
     within 1.8 % at the inner surface (measured; docs/arterial-wall.md). The deviatoric stress
-    (hence von Mises) is accurate pointwise and is not changed. The mass matrix is factorised
-    once (the reference configuration does not move)."""
+    (hence von Mises) is accurate pointwise and is not changed. The mass matrix is assembled
+    once (the reference configuration does not move); each update is a CG solve with it."""
 
     def __init__(self, solver, volumetric_stress):
         mesh = solver.domain.mesh
