@@ -490,10 +490,6 @@ def _error(comm: MPI.Comm, message: str) -> None:
 
 
 def _check(args: argparse.Namespace, case: config.Case) -> int:
-    reason = config.mesh_only(case)
-    if reason is not None:
-        _error(MPI.COMM_WORLD, f"{args.config}: {reason}")
-        return EXIT_USAGE
     log.info(
         "%s: valid (case %r, geometry %s, mesh %s, structure %s)",
         args.config,

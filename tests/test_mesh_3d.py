@@ -252,21 +252,6 @@ def test_a_3d_benchmark_or_channel_is_refused(shared_tmp, capsys, kind):
     assert refused.value.key == "geometry.dimension"
 
 
-@pytest.mark.parametrize("command", ["run", "check", "sweep"])
-def test_run_check_and_sweep_refuse_a_3d_case(shared_tmp, capsys, command):
-    out = shared_tmp / "run3d"
-    more = {
-        "run": ["--out", str(out)],
-        "check": [],
-        "sweep": ["--out", str(out), "--vary", "geometry.plaque_angle=90,120"],
-    }[command]
-    assert cli.main([command, str(SAMPLE), *more]) == cli.EXIT_USAGE
-    if MPI.COMM_WORLD.rank == 0:
-        err = capsys.readouterr().err
-        assert "geometry.dimension: 3 is only supported by `fsi mesh` and the structure" in err
-    assert not out.exists()
-
-
 @pytest.mark.slow
 def test_each_level_halves_the_sizes():
     """``medium`` meshes the sample anew at half the sizes: ~8× the tetrahedra, the volumes

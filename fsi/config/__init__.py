@@ -74,7 +74,7 @@ from fsi.config.structure_section import (
     WallMaterial,
 )
 from fsi.config.time_section import MAX_CYCLES, AdaptiveStepping, Time, TimeSegment
-from fsi.config.validation import cautions, mesh_only, validate
+from fsi.config.validation import cautions, validate
 
 __all__ = [
     # the case and its files
@@ -85,7 +85,6 @@ __all__ = [
     "from_dict",
     "validate",
     "cautions",
-    "mesh_only",
     "to_dict",
     "to_yaml",
     "dump",

@@ -58,20 +58,6 @@ def validate(case: Case) -> None:
     _validate_inlet(case)  # last: it walks the schedule, now known to be of bounded length
 
 
-def mesh_only(case: Case) -> str | None:
-    """Why ``fsi run`` and ``fsi check`` refuse a case that ``fsi mesh`` builds (a 3D vessel
-    with blood in it: the fluid in 3D is the next step of docs/3d.md), or None. The structure
-    alone (``interface_load`` other than ``fluid``) runs in 3D."""
-    alone = case.structure.mode != "rigid" and case.structure.interface_load != "fluid"
-    if dimension(case.geometry) == 3 and not alone:
-        return (
-            "geometry.dimension: 3 is only supported by `fsi mesh` and the structure alone "
-            "(structure.interface_load: inlet_pressure or none) so far (the fluid solver is "
-            "plane and axisymmetric; docs/3d.md)"
-        )
-    return None
-
-
 MAX_LENGTH = 1.0e100
 """The largest length (m) a geometry may give: the geometry's arithmetic squares lengths, and
 ``geometry.height: 1.7e308`` overflowed into a traceback (exit 1) instead of a refusal."""

@@ -143,7 +143,9 @@ class FluidInterface(_Adapter):
     def _set_interface(self, x: np.ndarray) -> None:
         """η_Γ ← x (on the fluid's P2 interface nodes), and its vertex values as the mesh
         motion's boundary data g."""
-        self.to_fluid.set_dst(self.eta, self.to_fluid.transfer(np.asarray(x).reshape(-1, 2)))
+        self.to_fluid.set_dst(
+            self.eta, self.to_fluid.transfer(np.asarray(x).reshape(-1, self.to_fluid.bs))
+        )
         self.motion.set_boundary_function(self.eta)
 
     def _extend(self) -> None:
@@ -185,7 +187,7 @@ class FluidInterface(_Adapter):
         fluid.set_boundary_velocity(self._wall_velocity)
 
     def forces(self) -> np.ndarray:
-        """The fluid's nodal forces on the structure as a solid interface vector (n, 2), N/m."""
+        """The fluid's nodal forces on the structure as a solid interface vector (n, gdim), N/m."""
         values = self.solver.nodal_forces(self.interface)
         return self.to_solid.transfer(values[self.to_solid.src_dofs])
 
@@ -222,7 +224,8 @@ class SolidInterface(_Adapter):
         super().__init__(solver, warm_start)
 
     def _solve(self, interface_input: np.ndarray) -> SolveResult:
-        self.solver.set_interface_forces(interface_input.reshape(-1, 2))
+        dimension = self.solver.interface_points.shape[1]
+        self.solver.set_interface_forces(interface_input.reshape(-1, dimension))
         return self.solver.step(self.t, self.dt)
 
     def _output(self) -> np.ndarray:

@@ -111,29 +111,51 @@ class WallFlow:
 @dataclass(frozen=True)
 class WallShearStress:
     """Samples along a wall (gathered on every rank), ordered by ``s``, the position along the
-    flow ``direction``: points ``x`` (n, 2), ``tau`` the signed wall shear stress (Pa),
-    ``normal`` the wall's unit normal into the fluid (n, 2)."""
+    flow ``direction``: points ``x`` (n, gdim), ``tau`` the signed wall shear stress (Pa),
+    ``normal`` the wall's unit normal into the fluid (n, gdim); in 3D also ``vector``, the
+    wall shear stress vector (n, 3), the tangential part of the traction (None in 2D)."""
 
     s: np.ndarray
     x: np.ndarray
     tau: np.ndarray
     normal: np.ndarray
+    vector: np.ndarray | None = None
 
     def where(self, mask: np.ndarray) -> WallShearStress:
-        return WallShearStress(self.s[mask], self.x[mask], self.tau[mask], self.normal[mask])
+        vector = None if self.vector is None else self.vector[mask]
+        return WallShearStress(
+            self.s[mask], self.x[mask], self.tau[mask], self.normal[mask], vector
+        )
+
+    @property
+    def indexed(self) -> np.ndarray:
+        """What the hemodynamic indices average: the signed τ_w in 2D, the vector in 3D."""
+        return self.tau if self.vector is None else self.vector
 
 
-# Two Gauss points per facet of the reference triangle; facet k is opposite vertex k.
-_REFERENCE_VERTICES = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+# Gauss points on each facet of the reference cell, facet k opposite vertex k: two per edge of
+# the triangle, three per face of the tetrahedron (degree 2; barycentric 2/3, 1/6, 1/6).
 _GAUSS = np.array([0.5 - 0.5 / np.sqrt(3), 0.5 + 0.5 / np.sqrt(3)])
+_FACE_GAUSS = np.array([[2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]])
 
 
-def _facet_points() -> np.ndarray:
+def _facet_points(tdim: int = 2) -> np.ndarray:
+    """The sample points of every facet of the reference triangle (``tdim`` 2: (6, 2), facet
+    k's in rows 2k, 2k + 1) or tetrahedron (3: (12, 3), facet k's in rows 3k to 3k + 2)."""
+    vertices = np.vstack([np.zeros(tdim), np.eye(tdim)])
     points = []
-    for k in range(3):
-        a, b = (_REFERENCE_VERTICES[j] for j in range(3) if j != k)
-        points.extend(a + g * (b - a) for g in _GAUSS)
-    return np.array(points)  # (6, 2): facet k's points are rows 2k, 2k + 1
+    for k in range(tdim + 1):
+        corners = [vertices[j] for j in range(tdim + 1) if j != k]
+        if tdim == 2:
+            a, b = corners
+            points.extend(a + g * (b - a) for g in _GAUSS)
+        else:
+            points.extend(weights @ np.array(corners) for weights in _FACE_GAUSS)
+    return np.array(points)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 class WallSampler:
@@ -171,26 +193,36 @@ class WallSampler:
             [int(np.flatnonzero(c2f.links(c) == f)[0]) for c, f in zip(self.cells, self.facets)],
             dtype=np.int64,
         )
-        self._rows = np.stack([2 * local_facet, 2 * local_facet + 1], axis=1)  # (nf, 2)
+        self.gdim = gdim = mesh.geometry.dim
+        self.per_facet = per = gdim  # samples per facet: 2 on a segment, 3 on a triangle
+        self._rows = per * local_facet[:, None] + np.arange(per)  # (nf, per)
         x = ufl.SpatialCoordinate(mesh)
         sigma = flow.stress()
-        values_at = ufl.as_vector([sigma[0, 0], sigma[0, 1], sigma[1, 0], sigma[1, 1], x[0], x[1]])
-        self._expression = dolfinx.fem.Expression(values_at, _facet_points())
-        self._direction = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
-        self.walls = np.repeat(values[owned].astype(np.int64), 2)
+        values_at = ufl.as_vector(
+            [sigma[i, j] for i in range(gdim) for j in range(gdim)] + [x[i] for i in range(gdim)]
+        )
+        self._expression = dolfinx.fem.Expression(values_at, _facet_points(tdim))
+        direction = np.zeros(gdim) + np.pad(direction, (0, max(gdim - len(direction), 0)))[:gdim]
+        self._direction = direction / np.linalg.norm(direction)
+        self.walls = np.repeat(values[owned].astype(np.int64), per)
         self.reference = self.local().x.copy()
 
     @property
     def size(self) -> int:
-        """The number of samples on this rank (two per owned wall facet)."""
-        return 2 * len(self.facets)
+        """The number of samples on this rank (two per owned wall facet in 2D, three in 3D)."""
+        return self.per_facet * len(self.facets)
 
     def local(self) -> WallShearStress:
         """This rank's samples in the sampler's fixed order (not sorted by ``s``)."""
-        mesh, fdim, tdim = self.mesh, self.mesh.topology.dim - 1, self.mesh.topology.dim
-        nf = len(self.facets)
-        data = compat.eval_expression(self._expression, mesh, self.cells).reshape(nf, 6, 6)
-        data = np.take_along_axis(data, self._rows[:, :, None], axis=1)  # (nf, 2 points, 6)
+        mesh, tdim = self.mesh, self.mesh.topology.dim
+        nf, gdim, per = len(self.facets), self.gdim, self.per_facet
+        width = gdim * gdim + gdim
+        data = compat.eval_expression(self._expression, mesh, self.cells)
+        data = data.reshape(nf, (tdim + 1) * per, width)
+        data = np.take_along_axis(data, self._rows[:, :, None], axis=1)  # (nf, per, width)
+        if gdim == 3:
+            return self._local_3d(data)
+        fdim = tdim - 1
 
         # Normal into the fluid: from the facet towards the cell's centroid (affine triangles).
         nodes = compat.entities_to_geometry(mesh, fdim, self.facets).reshape(nf, 2)
@@ -211,16 +243,48 @@ class WallSampler:
         points = data[:, :, 4:].reshape(-1, 2)
         return WallShearStress(points @ e, points, tau, np.repeat(normal, 2, axis=0))
 
+    def _local_3d(self, data: np.ndarray) -> WallShearStress:
+        """The samples of a 3D wall from ``data`` (nf, 3 points, σ's 9 entries then x's 3): the
+        vector τ = σm − (σm·n) n, the traction's tangential part, and its signed component
+        τ_w = τ·t along the wall's tangent t nearest the flow ``direction`` e,
+        t = (e − (e·n) n)/|e − (e·n) n| (the 2D convention; t is undefined where the wall is
+        normal to e, where τ_w is taken as 0)."""
+        mesh, nf = self.mesh, len(self.facets)
+        nodes = compat.entities_to_geometry(mesh, 2, self.facets).reshape(nf, 3)
+        corners = mesh.geometry.x[nodes]
+        normal = _unit(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
+        cell_nodes = compat.entities_to_geometry(mesh, 3, self.cells).reshape(nf, 4)
+        centroid = mesh.geometry.x[cell_nodes].mean(axis=1)
+        inward = np.sign(np.einsum("ij,ij->i", centroid - corners.mean(axis=1), normal))
+        normal *= inward[:, None]
+        e = self._direction
+        along = e[None, :] - (normal @ e)[:, None] * normal
+        length = np.linalg.norm(along, axis=1, keepdims=True)
+        tangent = np.divide(along, length, out=np.zeros_like(along), where=length > 1e-12)
+
+        sigma_pts = data[:, :, :9].reshape(nf, 3, 3, 3)  # (nf, point, i, j)
+        traction = np.einsum("fpij,fj->fpi", sigma_pts, normal)
+        vector = traction - np.einsum("fpi,fi->fp", traction, normal)[:, :, None] * normal[:, None]
+        tau = np.einsum("fpi,fi->fp", vector, tangent).ravel()
+        points = data[:, :, 9:].reshape(-1, 3)
+        return WallShearStress(
+            points @ e, points, tau, np.repeat(normal, 3, axis=0), vector.reshape(-1, 3)
+        )
+
     def gather(self, samples: WallShearStress | None = None) -> WallShearStress:
         """Every rank's samples (``samples``, default :meth:`local`), on every rank, ordered by
         ``s``. Collective."""
         samples = self.local() if samples is None else samples
-        points = np.concatenate(self.comm.allgather(samples.x)).reshape(-1, 2)
+        gdim = self.gdim
+        points = np.concatenate(self.comm.allgather(samples.x)).reshape(-1, gdim)
         tau = np.concatenate(self.comm.allgather(samples.tau))
-        normal = np.concatenate(self.comm.allgather(samples.normal)).reshape(-1, 2)
+        normal = np.concatenate(self.comm.allgather(samples.normal)).reshape(-1, gdim)
         s = points @ self._direction
         order = np.argsort(s, kind="stable")
-        return WallShearStress(s[order], points[order], tau[order], normal[order])
+        vector = None
+        if samples.vector is not None:
+            vector = np.concatenate(self.comm.allgather(samples.vector)).reshape(-1, gdim)[order]
+        return WallShearStress(s[order], points[order], tau[order], normal[order], vector)
 
 
 def wall_shear_stress(flow: WallFlow, direction: Sequence[float] = (1.0, 0.0)) -> WallShearStress:
@@ -230,10 +294,21 @@ def wall_shear_stress(flow: WallFlow, direction: Sequence[float] = (1.0, 0.0)) -
     return WallSampler(flow, direction).gather()
 
 
+SECTORS = 36
+"""The angular sectors (10° each, about the x axis) in which a 3D lumen's reversed-flow zones
+are found (:func:`lumen_sides`)."""
+
+
 def lumen_sides(wss: WallShearStress) -> dict[str, WallShearStress]:
     """The samples of the lower (``bottom``: normal into the fluid pointing up) and upper
     (``top``) walls of a channel-like lumen, each a graph over x, so that reversed-flow zones
-    are found along one wall at a time."""
+    are found along one wall at a time. A 3D lumen about the x axis: its :data:`SECTORS`
+    angular sectors (``sector k`` from φ = 10 k degrees, φ measured from +y towards +z), each
+    a strip along x."""
+    if wss.x.shape[1] == 3:
+        phi = np.degrees(np.arctan2(wss.x[:, 2], wss.x[:, 1])) % 360.0
+        sector = np.minimum((phi // (360.0 / SECTORS)).astype(int), SECTORS - 1)
+        return {f"sector {k}": wss.where(sector == k) for k in range(SECTORS)}
     return {"bottom": wss.where(wss.normal[:, 1] > 0), "top": wss.where(wss.normal[:, 1] < 0)}
 
 
@@ -305,18 +380,30 @@ class WallIndices:
     after it. The state (:meth:`state`): the two integrals per sample, the last step's time and T.
     """
 
-    def __init__(self, size: int, start: float = 0.0, time: float = 0.0, interpolate: bool = True):
+    def __init__(
+        self,
+        size: int,
+        start: float = 0.0,
+        time: float = 0.0,
+        interpolate: bool = True,
+        components: int = 1,
+    ):
         self.interpolate = interpolate
         self.start = float(start)
         self.time = float(time)  # the end of the last step added
         self.duration = 0.0  # T, the part of the window covered so far
-        self.integrals = np.zeros((size, 2))  # per sample: ∫ τ dt, ∫ |τ| dt
+        self.components = components  # 1: a signed τ (2D); 3: the vector τ (3D)
+        self.integrals = np.zeros((size, components + 1))  # per sample: ∫ τ dt, ∫ |τ| dt
         self.value: np.ndarray | None = None  # τ at self.time, when known
 
     def _checked(self, tau: np.ndarray) -> np.ndarray:
         tau = np.asarray(tau, dtype=float)
-        if tau.shape != (len(self.integrals),):
-            raise ValueError(f"expected {len(self.integrals)} wall shear stresses, got {tau.shape}")
+        shape = (len(self.integrals),) + ((self.components,) if self.components > 1 else ())
+        if tau.shape != shape:
+            what = f"{shape[0]} wall shear stresses" + (
+                f" of {self.components} components" if self.components > 1 else ""
+            )
+            raise ValueError(f"expected {what}, got {tau.shape}")
         return tau
 
     def set_value(self, tau: np.ndarray) -> None:
@@ -341,8 +428,12 @@ class WallIndices:
             a = max(self.time, self.start)
             begin = self.value_at(a, t, tau)
             weight = t - a
-            self.integrals[:, 0] += weight * 0.5 * (begin + tau)
-            self.integrals[:, 1] += weight * mean_magnitude(begin, tau)
+            if self.components == 1:
+                self.integrals[:, 0] += weight * 0.5 * (begin + tau)
+                self.integrals[:, 1] += weight * mean_magnitude(begin, tau)
+            else:
+                self.integrals[:, :-1] += weight * 0.5 * (begin + tau)
+                self.integrals[:, -1] += weight * mean_vector_magnitude(begin, tau)
             self.duration += weight
         self.time = float(t)
         self.value = tau.copy() if self.interpolate else None
@@ -352,13 +443,19 @@ class WallIndices:
         """(1/T) ∫ |τ| dt (Pa); NaN before the window has any length."""
         if self.duration <= 0:
             return np.full(len(self.integrals), np.nan)
-        return self.integrals[:, 1] / self.duration
+        return self.integrals[:, -1] / self.duration
+
+    def _mean(self) -> np.ndarray:
+        """|∫ τ dt| per sample."""
+        if self.components == 1:
+            return np.abs(self.integrals[:, 0])
+        return np.linalg.norm(self.integrals[:, :-1], axis=1)
 
     @property
     def osi(self) -> np.ndarray:
         """½ (1 − |∫ τ dt| / ∫ |τ| dt), in [0, ½]; NaN where ∫ |τ| dt = 0 (no shear at all:
         undefined)."""
-        mean, magnitude = np.abs(self.integrals[:, 0]), self.integrals[:, 1]
+        mean, magnitude = self._mean(), self.integrals[:, -1]
         osi = np.full(len(mean), np.nan)
         sheared = magnitude > 0
         osi[sheared] = 0.5 * (1.0 - np.minimum(mean[sheared] / magnitude[sheared], 1.0))
@@ -368,7 +465,7 @@ class WallIndices:
     def rrt(self) -> np.ndarray:
         """T / |∫ τ dt| = 1 / ((1 − 2 OSI) TAWSS) (1/Pa); +inf where the mean shear is zero,
         NaN before the window has any length."""
-        mean = np.abs(self.integrals[:, 0])
+        mean = self._mean()
         if self.duration <= 0:
             return np.full(len(mean), np.nan)
         rrt = np.full(len(mean), np.inf)
@@ -382,7 +479,8 @@ class WallIndices:
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
         """Continue from :meth:`state`'s arrays (the integrals of the same samples)."""
-        integrals = np.asarray(state["integrals"], dtype=float).reshape(-1, 2)
+        width = self.components + 1
+        integrals = np.asarray(state["integrals"], dtype=float).reshape(-1, width)
         if len(integrals) != len(self.integrals):
             raise ValueError(
                 f"expected integrals of {len(self.integrals)} samples, got {len(integrals)}"
@@ -399,6 +497,16 @@ def mean_magnitude(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     total = np.abs(a) + np.abs(b)
     crossing = np.divide(a * a + b * b, 2 * total, out=np.zeros_like(total), where=total > 0)
     return np.where(same, 0.5 * total, crossing)
+
+
+def mean_vector_magnitude(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The mean of |τ| over a step along which the vector τ goes linearly from ``a`` to ``b``
+    (rows of (n, k)), by Simpson's rule, (|a| + 4 |(a + b)/2| + |b|) / 6: exact where τ keeps
+    its direction over the step, second order in the step where it turns smoothly; where it
+    reverses through 0 (the kink of |τ| that :func:`mean_magnitude` integrates exactly for a
+    scalar) it is off by up to |a|/6 (a = −b: |a|/3 for |a|/2)."""
+    norm = np.linalg.norm
+    return (norm(a, axis=1) + 4 * norm(0.5 * (a + b), axis=1) + norm(b, axis=1)) / 6
 
 
 # --------------------------------------------------------------------------------------------
@@ -547,8 +655,12 @@ class FluidFields:
         )
         on_walls = flow.measure(quadrature_degree)
         n = ufl.FacetNormal(mesh)
-        along = ufl.as_vector((n[1], -n[0]))
-        t = ufl.conditional(ufl.ge(along[0], 0.0), 1.0, -1.0) * along
+        if mesh.geometry.dim == 3:  # t = (e_x − n_x n)/|e_x − n_x n| (WallSampler._local_3d)
+            along = ufl.as_vector((1.0, 0.0, 0.0)) - n[0] * n
+            t = along / ufl.sqrt(ufl.dot(along, along) + 1e-24)
+        else:
+            along = ufl.as_vector((n[1], -n[0]))
+            t = ufl.conditional(ufl.ge(along[0], 0.0), 1.0, -1.0) * along
         tau = -ufl.dot(t, ufl.dot(flow.stress(), n))
         v = ufl.TestFunction(self.wall_shear_stress.function_space)
         self._weighted = dolfinx.fem.form(tau * v * on_walls)

@@ -87,17 +87,25 @@ class FluidOutputs:
         self.sampler = metrics.WallSampler(flow)
         # Steady runs: each step an independent solution, counted with its end value.
         self.interpolate = solver.scheme != "steady"
-        self.indices = metrics.WallIndices(
-            self.sampler.size, time=solver.time, interpolate=self.interpolate
-        )
+        self.components = 3 if self.sampler.gdim == 3 else 1  # the 3D indices average vectors
+        self.indices = self._new_indices(time=solver.time)
         self.period = config.heartbeat_period(case)
         self.past: list[metrics.WallIndices] = []  # heartbeats 1, 2, ... before self.indices'
         self.sides = np.zeros(self.sampler.size, dtype=np.int64)
-        if self.lumen:
+        if self.lumen and self.sampler.gdim == 2:
             normal_y = self.sampler.local().normal[:, 1]
             self.sides[normal_y > 0] = self.SIDES.index("lower")
             self.sides[normal_y < 0] = self.SIDES.index("upper")
         self.update()  # the fields of the initial state, the indices' value at the start
+
+    def _new_indices(self, start: float = 0.0, time: float = 0.0) -> metrics.WallIndices:
+        return metrics.WallIndices(
+            self.sampler.size,
+            start=start,
+            time=time,
+            interpolate=self.interpolate,
+            components=self.components,
+        )
 
     @property
     def fields(self) -> list:
@@ -114,9 +122,9 @@ class FluidOutputs:
         self.derived.update()
         samples = self.sampler.local()
         if s.time > self.indices.time:
-            self._add_step(s.time, samples.tau)
+            self._add_step(s.time, samples.indexed)
         elif s.time == self.indices.time:  # where the next step begins: the start, a restart
-            self.indices.set_value(samples.tau)
+            self.indices.set_value(samples.indexed)
         row = {}
         if self.lumen:
             row.update(metrics.wall_shear_summary(self.sampler.gather(samples)))
@@ -142,12 +150,7 @@ class FluidOutputs:
             self.past.append(self.indices)
             # From the boundary, or from where the accumulators stopped if that is later (a
             # checkpoint of an earlier version, whose indices ran over the whole run).
-            self.indices = metrics.WallIndices(
-                self.sampler.size,
-                start=boundary,
-                time=max(boundary, self.past[-1].time),
-                interpolate=self.interpolate,
-            )
+            self.indices = self._new_indices(start=boundary, time=max(boundary, self.past[-1].time))
             if at_boundary is not None:
                 self.indices.set_value(at_boundary)
         self.indices.add(t, tau)
@@ -182,12 +185,7 @@ class FluidOutputs:
         checkpoint written before they existed (fsi.run.checkpoint.ADDED) starts them at the
         restart's time, with a warning."""
         if "wall_indices.integrals" not in state:
-            self.indices = metrics.WallIndices(
-                self.sampler.size,
-                start=self.solver.time,
-                time=self.solver.time,
-                interpolate=self.interpolate,
-            )
+            self.indices = self._new_indices(start=self.solver.time, time=self.solver.time)
             if self.solver.comm.rank == 0:
                 log.warning(
                     "fsi: the checkpoint holds no wall shear stress indices (written by "
@@ -200,7 +198,7 @@ class FluidOutputs:
         )
         self.past = []
         for k, window in enumerate(state.get("wall_indices.past_windows", []), start=1):
-            finished = metrics.WallIndices(self.sampler.size)
+            finished = self._new_indices()
             finished.load_state({"integrals": state[f"wall_indices.past.{k}"], "window": window})
             self.past.append(finished)
 
@@ -236,11 +234,17 @@ class FluidOutputs:
 
     @classmethod
     def write_indices(
-        cls, out: Path, comm: MPI.Comm, state: dict[str, np.ndarray], period: float = 0.0
+        cls,
+        out: Path,
+        comm: MPI.Comm,
+        state: dict[str, np.ndarray],
+        period: float = 0.0,
+        dimension: int = 2,
     ) -> None:
         """``out/wall_indices.csv`` from a stepper state that holds ``wall_indices.*`` arrays
         (:meth:`state`; nothing for one without): a row per wall sample, :data:`INDEX_COLUMNS`,
-        sorted by wall, side and x; x, y in the reference configuration; an empty cell where a
+        sorted by wall, side and x; x, y (and z in ``dimension`` 3, where the indices average
+        the vector τ and ``side`` is empty) in the reference configuration; an empty cell where a
         value is undefined (no step yet; OSI where there was no shear), ``inf`` for the RRT
         of a zero mean shear. With an inlet ``period`` T > 0 a first column ``cycle`` and one
         such block of rows per heartbeat the state has reached (1, 2, ...; the last one averaged
@@ -256,30 +260,33 @@ class FluidOutputs:
         rows = []
         if comm.rank == 0:
             points, walls, sides = (np.concatenate([w[i] for _, w in gathered]) for i in range(3))
+            components = 3 if dimension == 3 else 1
             for k, window in enumerate(windows):
-                indices = metrics.WallIndices(len(walls))
-                integrals = np.concatenate([np.reshape(b[k], (-1, 2)) for b, _ in gathered])
+                indices = metrics.WallIndices(len(walls), components=components)
+                width = components + 1
+                integrals = np.concatenate([np.reshape(b[k], (-1, width)) for b, _ in gathered])
                 indices.load_state({"integrals": integrals, "window": window})
                 values = zip(
-                    walls, sides, points.reshape(-1, 2), indices.tawss, indices.osi, indices.rrt
+                    walls,
+                    sides,
+                    points.reshape(-1, dimension),
+                    indices.tawss,
+                    indices.osi,
+                    indices.rrt,
                 )
                 cycle = [k + 1] if period > 0 else []
                 rows.extend(
                     cycle
-                    + [
-                        Boundary(int(wall)).label,
-                        cls.SIDES[int(side)],
-                        float(x),
-                        float(y),
-                        float(tawss),
-                        float(osi),
-                        float(rrt),
-                    ]
-                    for wall, side, (x, y), tawss, osi, rrt in values
+                    + [Boundary(int(wall)).label, cls.SIDES[int(side)]]
+                    + [float(c) for c in point]
+                    + [float(tawss), float(osi), float(rrt)]
+                    for wall, side, point, tawss, osi, rrt in values
                 )
             key_length = 4 if period > 0 else 3
             rows.sort(key=lambda r: tuple(r[:key_length]))
         columns = (["cycle"] if period > 0 else []) + cls.INDEX_COLUMNS
+        if dimension == 3:
+            columns = columns[: columns.index("y") + 1] + ["z"] + columns[columns.index("y") + 1 :]
         io.write_table(comm, out / "wall_indices.csv", columns, rows)
 
     def write_checkpoint_files(
@@ -287,4 +294,4 @@ class FluidOutputs:
     ) -> None:
         """The files derived from a checkpointed stepper ``state``: ``out/wall_indices.csv``
         (:meth:`write_indices`, with this run's heartbeat period). Collective."""
-        self.write_indices(out, comm, state, self.period)
+        self.write_indices(out, comm, state, self.period, self.sampler.gdim)

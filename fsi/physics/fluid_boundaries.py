@@ -256,12 +256,22 @@ def inflow_ramp(t: float, ramp_time: float) -> float:
 
 
 def boundary_points(mesh, facet_tags, tags: Sequence[int], comm: MPI.Comm) -> np.ndarray:
-    """The (x, y) of the vertices of the facets ``tags``, gathered from every rank (the same
-    array on each; vertices shared by facets repeat). Collective."""
+    """The (x, y) (in 3D (x, y, z)) of the vertices of the facets ``tags``, gathered from every
+    rank (the same array on each; vertices shared by facets repeat). Collective."""
+    gdim = mesh.geometry.dim
     nodes = compat.entities_to_geometry(
         mesh, mesh.topology.dim - 1, facets_of(facet_tags, tags)
     ).ravel()
-    return np.concatenate(comm.allgather(mesh.geometry.x[nodes, :2]))
+    return np.concatenate(comm.allgather(mesh.geometry.x[nodes, :gdim])).reshape(-1, gdim)
+
+
+def inlet_frame(points: np.ndarray, mesh, comm: MPI.Comm) -> InletFrame | DiskInlet:
+    """The frame of a straight inlet (:class:`InletFrame`) or, on a 3D mesh, of a flat circular
+    one (:class:`DiskInlet`), whose vertices are ``points`` (:func:`boundary_points`).
+    Collective."""
+    if mesh.geometry.dim == 3:
+        return DiskInlet.of(points, mesh, comm)
+    return InletFrame.of(points, mesh, comm)
 
 
 @dataclass(frozen=True)
@@ -305,6 +315,48 @@ class InletFrame:
         """r (m), the distance from the axis y = 0 of the points ``x`` (an axisymmetric inlet
         from the axis to the wall: ``width`` is the pipe's radius), clipped to [0, H]."""
         return np.clip(x[:, 1], 0, self.width)
+
+
+@dataclass(frozen=True)
+class DiskInlet:
+    """A flat circular inlet of a 3D vessel (a pipe's cross-section): its ``centre``, inward
+    unit ``normal`` and radius ``width`` R (m). Its profiles are the pipe's, as across an
+    axisymmetric inlet, with r the distance from the centre (:meth:`radius`)."""
+
+    centre: np.ndarray
+    normal: np.ndarray
+    width: float
+
+    FLATNESS = 1e-9
+    """The largest distance of a vertex from the inlet's plane, relative to its radius."""
+
+    @classmethod
+    def of(cls, points: np.ndarray, mesh, comm: MPI.Comm) -> DiskInlet:
+        """The disk whose boundary vertices ``points`` (:func:`boundary_points`) lie on a
+        circle: its centre the middle of their bounding box (a circle's is its centre), its
+        plane the least-squares plane through them, inward: the side of the centroid of
+        ``mesh``. Raises ValueError for an inlet that is not flat. Collective."""
+        centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
+        radius = float(np.linalg.norm(points - centre, axis=1).max())
+        normal = np.linalg.svd(points - centre, full_matrices=False)[2][-1]
+        off_plane = float(np.abs((points - centre) @ normal).max())
+        if off_plane > cls.FLATNESS * radius:
+            raise ValueError(
+                f"a 3D inlet must be flat; its vertices lie up to {off_plane:g} m off their "
+                f"plane (radius {radius:g} m)"
+            )
+        x = mesh.geometry.x
+        inside = comm.allreduce(x.sum(axis=0)) / comm.allreduce(len(x))
+        if normal @ (inside - centre) < 0:
+            normal = -normal  # inward
+        return cls(centre, normal, radius)
+
+    def radius(self, x: np.ndarray) -> np.ndarray:
+        """r (m), the distance of the points ``x`` (one per row) from the inlet's centre in its
+        plane, clipped to [0, R]."""
+        offset = x[:, :3] - self.centre
+        in_plane = offset - np.outer(offset @ self.normal, self.normal)
+        return np.clip(np.linalg.norm(in_plane, axis=1), 0, self.width)
 
 
 def parabolic_profile(frame: InletFrame, mean_velocity: float, axisymmetric: bool = False):

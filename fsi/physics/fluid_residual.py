@@ -34,7 +34,6 @@ from fsi.physics.fluid_boundaries import (
     Axis,
     BoundaryCondition,
     Inflow,
-    InletFrame,
     NoSlip,
     Outflow,
     PrescribedTraction,
@@ -46,6 +45,7 @@ from fsi.physics.fluid_boundaries import (
     facets_of,
     flow_rate_values,
     inflow_ramp,
+    inlet_frame,
     inlet_pressure,
     parabolic_values,
 )
@@ -441,7 +441,11 @@ class FluidResidual:
             *self._open_boundary(s, pressure, bc.tags, self._inlet_form()),
             self._backflow(s, bc.inflow_stabilization, bc.inflow_form, bc.tags),
         ]
-        dirichlet = [(_NORMAL_FLOW, self._normal_flow(bc.tags))] if self.config.normal_flow else []
+        dirichlet = (
+            [(_NORMAL_FLOW, bc_) for bc_ in self._normal_flow(bc.tags)]
+            if self.config.normal_flow
+            else []
+        )
         return _Contribution(terms, dirichlet)
 
     def _outflow(self, bc: Outflow, s: _WeakForm) -> _Contribution:
@@ -614,24 +618,30 @@ class FluidResidual:
 
     # ---- Dirichlet conditions
 
-    def _normal_flow(self, tags: Sequence[int]):
-        """u·t = 0 on the open boundary ``tags``, which must be a straight segment parallel to a
-        coordinate axis (every inlet and outlet of the shipped geometries): the velocity
-        component along it is 0, the normal one stays free."""
+    def _normal_flow(self, tags: Sequence[int]) -> list:
+        """u·t = 0 on the open boundary ``tags``, which must be a straight segment (a flat
+        face in 3D) normal to a coordinate axis (every inlet and outlet of the shipped
+        geometries): the velocity components along it are 0, the normal one stays free."""
         points = boundary_points(self.mesh, self.facet_tags, tags, self.comm)
         extent = points.max(axis=0) - points.min(axis=0)
         normal_axis = int(np.argmin(extent))
         if extent[normal_axis] > 1e-9 * extent.max():
             raise ValueError(
                 f"fluid.normal_flow needs straight open boundaries parallel to an "
-                f"axis; boundary {list(tags)} spans {extent[0]:g} x {extent[1]:g} m"
+                f"axis; boundary {list(tags)} spans {' x '.join(f'{e:g}' for e in extent)} m"
             )
-        component = self.W.sub(0).sub(1 - normal_axis)
-        dofs = dolfinx.fem.locate_dofs_topological(
-            component, self.mesh.topology.dim - 1, facets_of(self.facet_tags, tags)
-        )
+        facets = facets_of(self.facet_tags, tags)
         zero = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(0.0))
-        return dolfinx.fem.dirichletbc(zero, dofs, component)
+        conditions = []
+        for axis in range(len(extent)):
+            if axis == normal_axis:
+                continue
+            component = self.W.sub(0).sub(axis)
+            dofs = dolfinx.fem.locate_dofs_topological(
+                component, self.mesh.topology.dim - 1, facets
+            )
+            conditions.append(dolfinx.fem.dirichletbc(zero, dofs, component))
+        return conditions
 
     def _velocity_inflow(self, bc: Inflow):
         """u = ramp(t) g(s, t) (−n) on a straight inlet of width H (s along it, n its outward
@@ -641,9 +651,10 @@ class FluidResidual:
         for t < T_r (none when steady)."""
         spec = bc.spec
         points = boundary_points(self.mesh, self.facet_tags, bc.tags, self.comm)
-        frame = InletFrame.of(points, self.mesh, self.comm)
+        frame = inlet_frame(points, self.mesh, self.comm)
         inflow = dolfinx.fem.Function(self.V, name="inflow")
-        axisymmetric = self.coordinates.axisymmetric
+        # A pipe's profiles across an axisymmetric inlet and a 3D (circular) one.
+        axisymmetric = self.coordinates.axisymmetric or self.mesh.geometry.dim == 3
         if isinstance(spec, config.ParabolicInflow):
             values = parabolic_values(self.V, spec, frame, axisymmetric)
         else:

@@ -21,6 +21,7 @@ import dolfinx.fem
 import dolfinx.fem.petsc
 import dolfinx.mesh
 import numpy as np
+import scipy.spatial
 import ufl
 
 from fsi import compat, config
@@ -34,7 +35,8 @@ PREFIX = "mesh_"
 
 
 class MeshQualityError(RuntimeError):
-    """A fluid cell shrank below the allowed fraction of its reference area, or inverted.
+    """A fluid cell shrank below the allowed fraction of its reference area (volume in 3D), or
+    inverted.
 
     Attributes: ``ratio`` the smallest J/J_ref, ``where`` that cell's centroid (deformed, m),
     ``threshold`` the configured ``min_jacobian_ratio``.
@@ -43,15 +45,21 @@ class MeshQualityError(RuntimeError):
     def __init__(self, ratio: float, where: np.ndarray, threshold: float):
         self.ratio, self.where, self.threshold = ratio, np.asarray(where), threshold
         what = "inverted" if ratio <= 0 else "collapsed"
+        measure = "volume" if len(self.where) == 3 else "area"
+        at = ", ".join(f"{c:.6g}" for c in self.where)
         super().__init__(
-            f"fluid mesh {what}: a cell's area ratio J/J_ref = {ratio:.4g} at "
-            f"({self.where[0]:.6g}, {self.where[1]:.6g}) m is below the threshold "
+            f"fluid mesh {what}: a cell's {measure} ratio J/J_ref = {ratio:.4g} at "
+            f"({at}) m is below the threshold "
             f"mesh_motion.min_jacobian_ratio = {threshold:g}"
         )
 
 
 def signed_areas(x: np.ndarray, nodes: np.ndarray) -> np.ndarray:
-    """Signed areas ½ (x₁ − x₀) × (x₂ − x₀) of triangles with vertex rows ``nodes`` (n, 3)."""
+    """Signed areas ½ (x₁ − x₀) × (x₂ − x₀) of triangles with vertex rows ``nodes`` (n, 3), or
+    signed volumes (x₁ − x₀)·((x₂ − x₀) × (x₃ − x₀))/6 of tetrahedra (``nodes`` (n, 4))."""
+    if nodes.shape[1] == 4:
+        a, b, c = (x[nodes[:, k]] - x[nodes[:, 0]] for k in (1, 2, 3))
+        return np.einsum("ij,ij->i", a, np.cross(b, c)) / 6.0
     a = x[nodes[:, 1], :2] - x[nodes[:, 0], :2]
     b = x[nodes[:, 2], :2] - x[nodes[:, 0], :2]
     return 0.5 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
@@ -151,8 +159,9 @@ class MeshMotion:
         self.settings = settings
         self.mesh = mesh = tagged.mesh
         self.comm: MPI.Comm = mesh.comm
-        if mesh.topology.cell_type != dolfinx.mesh.CellType.triangle:
-            raise ValueError("MeshMotion supports affine triangle meshes only")
+        simplices = (dolfinx.mesh.CellType.triangle, dolfinx.mesh.CellType.tetrahedron)
+        if mesh.topology.cell_type not in simplices:
+            raise ValueError("MeshMotion supports affine triangle and tetrahedron meshes only")
         self.gdim = mesh.geometry.dim
         self._choose_boundaries(tagged, moving, fixed)
 
@@ -246,17 +255,30 @@ class MeshMotion:
         if s.stiffening == "jacobian":
             size = np.abs(self.reference_areas)
         else:  # distance of each cell's centroid to the moving boundary
-            facets = self._moving_facets
-            facets = facets[facets < self.mesh.topology.index_map(1).size_local]
-            nodes = compat.entities_to_geometry(self.mesh, 1, facets).reshape(-1, 2)
-            local = self.reference[nodes][:, :, :2].reshape(-1, 2, 2)
-            segments = np.concatenate(self.comm.allgather(local)).reshape(-1, 2, 2)
-            centroids = self.reference[self._cells][:, :, :2].mean(axis=1)
-            size = distance_to_segments(centroids, segments[:, 0], segments[:, 1])
+            size = self._distance_to_moving_boundary()
         largest = self.comm.allreduce(float(size[owned].max(initial=0.0)), op=MPI.MAX)
         cell_dofs = compat.cell_dofs(Q)[:, 0]
         k.x.array[cell_dofs] = (largest / size) ** s.stiffening_exponent
         return k
+
+    def _distance_to_moving_boundary(self) -> np.ndarray:
+        """The distance of each local cell's reference centroid to the moving boundary: to its
+        segments in 2D; in 3D to the nearest of its triangles' vertices and centroids (within
+        the largest facet's size of the exact distance, which is what a stiffening needs).
+        Collective (an allgather)."""
+        fdim = self.mesh.topology.dim - 1
+        facets = self._moving_facets
+        facets = facets[facets < self.mesh.topology.index_map(fdim).size_local]
+        corners = fdim + 1
+        nodes = compat.entities_to_geometry(self.mesh, fdim, facets).reshape(-1, corners)
+        gdim = self.gdim
+        local = self.reference[nodes][:, :, :gdim].reshape(-1, corners, gdim)
+        facets_xyz = np.concatenate(self.comm.allgather(local)).reshape(-1, corners, gdim)
+        centroids = self.reference[self._cells][:, :, :gdim].mean(axis=1)
+        if gdim == 2:
+            return distance_to_segments(centroids, facets_xyz[:, 0], facets_xyz[:, 1])
+        points = np.vstack([facets_xyz.reshape(-1, 3), facets_xyz.mean(axis=1)])
+        return scipy.spatial.cKDTree(points).query(centroids)[0]
 
     def _forms(self):
         """The bilinear form of the harmonic or elastic extension."""
@@ -339,7 +361,8 @@ class MeshMotion:
     # ---- quality
 
     def jacobian_ratios(self) -> np.ndarray:
-        """J(X + d)/J(X) of the owned cells: signed area over reference area (≤ 0: inverted)."""
+        """J(X + d)/J(X) of the owned cells: signed area (volume) over its reference value (≤ 0:
+        inverted)."""
         owned = self._cells[: self._n_owned_cells]
         return signed_areas(self._deformed(), owned) / self.reference_areas[: self._n_owned_cells]
 
@@ -348,9 +371,9 @@ class MeshMotion:
         ratios = self.jacobian_ratios()
         if len(ratios):
             i = int(np.argmin(ratios))
-            local = (float(ratios[i]), self._deformed()[self._cells[i], :2].mean(axis=0))
+            local = (float(ratios[i]), self._deformed()[self._cells[i], : self.gdim].mean(axis=0))
         else:
-            local = (np.inf, np.full(2, np.nan))
+            local = (np.inf, np.full(self.gdim, np.nan))
         candidates = self.comm.allgather(local)
         ratio, where = min(candidates, key=lambda c: c[0])  # first rank wins a tie
         return ratio, where

@@ -41,9 +41,6 @@ class RunResult:
 
 def unsupported(case: config.Case) -> str | None:
     """Why this case cannot run (checked before any computation), or None."""
-    mesh_only = config.mesh_only(case)
-    if mesh_only is not None:
-        return mesh_only
     mode = case.structure.mode
     if mode != "rigid" and case.structure.interface_load == "fluid":
         if case.structure.degree != 2:

@@ -164,7 +164,7 @@ def fluid_state(solver: fluid.FluidSolver, state: dict[str, np.ndarray]) -> flui
 
 def structure_layouts(solver: solid.SolidSolver) -> dict[str, Layout]:
     """The rows of :class:`fsi.physics.solid.SolidState`'s arrays: η and its history, the tractions
-    on the displacement space's nodes; the nodal interface forces, arrays (n, 2), on the owned
+    on the displacement space's nodes; the nodal interface forces, arrays (n, gdim), on the owned
     interface nodes (one row each)."""
     nodes = space_layout("solid", solver.V)
     forces = interface_layout("interface_nodes", solver.interface_points, 1)

@@ -270,7 +270,8 @@ class CoupledStepper(_Checkpointed):
         self.outputs = FluidOutputs(case, self.problem.fluid)
         # Before the mesh ever moves: the checkpoint keys are reference coordinates.
         problem = self.problem
-        interface = state_arrays.interface_layout("interface", problem.solid.interface_points, 2)
+        points = problem.solid.interface_points
+        interface = state_arrays.interface_layout("interface", points, points.shape[1])
         self._layouts = {
             **fluid_layouts(problem.fluid),
             **structure_layouts(problem.solid),
