@@ -16,7 +16,7 @@ from mpi4py import MPI
 
 import numpy as np
 import pytest
-from test_restart import assert_same_rows, differences, fsi_run, rows
+from test_restart import assert_same_rows, differences, fsi_run
 
 from fsi import config
 from fsi.output import io, metrics
