@@ -268,8 +268,14 @@ def _add_plot_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--component",
-        choices=["x", "y", "magnitude"],
-        help="of a vector field (default: magnitude)",
+        choices=["x", "y", "z", "magnitude"],
+        help="of a vector field (default: magnitude; z in 3D)",
+    )
+    p.add_argument(
+        "--slice",
+        metavar="AXIS=VALUE",
+        help="of a 3D run's field: its section by the plane AXIS = VALUE (m), e.g. y=0 (the "
+        "meridian plane through the plaque's middle), x=0.01 (a cross-section)",
     )
     _add_out(p, "the picture: FILE.png, FILE.pdf or FILE.svg", metavar="FILE")
 
@@ -949,6 +955,7 @@ def _plot_options_refused(args: argparse.Namespace) -> str | None:
             ("--streamlines", args.streamlines or None),
             ("--region", args.region),
             ("--component", args.component),
+            ("--slice", args.slice),
         ):
             if value is not None:
                 return (
@@ -966,7 +973,7 @@ def _plot_options_refused(args: argparse.Namespace) -> str | None:
 def _draw_plot(args: argparse.Namespace) -> tuple[Path, str | None]:
     """The picture ``fsi plot`` asks for, written to ``--out``; and a note for stdout, or
     None. Raises PlotError, OSError."""
-    from fsi.output import plot, wall_plot
+    from fsi.output import plot, section, wall_plot
 
     plot.check_out(args.out)
     refused = _plot_options_refused(args)
@@ -975,7 +982,10 @@ def _draw_plot(args: argparse.Namespace) -> tuple[Path, str | None]:
     if args.field in wall_plot.INDICES:
         index = wall_plot.read(args.run, args.field, args.cycle)
         return wall_plot.draw(index, args.out), None
+    plane = None if args.slice is None else section.Plane.parse(args.slice)
     snapshot = plot.read_field(args.run, args.field, args.time, warp=args.warp, region=args.region)
+    if plane is not None:
+        snapshot = section.cut(snapshot, plane)
     flow = plot.streamline_field(snapshot) if args.streamlines else None
     written = plot.draw(snapshot, args.out, component=args.component, flow=flow)
     note = None

@@ -126,3 +126,92 @@ def test_vector_indices_of_a_rotating_and_a_reversing_shear():
     assert one.tawss[0] == pytest.approx(1 / 3, rel=1e-12)
     with pytest.raises(ValueError, match="of 3 components"):
         one.add(2.0, np.zeros(1))
+
+
+def _cube_snapshot(center: str = "node"):
+    """A unit cube of 2 × 2 × 2 × 6 tetrahedra carrying f = x + 2y + 3z (per node, or per cell
+    at its centroid) as a :class:`fsi.output.plot.Snapshot`."""
+    import dolfinx.mesh
+
+    from fsi import compat
+    from fsi.output.plot import Snapshot
+
+    cube = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 2, 2, 2)
+    x = cube.geometry.x
+    tets = compat.geometry_dofmap(cube).astype(np.int64)
+    f = x @ np.array([1.0, 2.0, 3.0])
+    values = f if center == "node" else f[tets].mean(axis=1)
+    return Snapshot(
+        Path("."),
+        "pressure",
+        "fluid",
+        Path("fields.xdmf"),
+        0.0,
+        0.0,
+        0.0,
+        center,
+        x,
+        None,
+        0.0,
+        tets,
+        np.arange(len(tets)),
+        values,
+        None,
+    )
+
+
+@pytest.mark.parametrize("text", ["z=0.3", "z=0.5", "x=0", "y=1"])
+def test_a_section_of_tetrahedra_is_the_plane_s_polygon_with_exact_linear_values(text):
+    """The cube's section by a plane between nodes (z = 0.3), through a layer of nodes and
+    faces (z = 0.5) and on its faces (x = 0, y = 1): triangles covering the unit square once
+    (area 1), every point on the plane, a linear node field exact at every new node, a cell
+    field its parent's value."""
+    from fsi.output import section
+
+    plane = section.Plane.parse(text)
+    cut = section.cut(_cube_snapshot(), plane)
+    xy = cut.reference
+    a, b, c = (xy[cut.triangles[:, k]] for k in range(3))
+    areas = 0.5 * np.abs((b - a)[:, 0] * (c - a)[:, 1] - (b - a)[:, 1] * (c - a)[:, 0])
+    assert areas.sum() == pytest.approx(1.0, rel=1e-12) and areas.min() > 0
+    assert len(np.unique(np.round(xy, 12), axis=0)) == len(xy)  # no point twice
+    point = np.zeros((len(xy), 3))
+    point[:, list(plane.in_plane)] = xy
+    point[:, plane.axis] = plane.value
+    assert np.allclose(cut.values, point @ np.array([1.0, 2.0, 3.0]), rtol=0, atol=1e-12)
+    cells = section.cut(_cube_snapshot("cell"), plane)
+    assert len(cells.values) == len(cells.triangles)
+
+
+def test_a_section_refuses_a_bad_plane():
+    from fsi.output import section
+    from fsi.output.plot import PlotError
+
+    for text in ("w=0", "x", "y=abc", "z=inf"):
+        with pytest.raises(PlotError, match="--slice"):
+            section.Plane.parse(text)
+    with pytest.raises(PlotError, match="misses"):
+        section.cut(_cube_snapshot(), section.Plane.parse("z=2"))
+
+
+def test_fsi_plot_draws_sections_and_the_unrolled_wall(pulse_runs, shared_tmp, capsys):
+    """``fsi plot`` of the 3D run: a field's section through the axis (with streamlines) and
+    across it, the TAWSS map on the unrolled wall; a 3D field without --slice exits 2 naming
+    the option."""
+    from fsi import cli
+
+    run = str(pulse_runs["straight"])
+    for field, more in (
+        ("velocity", ["--slice", "z=0", "--streamlines"]),
+        ("von_mises", ["--slice", "x=0.01"]),
+        ("tawss", []),
+    ):
+        out = shared_tmp / f"{field}.png"
+        time = [] if field == "tawss" else ["--time", "2e-4"]
+        assert cli.main(["plot", run, "--field", field, *time, *more, "--out", str(out)]) == 0
+        if MPI.COMM_WORLD.rank == 0:
+            assert out.stat().st_size > 10_000
+    bad = ["plot", run, "--field", "pressure", "--time", "2e-4", "--out", str(shared_tmp / "p.png")]
+    assert cli.main(bad) == 2
+    if MPI.COMM_WORLD.rank == 0:
+        assert "--slice" in capsys.readouterr().err

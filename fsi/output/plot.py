@@ -9,6 +9,7 @@ with the fluid's streamlines, and :func:`field_snapshot` does both.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import xml.etree.ElementTree as ET
@@ -27,7 +28,7 @@ DISPLACEMENTS = {"fluid": ("mesh_displacement",), "structure": ("displacement", 
 """The names a domain's displacement field may have (the first present is used)."""
 STRUCTURE_REGIONS = {r.label: int(r) for r in (Region.WALL, Region.CAP, Region.LIPID, Region.FLAG)}
 REGIONS = ("fluid", *STRUCTURE_REGIONS)
-COMPONENTS = ("x", "y", "magnitude")
+COMPONENTS = ("x", "y", "z", "magnitude")
 
 LABELS_BY_QUANTITY = {
     "velocity": {"velocity": "velocity"},
@@ -78,7 +79,9 @@ class Snapshot:
     ``reference`` holds every node of the file's mesh (m) and ``coordinates`` the drawn ones,
     ``reference + warp · displacement``; ``triangles`` the kept cells (node indices) and
     ``cells`` their indices in the file. ``values`` are per node (all nodes) when ``center`` is
-    ``"node"`` and per kept cell when it is ``"cell"``; a 2D vector field has 2 columns.
+    ``"node"`` and per kept cell when it is ``"cell"``; a 2D vector field has 2 columns. A 3D
+    field has tetrahedra in ``triangles`` (4 nodes), 3 coordinates and 3 vector columns until
+    :func:`fsi.output.section.cut` makes a plane section of it (``section``: its plane).
     ``time`` is the stored time nearest to ``requested_time``; ``step`` the spacing of the
     stored times there (0 if only one is stored)."""
 
@@ -97,6 +100,7 @@ class Snapshot:
     cells: np.ndarray
     values: np.ndarray
     region: str | None
+    section: object | None = None  # the plane of a 3D field's section (fsi.output.section)
 
     @property
     def coordinates(self) -> np.ndarray:
@@ -152,8 +156,11 @@ def _read_segment(xdmf: Path) -> _Segment:
     if mesh is None:
         raise PlotError(f"{xdmf}: no mesh grid (not a file written by fsi run)")
     topology = mesh.find("Topology")
-    if topology is None or topology.get("TopologyType", "").lower() != "triangle":
-        raise PlotError(f"{xdmf}: the mesh is not made of triangles")
+    if topology is None or topology.get("TopologyType", "").lower() not in (
+        "triangle",
+        "tetrahedron",
+    ):
+        raise PlotError(f"{xdmf}: the mesh is not made of triangles or tetrahedra")
     fields: dict[str, tuple[str, list]] = {}
     for collection in domain.findall("Grid[@GridType='Collection']"):
         name = collection.get("Name", "")
@@ -288,12 +295,13 @@ def read_field(
     time, segment, item = series[i]
     center = segment.fields[name][0]
 
-    reference = _read_array(segment.geometry, segment.xdmf)[:, :2]
     triangles = _read_array(segment.topology, segment.xdmf).astype(np.int64)
+    gdim = _dimension(triangles)
+    reference = _read_array(segment.geometry, segment.xdmf)[:, :gdim]
     values = _read_array(item, segment.xdmf)
-    values = values[:, :2] if values.ndim == 2 and values.shape[1] > 1 else values.reshape(-1)
+    values = values[:, :gdim] if values.ndim == 2 and values.shape[1] > 1 else values.reshape(-1)
 
-    displacement = _at_time(segment, DISPLACEMENTS[domain], time)
+    displacement = _at_time(segment, DISPLACEMENTS[domain], time, gdim)
     warp = _warp(segment, domain, warp, displacement)
     cells = np.arange(len(triangles))
     if region is not None and region != "fluid":
@@ -361,14 +369,21 @@ def _region_cells(segment: _Segment, region: str, time: float) -> np.ndarray:
     return cells
 
 
-def _at_time(segment: _Segment, names: tuple[str, ...], time: float) -> np.ndarray | None:
-    """The first of ``names`` stored in ``segment`` at ``time`` (2D vectors as 2 columns,
+def _dimension(cells: np.ndarray) -> int:
+    """The dimension of a simplex mesh from its cells' node count: 3 for tetrahedra, else 2."""
+    return 3 if cells.shape[1] == 4 else 2
+
+
+def _at_time(
+    segment: _Segment, names: tuple[str, ...], time: float, gdim: int = 2
+) -> np.ndarray | None:
+    """The first of ``names`` stored in ``segment`` at ``time`` (vectors as ``gdim`` columns,
     scalars flat), or None if none is."""
     for name in names:
         for t, item in segment.fields.get(name, ("", []))[1]:
             if abs(t - time) <= _time_tolerance(time):
                 values = _read_array(item, segment.xdmf)
-                return values[:, :2] if values.shape[1] > 1 else values.reshape(-1)
+                return values[:, :gdim] if values.shape[1] > 1 else values.reshape(-1)
     return None
 
 
@@ -390,8 +405,9 @@ def _component(snapshot: Snapshot, component: str | None) -> tuple[np.ndarray, s
         return values, ""
     if component in (None, "magnitude"):
         return np.linalg.norm(values, axis=1), "magnitude of the "
-    if component not in COMPONENTS:
-        raise PlotError(f"--component {component}: not one of {', '.join(COMPONENTS)}")
+    if component not in COMPONENTS[: values.shape[1]]:
+        choices = ", ".join((*COMPONENTS[: values.shape[1]], "magnitude"))
+        raise PlotError(f"--component {component}: not one of {choices}")
     return values[:, COMPONENTS.index(component)], f"{component} component of the "
 
 
@@ -404,7 +420,13 @@ def streamline_field(snapshot: Snapshot) -> Snapshot:
             f"--streamlines: draws the fluid velocity over a fluid field, but "
             f"{snapshot.name!r} is a {snapshot.domain} field ({snapshot.file.name})"
         )
-    return read_field(snapshot.run_dir, "velocity", snapshot.time, warp=snapshot.warp)
+    flow = read_field(snapshot.run_dir, "velocity", snapshot.time, warp=snapshot.warp)
+    if snapshot.section is None:
+        return flow
+    from fsi.output import section
+
+    cut = section.cut(flow, snapshot.section)
+    return dataclasses.replace(cut, values=cut.values[:, list(snapshot.section.in_plane)])
 
 
 def axis_labels(run_dir: Path) -> tuple[str, str]:
@@ -425,6 +447,8 @@ def title(snapshot: Snapshot) -> str:
     than half a step)."""
     label = FIELDS.get(snapshot.name, (snapshot.name, ""))[0]
     where = f" ({snapshot.region})" if snapshot.region else ""
+    if snapshot.section is not None:
+        where += f" on the plane {snapshot.section}"
     text = f"{snapshot.run_dir.resolve().name}: {label}{where} at t = {snapshot.time:.6g} s"
     if snapshot.time_differs:
         text += f" (nearest stored to {snapshot.requested_time:.6g} s)"
@@ -485,6 +509,11 @@ def draw(
 
     path = Path(path)
     check_out(path)
+    if snapshot.triangles.shape[1] != 3:
+        raise PlotError(
+            f"{snapshot.file}: a 3D field: draw a plane section of it (--slice y=0 through the "
+            "axis, --slice x=VALUE across it)"
+        )
     values, prefix = _component(snapshot, component)
     label, quantity = FIELDS.get(snapshot.name, (snapshot.name, ""))
     used = np.unique(snapshot.triangles)
@@ -510,7 +539,10 @@ def draw(
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_aspect("equal")
-    xlabel, ylabel = axis_labels(snapshot.run_dir)
+    if snapshot.section is not None:
+        xlabel, ylabel = snapshot.section.labels
+    else:
+        xlabel, ylabel = axis_labels(snapshot.run_dir)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title(snapshot), fontsize=9)

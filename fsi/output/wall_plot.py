@@ -32,6 +32,9 @@ class WallIndex:
     cycles: int
     lines: dict[str, tuple[list[float], list[float]]]
     reached: tuple[float, float] | None = None  # a partial heartbeat: (its last t, its end)
+    surface: tuple[list[float], list[float], list[float]] | None = None
+    """A 3D run's samples as (x (m), φ (degrees, from +y towards +z, in (−180, 180]), value):
+    the wall unrolled about the x axis (:func:`draw` maps it); None in 2D."""
 
 
 def read(run_dir: Path, name: str, cycle: int | None = None) -> WallIndex:
@@ -59,11 +62,14 @@ def read(run_dir: Path, name: str, cycle: int | None = None) -> WallIndex:
     if not rows or not needed <= set(rows[0]):
         raise PlotError(f"{path}: no rows with the columns {', '.join(sorted(needed))}")
     periodic = "cycle" in rows[0]
-    beats, points = [], []
+    beats, points, angles = [], [], []
+    three_d = "z" in rows[0]
     for r, line in zip(rows, line_numbers, strict=True):
         where = f"{path}: line {line}"
         beats.append(int(_cell(r, "cycle", where, integer=True)) if periodic else 0)
         points.append((_cell(r, "x", where), _cell(r, column, where, empty=math.nan)))
+        if three_d:
+            angles.append(math.degrees(math.atan2(_cell(r, "z", where), _cell(r, "y", where))))
     cycles = sorted(set(beats)) if periodic else []
     if periodic:
         cycle = cycles[-1] if cycle is None else cycle
@@ -72,16 +78,20 @@ def read(run_dir: Path, name: str, cycle: int | None = None) -> WallIndex:
     elif cycle is not None:
         raise PlotError(f"--cycle {cycle}: {path} is over the whole run (no periodic inlet)")
     samples: dict[str, list[tuple[float, float]]] = {}
-    for r, beat, point in zip(rows, beats, points, strict=True):
+    surface = ([], [], []) if three_d else None
+    for k, (r, beat, point) in enumerate(zip(rows, beats, points, strict=True)):
         if not periodic or beat == cycle:
             samples.setdefault(f"{r['wall']}, {r['side']}", []).append(point)
+            if surface is not None:
+                for column_values, value in zip(surface, (point[0], angles[k], point[1])):
+                    column_values.append(value)
     lines = {}
     for label, points in samples.items():
         points.sort()
         lines[label] = ([x for x, _ in points], [v for _, v in points])
     reached = _partial_beat(Path(run_dir), cycle) if periodic and cycle == cycles[-1] else None
     return WallIndex(
-        name, Path(run_dir).name, cycle if periodic else None, len(cycles), lines, reached
+        name, Path(run_dir).name, cycle if periodic else None, len(cycles), lines, reached, surface
     )
 
 
@@ -145,6 +155,8 @@ def draw(index: WallIndex, path: Path) -> Path:
 
     path = Path(path)
     check_out(path)
+    if index.surface is not None:
+        return _draw_map(index, path)
     _, label, unit = INDICES[index.name]
     fig, ax = plt.subplots(figsize=(8.0, 3.6), layout="constrained")
     for k, (wall, (x, y)) in enumerate(sorted(index.lines.items())):
@@ -157,5 +169,39 @@ def draw(index: WallIndex, path: Path) -> Path:
     ax.set_title(title(index), fontsize=9)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
+    save_figure(fig, path)
+    return path
+
+
+def _draw_map(index: WallIndex, path: Path) -> Path:
+    """The 3D wall unrolled about the x axis: the index over x (mm) and the angle φ (degrees,
+    from +y towards +z: an eccentric plaque's middle at 0), the samples' values shaded over
+    their Delaunay triangles in that plane (a colour scale in logarithms for RRT), samples
+    whose value is not finite left out. The seam at ±180° is the map's edge."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.colors
+    import matplotlib.pyplot as plt
+    import matplotlib.tri as mtri
+    import numpy as np
+
+    x, phi, values = (np.asarray(c, dtype=float) for c in index.surface)
+    finite = np.isfinite(values)
+    if finite.sum() < 3:
+        raise PlotError(f"{index.run}: fewer than 3 wall samples with a finite {index.name}")
+    x, phi, values = 1e3 * x[finite], phi[finite], values[finite]
+    _, label, unit = INDICES[index.name]
+    fig, ax = plt.subplots(figsize=(8.0, 4.2), layout="constrained")
+    norm = None
+    if index.name == "rrt" and values.min() > 0:
+        norm = matplotlib.colors.LogNorm(values.min(), values.max())
+    image = ax.tripcolor(mtri.Triangulation(x, phi), values, shading="gouraud", norm=norm)
+    ax.set_xlabel("x along the axis (mm)")
+    ax.set_ylabel("angle φ about the axis (degrees, from +y)")
+    ax.set_ylim(-180, 180)
+    ax.set_yticks(range(-180, 181, 60))
+    ax.set_title(title(index).replace("along the walls", "on the unrolled wall"), fontsize=9)
+    fig.colorbar(image, ax=ax, label=f"{label} ({unit})" if unit else label)
     save_figure(fig, path)
     return path
