@@ -149,9 +149,9 @@ def pipe_womersley(r: np.ndarray) -> tuple[np.ndarray, complex]:
 def test_womersley_flow_rate_within_two_percent():
     """Womersley flow in the rigid pipe (Womersley number R √(ωρ/μ) = 5.5, T = 0.2 s, 0.4 mm
     tetrahedra, a 2 mm slice of pipe): started from the exact periodic state and marched for
-    1.25 periods (BDF2, dt 5 ms), the outlet flow rate stays within 2 % of Q̂'s amplitude (the
-    issue's tolerance; measured 0.95 % with dt 4 ms, the polygon's share ~1 %) and reverses
-    with it. The outlet's backflow term is ``tangential_velocity``: the shipped ``tangential``
+    0.6 of a period (BDF2, dt 5 ms), through the flow's reversal, the outlet flow rate stays
+    within 2 % of Q̂'s amplitude (the issue's tolerance; measured over 1.25 periods 0.95 % with
+    dt 4 ms, the polygon's share ~1 %) and reverses with it. The outlet's backflow term is ``tangential_velocity``: the shipped ``tangential``
     adds ℓ² ∇_Γu : ∇_Γv, which on re-entering flow resists the profile itself, a boundary
     term whose share of the flow's balance goes as 1/L: on this 2 mm slice it holds the
     reversed flow 16 % below Q̂ (measured; the plane channel's test, 20 mm long, 0.4–1.6 %)."""
@@ -169,13 +169,15 @@ def test_womersley_flow_rate_within_two_percent():
 
     solver.set_initial_state(initial)
     q_hat = pipe_womersley(np.zeros(1))[1]
-    omega, dt, errors = 2 * np.pi / PERIOD, 5e-3, []
-    for k in range(1, int(round(1.25 * PERIOD / dt)) + 1):
+    omega, dt, errors, flows = 2 * np.pi / PERIOD, 5e-3, [], []
+    for k in range(1, int(round(0.6 * PERIOD / dt)) + 1):
         t = k * dt
         result = solver.step(t, dt)
         assert result.converged, (t, result.reason)
         solver.advance()
-        if t > 0.25 * PERIOD:
+        if t > 0.1 * PERIOD:
             q = metrics.flow_rate(solver.u, tags, [Boundary.OUTLET])
             errors.append(abs(q - (q_hat * np.exp(1j * omega * t)).real))
+            flows.append(q)
+    assert min(flows) < 0 < max(flows)  # the flow reversed
     assert max(errors) / abs(q_hat) < 2e-2, max(errors) / abs(q_hat)

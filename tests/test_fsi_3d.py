@@ -1,5 +1,5 @@
 """Coupled 3D runs through ``fsi run`` (issue #44; docs/3d.md): the elastic-tube pulse's case as
-tetrahedra (R 5 mm, h 1 mm, 20 mm long, 1.5 mm cells), blood and wall coupled (the fluid's
+tetrahedra (R 5 mm, h 1 mm, 15 mm long, 2 mm cells), blood and wall coupled (the fluid's
 forms, the mesh motion and the interface transfer in 3D): it runs, the wall moves outward under
 the pulse, a restart continues exactly, 1 and 2 ranks agree, and the outputs have their 3D
 meaning (wall_indices.csv with z, the vector τ's indices). The 3D wall shear stress samples and
@@ -26,9 +26,9 @@ PULSE = "configs/axisymmetric/tube_pulse.yaml"
 TUBE_3D = [
     "geometry.dimension=3",
     "geometry.axisymmetric=false",
-    "geometry.length=0.02",
-    "mesh.size=1.5e-3",
-    "mesh.local_size=1.5e-3",
+    "geometry.length=0.015",
+    "mesh.size=2.0e-3",
+    "mesh.local_size=2.0e-3",
     "output.checkpoint_every=1",
     "time.schedule=[{until: 2.0e-4, dt: 1.0e-4}]",
 ]
