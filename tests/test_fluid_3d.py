@@ -151,10 +151,11 @@ def test_womersley_flow_rate_within_two_percent():
     tetrahedra, a 2 mm slice of pipe): started from the exact periodic state and marched for
     0.6 of a period (BDF2, dt 5 ms), through the flow's reversal, the outlet flow rate stays
     within 2 % of Q̂'s amplitude (the issue's tolerance; measured over 1.25 periods 0.95 % with
-    dt 4 ms, the polygon's share ~1 %) and reverses with it. The outlet's backflow term is ``tangential_velocity``: the shipped ``tangential``
-    adds ℓ² ∇_Γu : ∇_Γv, which on re-entering flow resists the profile itself, a boundary
-    term whose share of the flow's balance goes as 1/L: on this 2 mm slice it holds the
-    reversed flow 16 % below Q̂ (measured; the plane channel's test, 20 mm long, 0.4–1.6 %)."""
+    dt 4 ms, the polygon's share ~1 %) and reverses with it. The outlet's backflow term is
+    ``tangential_velocity``: the shipped ``tangential`` adds ℓ² ∇_Γu : ∇_Γv, which on
+    re-entering flow resists the profile itself, a boundary term whose share of the flow's
+    balance goes as 1/L: on this 2 mm slice it holds the reversed flow 16 % below Q̂
+    (measured; the plane channel's test, 20 mm long, 0.4–1.6 %)."""
     formula = f"{AMPLITUDE} * cos(2 * pi * t / {PERIOD})"
     section = {
         "inlet": {"kind": "pressure", "formula": formula},
