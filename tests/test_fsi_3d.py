@@ -215,3 +215,49 @@ def test_fsi_plot_draws_sections_and_the_unrolled_wall(pulse_runs, shared_tmp, c
     assert cli.main(bad) == 2
     if MPI.COMM_WORLD.rank == 0:
         assert "--slice" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("method", ["harmonic", "elastic"])
+def test_the_gamg_preset_moves_the_3d_mesh_as_lu_does(method):
+    """The mesh motion of the 3D tube's lumen under a radial interface displacement: CG + GAMG
+    (the rigid-body near-nullspace on its matrix) gives MUMPS's extension to 1e-8."""
+    from fsi.geometry.tags import Boundary, Region
+    from fsi.physics import mesh
+    from fsi.physics.mesh_motion import MeshMotion
+
+    case = config.load(PULSE, [*TUBE_3D, "time.end=2.0e-4"])
+    fluid = mesh.restrict(mesh.build(case, MPI.COMM_WORLD), Region.FLUID)
+    gamg = {"ksp_type": "cg", "pc_type": "gamg", "ksp_rtol": 1e-12, "ksp_max_it": 1000}
+    found = []
+    for options in ({}, gamg):
+        settings = config.MeshMotion(
+            method=method, **({"petsc_options": options} if options else {})
+        )
+        motion = MeshMotion(fluid, settings, moving=(Boundary.INTERFACE,))
+        motion.set_boundary_function(
+            lambda x: np.vstack([0 * x[0], 1e-4 * x[1] * x[0], 1e-4 * x[2] * x[0]])
+        )
+        found.append(motion.solve().x.array.copy())
+    scale = MPI.COMM_WORLD.allreduce(float(np.abs(found[0]).max(initial=0.0)), op=MPI.MAX)
+    worst = MPI.COMM_WORLD.allreduce(
+        float(np.abs(found[1] - found[0]).max(initial=0.0)), op=MPI.MAX
+    )
+    assert scale > 0 and worst < 1e-8 * scale, worst / scale
+
+
+@pytest.mark.parametrize(
+    ("options", "expected"),
+    [
+        ({"pc_type": "gamgx"}, "not a preconditioner type of the installed PETSc"),
+        ({"ksp_type": "cgx"}, "not a Krylov solver type"),
+        ({"pc_factor_mat_solver_type": "pastix"}, "needs PETSc built with pastix"),
+        ({"pc_factor_mat_solver_type": "nosuch"}, "not a factorisation package"),
+    ],
+)
+def test_a_solver_preset_the_installed_petsc_lacks_is_refused(options, expected):
+    """A preset naming a type or package the installed PETSc does not have is refused before
+    any solve, naming the key (Debian's PETSc has MUMPS, SuperLU_dist, hypre, ML and GAMG, not
+    PaStiX)."""
+    with pytest.raises(config.ConfigError, match=expected) as refused:
+        config.from_dict({"structure": {"solver": {"petsc_options": options}}})
+    assert refused.value.key.startswith("structure.solver.petsc_options.")

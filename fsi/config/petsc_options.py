@@ -164,3 +164,64 @@ def check_petsc_options(options: dict[str, str | int | float], key: str) -> None
                     "a type name (letters, digits, _), a number or comma-separated numbers",
                     value,
                 )
+    check_installed(options, key)
+
+
+_EXTERNAL_PACKAGES = {
+    "hypre": "hypre",
+    "ml": "ml",
+    "spai": "spai",
+    "parms": "parms",
+    "h2opus": "h2opus",
+    "hpddm": "hpddm",
+    "mumps": "mumps",
+    "superlu_dist": "superlu_dist",
+    "superlu": "superlu",
+    "umfpack": "suitesparse",
+    "cholmod": "suitesparse",
+    "klu": "suitesparse",
+    "pastix": "pastix",
+    "strumpack": "strumpack",
+    "mkl_pardiso": "mkl_pardiso",
+    "mkl_cpardiso": "mkl_cpardiso",
+    "cusparse": "cuda",
+}
+"""A preconditioner or factorisation type → the external package PETSc needs for it."""
+
+
+def check_installed(options: dict[str, str | int | float], key: str) -> None:
+    """Raise :class:`ConfigError` naming ``key.<name>`` for a Krylov, preconditioner or
+    factorisation type the installed PETSc does not have: not one of its types, or one whose
+    external package it was built without (e.g. ``pc_type: hypre`` or
+    ``pc_factor_mat_solver_type: mumps`` on a PETSc without hypre or MUMPS), so that a
+    preset copied from docs/3d.md fails before any solve, not in its first one. Imports
+    petsc4py (only when such an option is set)."""
+    kinds = ("ksp_type", "pc_type", "pc_factor_mat_solver_type")
+    typed = {n: v for n, v in options.items() if n.lower().endswith(kinds)}
+    if not typed:
+        return
+    from petsc4py import PETSc
+
+    for name, value in typed.items():
+        lower, text = name.lower(), str(value).lower()
+        sub = f"{key}.{name}"
+        if lower.endswith(("pc_type", "ksp_type")):
+            family = PETSc.PC.Type if lower.endswith("pc_type") else PETSc.KSP.Type
+            known = {v for k, v in vars(family).items() if not k.startswith("_")}
+            if text not in known:
+                what = "preconditioner" if family is PETSc.PC.Type else "Krylov solver"
+                raise ConfigError(
+                    "", sub, reason=f"{value!r} is not a {what} type of the installed PETSc"
+                )
+        package = _EXTERNAL_PACKAGES.get(text)
+        if lower.endswith("pc_factor_mat_solver_type") and text != "petsc" and package is None:
+            raise ConfigError(
+                "", sub, reason=f"{value!r} is not a factorisation package PETSc knows"
+            )
+        if package is not None and not PETSc.Sys.hasExternalPackage(package):
+            raise ConfigError(
+                "",
+                sub,
+                reason=f"{value!r} needs PETSc built with {package}, which the installed "
+                f"PETSc {'.'.join(map(str, PETSc.Sys.getVersion()))} is not",
+            )

@@ -234,7 +234,8 @@ class Newton:
     :meth:`solve` that never leaves a failed or non-finite iterate behind.
 
     ``criterion``: dolfinx's convergence test, ``residual`` (|F(x_k)|) or ``incremental``
-    (|δx_k|), against ``atol`` or ``rtol`` times the first one.
+    (|δx_k|), against ``atol`` or ``rtol`` times the first one. ``near_nullspace``: set on the
+    Jacobian (:mod:`fsi.numerics.nullspace`; used by GAMG, ignored by LU).
     """
 
     def __init__(
@@ -244,9 +245,11 @@ class Newton:
         settings,
         prefix: str,
         criterion: Literal["residual", "incremental"] = "residual",
+        near_nullspace: PETSc.NullSpace | None = None,
     ):
         self.comm, self.prefix, self.problem = comm, prefix, problem
         self.settings, self.criterion = settings, criterion
+        self.near_nullspace = near_nullspace
         self.options = dict(settings.petsc_options)
         self.solver = self._new_solver()
         # Residual and Jacobian through one object: Jacobian (and LU) reuse, counters.
@@ -264,6 +267,8 @@ class Newton:
         ksp = solver.krylov_solver
         ksp.setOptionsPrefix(self.prefix)
         solver.A.setOptionsPrefix(self.prefix)
+        if self.near_nullspace is not None:  # for an algebraic multigrid (GAMG) preset
+            solver.A.setNearNullSpace(self.near_nullspace)
         with petsc_options(self.prefix, self.options):
             ksp.setFromOptions()
         return solver

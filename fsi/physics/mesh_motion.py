@@ -28,6 +28,7 @@ from fsi import compat, config
 from fsi.geometry.stenosis import distance_to_segments
 from fsi.geometry.tags import Boundary
 from fsi.numerics.newton import petsc_options
+from fsi.numerics.nullspace import rigid_body_modes
 from fsi.numerics.timestepping import BdfHistory
 from fsi.physics.mesh import TaggedMesh, owned_facet_dofs
 
@@ -308,6 +309,7 @@ class MeshMotion:
         A = A0.duplicate(copy=True)
         A.zeroRowsColumns(self._bc_rows, diag=1.0)
         A.setOptionsPrefix(PREFIX)
+        A.setNearNullSpace(rigid_body_modes(self.V))  # for a GAMG preset; LU ignores it
         return A0, A
 
     def _make_solver(self) -> PETSc.KSP:

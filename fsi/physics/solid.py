@@ -42,6 +42,7 @@ from fsi.config import (
 )
 from fsi.geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 from fsi.numerics.newton import DirichletLifting, Newton, SolveFailed, SolveResult, petsc_options
+from fsi.numerics.nullspace import rigid_body_modes
 from fsi.numerics.timestepping import NewmarkFamily, structural_scheme
 from fsi.physics import mesh as fsi_mesh
 from fsi.physics.coordinates import Coordinates
@@ -419,7 +420,14 @@ class SolidSolver:
         )
         # dolfinx's "residual" test divides by the first increment's norm (mixed units), so test
         # the increments: converged when |δη_k| < atol (m) or |δη_k| < rtol |δη_1|.
-        self.newton = Newton(self.comm, self.problem, solver, self.prefix, "incremental")
+        self.newton = Newton(
+            self.comm,
+            self.problem,
+            solver,
+            self.prefix,
+            "incremental",
+            near_nullspace=rigid_body_modes(self.V),
+        )
         self.stress = StressFields(self, self.law, self.prestress)
         self._det_F = None
 
