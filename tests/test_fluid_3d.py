@@ -18,8 +18,8 @@ import scipy.special
 from fsi import config
 from fsi.geometry.tags import Boundary, Region
 from fsi.output import metrics
-from fsi.physics import fluid, mesh
-from fsi.physics.fluid_boundaries import DiskInlet
+from fsi.physics import fluid, inflow_profiles, mesh
+from fsi.physics.fluid_boundaries import DiskInlet, inlet_flow_rate
 from fsi.run import steppers
 
 L, R = 0.004, 0.002  # the pipe: length, radius (m)
@@ -182,3 +182,37 @@ def test_womersley_flow_rate_within_two_percent():
             flows.append(q)
     assert min(flows) < 0 < max(flows)  # the flow reversed
     assert max(errors) / abs(q_hat) < 2e-2, max(errors) / abs(q_hat)
+
+
+def test_a_womersley_flow_rate_inlet_on_a_disk():
+    """A pulsatile flow-rate inlet with the pipe's Womersley profiles (Q = Q₀(1 + ½ sin ωt),
+    T = 0.2 s, α 5.5) on the 3D pipe's disk, r from its centre: at every step the inlet's flux
+    is Q(t) within 2 % (the polygon's deficit and the boundary layer's 0.36 mm on 0.4 mm
+    cells; measured below 1 %) and its velocity on the axis is the profile's centre value to
+    1e-10."""
+    Q0, period = 2e-7, PERIOD
+    inlet = {
+        "kind": "flow_rate",
+        "formula": f"{Q0!r} * (1 + 0.5 * sin(2 * pi * t / {period!r}))",
+        "period": period,
+        "profile": "womersley",
+    }
+    case, submesh, tags = pipe(4e-4, {"inlet": inlet}, length=SLICE)
+    solver = solver_of(case, submesh, tags, "bdf2")
+    dt = 0.01
+    for k in range(1, 6):
+        t = k * dt
+        assert solver.step(t, dt).converged
+        solver.advance()
+        q = metrics.flow_rate(solver.u, tags, [Boundary.INLET], -1.0)
+        exact = Q0 * (1 + 0.5 * np.sin(2 * np.pi * t / period))
+        assert abs(q / exact - 1) < 2e-2, (t, q, exact)
+    x = solver.V.tabulate_dof_coordinates()
+    on_axis = (np.abs(x[:, 0]) < 1e-12) & (np.hypot(x[:, 1], x[:, 2]) < 1e-12)
+    centre = solver.comm.allreduce(
+        [float(v) for v in solver.u.x.array.reshape(-1, 3)[on_axis, 0]], op=MPI.SUM
+    )
+    profile = inflow_profiles.FlowRateProfile(
+        inlet_flow_rate(case.fluid.inlet), np.zeros(1), R, period, RHO, MU, axisymmetric=True
+    )
+    assert centre and np.allclose(centre, profile(t)[0], rtol=1e-10, atol=0), (centre, profile(t))
