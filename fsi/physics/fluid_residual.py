@@ -610,10 +610,11 @@ class FluidResidual:
         return tau / self._rho * ufl.dot(ufl.grad(s.q), residual)
 
     def _lsic(self, s: _WeakForm, tau):
-        """LSIC: ρ τ_C (∇·u)(∇·v) with τ_C = h²/(8 τ) (the VMS τ_C = (τ tr G)^(−1) with the
-        metric G = 4/h² I of a 2D cell; Bazilevs et al. 2007): least squares on the continuity
-        residual, which P1–P1 does not satisfy pointwise; zero on a solenoidal velocity."""
-        tau_c = s.h**2 / (8 * tau)
+        """LSIC: ρ τ_C (∇·u)(∇·v) with τ_C = h²/(4 d τ) (the VMS τ_C = (τ tr G)^(−1) with the
+        metric G = 4/h² I of a cell of dimension d: h²/(8 τ) in 2D, h²/(12 τ) in 3D; Bazilevs
+        et al. 2007): least squares on the continuity residual, which P1–P1 does not satisfy
+        pointwise; zero on a solenoidal velocity."""
+        tau_c = s.h**2 / (4 * self.mesh.topology.dim * tau)
         return self._rho * tau_c * s.coords.div(s.u) * s.coords.div(s.v)
 
     # ---- Dirichlet conditions
