@@ -23,7 +23,8 @@ from fsi import config
 from fsi.config import reader
 from fsi.geometry.tags import Boundary
 from fsi.numerics.timestepping import steps
-from fsi.output import comparison, metrics
+from fsi.output import metrics
+from fsi.performance import comparison
 from fsi.physics import fluid, fluid_boundaries, rheology
 from fsi.run import steppers
 
@@ -323,7 +324,7 @@ def test_supg_moves_the_stenosis_only_in_its_outlet_pressure_and_by_a_bounded_am
     settings against the Galerkin form (``fluid.supg=false``, which runs this case), the
     config's schedule through the pulse and into the decay (to 0.2 s: 5 ms steps from 0.1 s).
 
-    Every headline column of metrics.csv (fsi/output/comparison.py) but one stays within 0.5 %
+    Every headline column of metrics.csv (fsi/performance/comparison.py) but one stays within 0.5 %
     of its peak (measured ≤ 0.26 %, the largest WSS). The mean outlet pressure moves more
     (measured 57 % of its peak; asserted below 75 %), but at this stress-free outlet its exact
     value is zero (the mean of μ ∂u_n/∂n, and the mean of ∂u_n/∂n is dQ/dx = 0 between rigid

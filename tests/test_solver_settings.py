@@ -35,7 +35,7 @@ import pytest
 
 from fsi import cli
 from fsi.output import io
-from fsi.output.comparison import largest_differences
+from fsi.performance.comparison import largest_differences
 
 CASE = "configs/stenosis_moving_carreau.yaml"
 PULSE = ["time.end=0.01"]  # 40 steps of 0.25 ms: the 5 ms pulse and the 5 ms after it
@@ -90,7 +90,7 @@ def runs():
 
 
 def worst_difference(rows: list[dict], reference: list[dict]) -> dict[str, float]:
-    """Per headline column (fsi/output/comparison.py), max |rows − reference| over the steps /
+    """Per headline column (fsi/performance/comparison.py), max |rows − reference| over the steps /
     max |reference|."""
     assert len(rows) == len(reference) == 40
     return largest_differences(rows, reference)

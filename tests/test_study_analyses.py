@@ -1,16 +1,14 @@
-"""scripts/study_analyses.py: the estimates and criteria docs/study.md explains the differences
+"""fsi/study/analyses.py: the estimates and criteria docs/study.md explains the differences
 from the study with (the rigid-column velocity, the degree matching a velocity, when a wall
 is quasi-static, the compliance verdict), on synthetic summaries whose answers are known."""
 
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from scripts import study_analyses, study_runs  # noqa: E402
+from fsi.study import analyses as study_analyses
+from fsi.study import runs as study_runs
 
 
 def summary(at: dict[float, dict], degree: float = 0.5, **maxima) -> dict:
@@ -124,7 +122,7 @@ def test_the_plane_stress_reading_is_plane_strain_with_the_equivalent_moduli():
     """For St. Venant–Kirchhoff, Σ₃₃ = 0 eliminates E₃₃ exactly: the in-plane law is plane
     strain's with λ* = 2λμ/(λ + 2μ) and the same μ, i.e. ν' = ν/(1 + ν), E' = E(1 + 2ν)/(1 + ν)²."""
     from fsi.physics.materials import lame
-    from scripts import reproduce_study
+    from fsi.study import reproduce as reproduce_study
 
     sets = dict(s.split("=") for s in reproduce_study._plane_stress())
     for region, e in (("wall", 4.0e6), ("cap", 1.6e6), ("lipid", 1.6e6)):

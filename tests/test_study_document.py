@@ -1,19 +1,17 @@
-"""scripts/study_document.py: the verdicts on the study's findings and the tables of docs/study.md
+"""fsi/study/document.py: the verdicts on the study's findings and the tables of docs/study.md
 are comparisons of the runs' numbers (synthetic runs here, whose answers are known), made from
 the runs' summaries; docs/study_tables.csv holds the study's 120 printed values."""
 
 import csv
 import json
-import sys
 from pathlib import Path
 
 import pytest
 
 from fsi import config
 from fsi.output import report
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from scripts import study_document, study_runs  # noqa: E402
+from fsi.study import document as study_document
+from fsi.study import runs as study_runs
 
 TIMES = [0.0025, 0.005, 0.01, 0.02, 0.05, 0.1, 0.8]
 

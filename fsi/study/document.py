@@ -1,14 +1,14 @@
 """docs/study.md, docs/study_tables.csv, docs/study_runs/*.json and docs/figures/study_*.png from
 the run folders of scripts/reproduce_study.py.
 
-Each run folder is first reduced to a summary (scripts/study_runs.py): its provenance (git
+Each run folder is first reduced to a summary (fsi/study/runs.py): its provenance (git
 commit, ranks, command), the three peaks at the study's report times and the maxima the
 findings rest on. The summaries are committed (docs/study_runs/), and the tables, the CSV and
 the findings are made from them alone, so a reader can check every number without rerunning;
 only the figures read the run folders (metrics.csv and the field files). A run that is missing
 or unfinished shows as '–' (and is listed), so the document can be written at any stage; a
 summary already in docs/study_runs/ stands in for a run folder that is not there. The sections
-that explain the differences from the study are scripts/study_analyses.py's.
+that explain the differences from the study are fsi/study/analyses.py's.
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from fsi.output import plot, report
-from scripts import study_analyses
-from scripts.study_runs import (
+from fsi.study import analyses as study_analyses
+from fsi.study.runs import (
     CONFIGS,
     LABELS,
     PAPER_QUANTITY,
@@ -690,7 +690,7 @@ def same_answers(summaries: dict, extra: dict) -> str:
 
 def _shown(folder: Path) -> str:
     """``folder`` relative to the checkout when it is inside it."""
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     try:  # absolute(), not resolve(): results/study may be a link to runs kept elsewhere
         return str(folder.absolute().relative_to(root))
     except ValueError:

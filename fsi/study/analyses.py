@@ -14,7 +14,7 @@ import math
 from pathlib import Path
 
 from fsi.output import report
-from scripts.study_runs import (
+from fsi.study.runs import (
     DENSITY,
     PAPER_QUANTITY,
     PULSE_AMPLITUDE,
@@ -43,7 +43,7 @@ def static_compliance(docs_runs: Path) -> dict[str, float]:
     path = docs_runs / "static_compliance.json"
     if path.is_file():
         return json.loads(path.read_text())
-    config_file = Path(__file__).resolve().parents[1] / "configs" / "stenosis_moving_newtonian.yaml"
+    config_file = Path(__file__).resolve().parents[2] / "configs" / "stenosis_moving_newtonian.yaml"
     out = {
         mode: uniform_pressure_compliance(config_file, mode)
         for mode in ("fixed_wall", "moving_wall")

@@ -3,7 +3,7 @@
 maxima the findings compare, where the largest stresses and pressure sit), written to and read
 back from docs/study_runs/, and the study's printed Tables 1–3
 (docs/reference/boujena2014_tables.csv) set beside them (:func:`comparison_rows`,
-docs/study_tables.csv). scripts/study_document.py and scripts/study_analyses.py build on it.
+docs/study_tables.csv). fsi/study/document.py and fsi/study/analyses.py build on it.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import numpy as np
 
 from fsi.output import report
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PAPER = ROOT / "docs" / "reference" / "boujena2014_tables.csv"
 """The study's Tables 1–3 as printed (120 values, SI units)."""
 
