@@ -52,7 +52,7 @@ def test_models_come_from_the_outlet_section():
     assert outlets.from_config(outlet({})) is None  # traction-free, the default
     assert outlets.from_config(
         outlet({"kind": "resistance", "resistance": 2e5, "reference_pressure": 10})
-    ) == config.ResistanceOutlet(2e5, 10)
+    ) == outlets.Resistance(2e5, 10)
     wk = outlets.from_config(
         outlet(
             {
@@ -65,7 +65,7 @@ def test_models_come_from_the_outlet_section():
             }
         )
     )
-    assert wk == config.WindkesselOutlet(1e5, 1e6, 1e-8, 50, 5)
+    assert wk == outlets.Windkessel(1e5, 1e6, 1e-8, 50, 5)
 
 
 def test_steady_windkessel_is_its_two_resistances_in_series():

@@ -26,13 +26,15 @@ def law_of(model: str, **parameters) -> rheology.ViscosityLaw:
 
 
 def test_defaults_build_the_right_laws():
-    assert law_of("newtonian") == config.Newtonian(0.0035)
+    assert law_of("newtonian") == rheology.NewtonianViscosity(0.0035)
     # The study's Carreau parameters (docs/model.md §2).
-    assert law_of("carreau") == config.Carreau(0.0456, 0.0032, 10.03, 0.344)
-    assert law_of("carreau_yasuda") == config.CarreauYasuda(0.056, 0.00345, 1.902, 0.22, 1.25)
-    assert law_of("cross") == config.Cross(0.0364, 0.0035, 0.38, 1.45)
-    assert law_of("power_law") == config.PowerLaw(0.017, 0.708, 0.0169)
-    assert law_of("casson") == config.Casson(0.0035, 0.005, 100.0)
+    assert law_of("carreau") == rheology.CarreauViscosity(0.0456, 0.0032, 10.03, 0.344)
+    assert law_of("carreau_yasuda") == rheology.CarreauYasudaViscosity(
+        0.056, 0.00345, 1.902, 0.22, 1.25
+    )
+    assert law_of("cross") == rheology.CrossViscosity(0.0364, 0.0035, 0.38, 1.45)
+    assert law_of("power_law") == rheology.PowerLawViscosity(0.017, 0.708, 0.0169)
+    assert law_of("casson") == rheology.CassonViscosity(0.0035, 0.005, 100.0)
 
 
 def test_carreau_values_and_limits():
