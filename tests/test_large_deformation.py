@@ -70,7 +70,7 @@ def bent_flag(tip: float, samples: int = 4001):
     return f
 
 
-def bent_min_ratio(tagged, motion: config.MeshMotion, tip: float):
+def bent_min_ratio(tagged, motion: config.MeshMotionSettings, tip: float):
     mm = MeshMotion(tagged, motion, moving=(Boundary.INTERFACE,))
     support_physics.set_boundary_displacement(mm, bent_flag(tip)(mm.interface_points.T).T)
     mm.solve()

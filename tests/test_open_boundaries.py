@@ -25,7 +25,7 @@ from fsi.geometry.tags import Boundary
 from fsi.numerics.timestepping import steps
 from fsi.output import metrics
 from fsi.performance import comparison
-from fsi.physics import fluid, fluid_boundaries, rheology
+from fsi.physics import fluid, fluid_boundaries, fluid_case, rheology
 from fsi.run import steppers
 
 STUDY = {
@@ -79,7 +79,7 @@ def march_channel(
         5e-4, {**fluid_section, "inlet": {"kind": "pressure", "formula": repr(gradient * L)}}
     )
     solver = fluid.FluidSolver(
-        submesh, tags, case.fluid, steppers.fluid_boundaries(case), scheme="bdf2"
+        submesh, tags, case.fluid, fluid_case.fluid_conditions(case), scheme="bdf2"
     )
     exact = exact_flow_rate(solver.law, gradient)
     t, late, iterations = 0.0, [], []
@@ -161,7 +161,7 @@ def steady_carreau_channel(gradient: float, jacobian_reuse: str):
 
     def solve(settings, start=None):
         solver = fluid.FluidSolver(
-            submesh, tags, settings, steppers.fluid_boundaries(case), scheme="steady"
+            submesh, tags, settings, fluid_case.fluid_conditions(case), scheme="steady"
         )
         if start is not None:
             solver.U.x.array[:] = start
@@ -306,7 +306,7 @@ def test_supg_leaves_poiseuille_flow_exact():
         ),
     )
     solver = fluid.FluidSolver(
-        submesh, tags, case.fluid, steppers.fluid_boundaries(case), scheme="steady"
+        submesh, tags, case.fluid, fluid_case.fluid_conditions(case), scheme="steady"
     )
     result = solver.step(1.0, 1.0)
     assert result.converged and result.iterations >= 1, result
@@ -397,7 +397,7 @@ def womersley_errors(size: float, outlet: dict) -> tuple[float, float]:
     section["outlet"] = {**section["outlet"], **outlet}
     case, submesh, tags = channel(size, section)
     solver = fluid.FluidSolver(
-        submesh, tags, case.fluid, steppers.fluid_boundaries(case), scheme="bdf2"
+        submesh, tags, case.fluid, fluid_case.fluid_conditions(case), scheme="bdf2"
     )
     rho, mu = case.fluid.density, case.fluid.rheology.viscosity
     u_hat, q_hat = plane_womersley(np.linspace(0, H, 701), rho, mu)

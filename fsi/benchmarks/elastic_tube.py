@@ -323,7 +323,7 @@ def amplitudes(times: np.ndarray, values: np.ndarray, omega: float) -> np.ndarra
     return 2 / len(times) * np.exp(-1j * omega * times) @ values
 
 
-def wave_number(z: np.ndarray, a: np.ndarray, window: tuple[float, float]) -> complex:
+def fitted_wave_number(z: np.ndarray, a: np.ndarray, window: tuple[float, float]) -> complex:
     """k of a(z) ∝ e^{−ikz}: the slopes of the unwrapped phase (−Re k) and of log |a| (Im k)
     fitted over ``window`` (m)."""
     inside = (z >= window[0]) & (z <= window[1])
@@ -339,7 +339,7 @@ def womersley_values(samples, case: config.Case, exact: WomersleyTube) -> dict[s
     length = case.geometry.length
     window = (0.2 * length, 0.8 * length)
     a_p, a_w = amplitudes(times, pressure, omega), amplitudes(times, radial, omega)
-    k_p, k_w = wave_number(z_p, a_p, window), wave_number(z_w, a_w, window)
+    k_p, k_w = fitted_wave_number(z_p, a_p, window), fitted_wave_number(z_w, a_w, window)
     middle = length / 2
     at_p = np.interp(middle, z_p, a_p.real) + 1j * np.interp(middle, z_p, a_p.imag)
     at_w = np.interp(middle, z_w, a_w.real) + 1j * np.interp(middle, z_w, a_w.imag)

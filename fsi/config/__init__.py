@@ -17,7 +17,7 @@ from fsi.config.case_file import (
     to_dict,
     to_yaml,
 )
-from fsi.config.coupling_section import Coupling, MeshMotion
+from fsi.config.coupling_section import Coupling, MeshMotionSettings
 from fsi.config.domain import (
     MESH_LEVELS,
     ChannelGeometry,
@@ -145,7 +145,7 @@ __all__ = [
     "TimeSegment",
     "MAX_CYCLES",
     "Coupling",
-    "MeshMotion",
+    "MeshMotionSettings",
     "Output",
     "FluidSolverSettings",
     "SolverSettings",

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from fsi.config.coupling_section import Coupling, MeshMotion
+from fsi.config.coupling_section import Coupling, MeshMotionSettings
 from fsi.config.domain import Geometry, MeshSettings, StenosisGeometry
 from fsi.config.fluid_section import Fluid
 from fsi.config.output_section import Output
@@ -26,7 +26,7 @@ class Case:
     structure: Structure = field(default_factory=Structure)
     time: Time = field(default_factory=Time)
     coupling: Coupling = field(default_factory=Coupling)
-    mesh_motion: MeshMotion = field(default_factory=MeshMotion)
+    mesh_motion: MeshMotionSettings = field(default_factory=MeshMotionSettings)
     output: Output = field(default_factory=Output)
 
 

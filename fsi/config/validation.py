@@ -33,7 +33,7 @@ from fsi.config.run_size import BYTES_PER_CELL, count_steps, estimated_cells, fo
 from fsi.config.time_section import Time
 from fsi.geometry import stenosis as stenosis_geometry
 from fsi.geometry import vessel_3d
-from fsi.numerics.timestepping import steps
+from fsi.numerics.timestepping import SAME_TIME, steps
 
 
 def validate(case: Case) -> None:
@@ -491,7 +491,7 @@ def _validate_cycles(time: Time, period: float) -> None:
         )
     if n >= 1 and period > 0:
         whole = n * period
-        if not any(abs(time.end - t) <= 1e-9 * t for t in (period, whole)):
+        if not any(abs(time.end - t) <= SAME_TIME * t for t in (period, whole)):
             raise ConfigError(
                 "",
                 "time.end",
@@ -674,8 +674,8 @@ def _cut_last_step(case: Case) -> list[str]:
     for i, segment in enumerate(run.schedule):
         if run.end <= segment.until * (1 + 1e-12):
             span = run.end - start
-            last = span - math.floor(span / segment.dt * (1 + 1e-9)) * segment.dt
-            if last <= 1e-9 * segment.dt or last >= CUT_STEP * segment.dt:
+            last = span - math.floor(span / segment.dt * (1 + SAME_TIME)) * segment.dt
+            if last <= SAME_TIME * segment.dt or last >= CUT_STEP * segment.dt:
                 return []
             where = f"time.schedule[{i}]" if run is case.time else "the heartbeat's schedule"
             return [

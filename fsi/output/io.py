@@ -232,7 +232,7 @@ def _metrics_row(path: Path, number: int, line: str, header: list[str]) -> Metri
     for name in REQUIRED_COLUMNS:
         if name not in text:
             raise MetricsError(f"{path}: line {number}: {name}: empty")
-    values = {name: _number(path, number, name, cell) for name, cell in text.items()}
+    values = {name: _finite_cell(path, number, name, cell) for name, cell in text.items()}
     step = values["step"]
     if step < 1 or step != int(step):
         raise MetricsError(
@@ -248,7 +248,7 @@ def _cells(path: Path, number: int, line: str) -> list[str]:
         raise MetricsError(f"{path}: line {number}: {e}") from None
 
 
-def _number(path: Path, number: int, name: str, cell: str) -> float:
+def _finite_cell(path: Path, number: int, name: str, cell: str) -> float:
     try:
         value = float(cell)
     except ValueError:

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from fsi.geometry.tags import Region
+from fsi.numerics.timestepping import SAME_TIME
 from fsi.output.units import UNITS, choose_unit
 
 FILES = {"fluid": "fields", "structure": "solid"}
@@ -112,7 +113,7 @@ class Snapshot:
 
 def _time_tolerance(t: float) -> float:
     """Times are written to the XDMF file as text: equal within this."""
-    return 1e-9 * max(1.0, abs(t))
+    return SAME_TIME * max(1.0, abs(t))
 
 
 def _segments(run_dir: Path, stem: str) -> list[Path]:

@@ -20,6 +20,7 @@ from pathlib import Path
 
 from fsi import config
 from fsi.config import boundary_data
+from fsi.numerics.timestepping import SAME_TIME
 from fsi.output import io
 from fsi.output.units import choose_unit
 
@@ -188,7 +189,7 @@ def value_at(rows: Sequence[dict[str, float]], t: float, column: str) -> float |
     return None
 
 
-def _number(value: float | None, scale: float = 1.0) -> str:
+def _four_digits(value: float | None, scale: float = 1.0) -> str:
     """``scale`` × ``value`` to 4 significant digits; '–' for no (or a non-finite) value."""
     return "–" if value is None or not math.isfinite(value) else f"{scale * value:.4g}"
 
@@ -210,7 +211,8 @@ def peaks_table(
     head = f"| {title} ({unit.name}) | " + " | ".join(f"t = {t:g} s" for t in times) + " |"
     lines = [head, "|---" * (len(times) + 1) + "|"]
     for run, row in zip(runs, values):
-        lines.append(f"| {run.label} | " + " | ".join(_number(v, unit.scale) for v in row) + " |")
+        cells = " | ".join(_four_digits(v, unit.scale) for v in row)
+        lines.append(f"| {run.label} | {cells} |")
     return "\n".join(lines)
 
 
@@ -220,7 +222,7 @@ def unreached_report_times(runs: Sequence[Run]) -> str | None:
     report times are the study's: tables of dashes without a word); None otherwise."""
     ends = [run.rows[-1]["t"] for run in runs if run.rows]
     end = max(ends, default=0.0)
-    late = [t for t in runs[0].case.output.report_times if t > end * (1 + 1e-9)]
+    late = [t for t in runs[0].case.output.report_times if t > end * (1 + SAME_TIME)]
     if not late:
         return None
     shown = ", ".join(f"{t:g}" for t in late)
@@ -245,9 +247,9 @@ def effort_table(runs: Sequence[Run]) -> str:
         mean_its = f"{sum(its) / len(its):.2f}, {max(its):g}" if its else "–"
         finished = "" if run.summary else " (stopped)"
         lines.append(
-            f"| {run.label} | {len(run.rows)}{finished} | {_number(end)} | {mean_its} "
-            f"| {_number(sum(wall) / len(wall) if wall else None)} "
-            f"| {_number(sum(wall) if wall else None)} |"
+            f"| {run.label} | {len(run.rows)}{finished} | {_four_digits(end)} | {mean_its} "
+            f"| {_four_digits(sum(wall) / len(wall) if wall else None)} "
+            f"| {_four_digits(sum(wall) if wall else None)} |"
         )
     return "\n".join(lines)
 
@@ -290,7 +292,7 @@ def cycles_table(run: Run) -> str | None:
     for beat in cycles:
         cells = []
         for column, _, unit in shown:
-            cell = _number(beat["values"].get(column), unit.scale)
+            cell = _four_digits(beat["values"].get(column), unit.scale)
             change = beat["change"].get(column)
             cells.append(cell if change is None else f"{cell} ({100 * change:+.2g} %)")
         largest = beat.get("max_change")
@@ -632,9 +634,8 @@ FIGURES = [
 def heartbeat_ends(periods: Sequence[float], end: float) -> list[float]:
     """The times k T (k = 1, 2, ...) up to ``end`` at which a heartbeat of one of ``periods``
     ends (each once, sorted)."""
-    return sorted(
-        {k * T for T in periods if T > 0 for k in range(1, math.floor(end / T * (1 + 1e-9)) + 1)}
-    )
+    counts = {T: math.floor(end / T * (1 + SAME_TIME)) for T in periods if T > 0}
+    return sorted({k * T for T, n in counts.items() for k in range(1, n + 1)})
 
 
 def draw(
@@ -812,7 +813,7 @@ def snapshots(
             if not (run.path / file).is_file():
                 continue
             for t in report_times:
-                if t > last * (1 + 1e-9):
+                if t > last * (1 + SAME_TIME):
                     continue
                 path = out / f"{run.stem}_{field}_t{t:g}.{picture}"
                 try:

@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from fsi.numerics.timestepping import SAME_TIME
 from fsi.output.plot import PlotError, check_out, save_figure
 
 INDICES = {
@@ -98,7 +99,7 @@ def _partial_beat(run_dir: Path, cycle: int) -> tuple[float, float] | None:
     except (OSError, config.ConfigError, io.MetricsError):
         return None
     end = cycle * period
-    if not rows or not period > 0 or rows[-1]["t"] >= end * (1 - 1e-9):
+    if not rows or not period > 0 or rows[-1]["t"] >= end * (1 - SAME_TIME):
         return None
     return rows[-1]["t"], end
 

@@ -46,7 +46,7 @@ from fsi import compat, config
 from fsi.geometry.tags import Region
 from fsi.numerics.timestepping import steps
 from fsi.performance.profiling import wall
-from fsi.physics import fluid, mesh
+from fsi.physics import fluid, fluid_case, mesh
 from fsi.run import steppers
 
 CASE = Path(__file__).resolve().parents[2] / "configs" / "stenosis_fixed_newtonian.yaml"
@@ -73,13 +73,7 @@ def load_case(
 
 def fluid_solver(part: mesh.TaggedMesh, case: config.Case) -> fluid.FluidSolver:
     """The case's fluid solver on the fluid mesh ``part`` (its boundaries and time scheme)."""
-    return fluid.FluidSolver(
-        part.mesh,
-        part.facet_tags,
-        case.fluid,
-        steppers.fluid_boundaries(case),
-        scheme=case.time.scheme,
-    )
+    return fluid_case.fluid_solver(case, part)
 
 
 def event_totals(comm: MPI.Comm) -> dict[str, tuple[int, float]]:

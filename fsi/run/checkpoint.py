@@ -28,6 +28,7 @@ import yaml
 import fsi
 from fsi import config
 from fsi.config import reader
+from fsi.numerics.timestepping import SAME_TIME
 from fsi.output import io
 from fsi.run.state_arrays import Layout, layout_of
 
@@ -134,7 +135,7 @@ def check_continuation(meta: dict, case: config.Case, source: Path, run_dir: Pat
     period would start the heartbeats of metrics.csv's ``cycle``, summary.json's ``cycles``
     and wall_indices.csv's blocks at other times than those already written."""
     t, end = float(meta["t"]), config.run_time(case).end
-    if t > end * (1 + 1e-9):
+    if t > end * (1 + SAME_TIME):
         raise CheckpointError(
             f"{source}: t: the checkpoint is at t = {t:.6g} s, after the configuration's end "
             f"({end:.6g} s): a restart continues a run, it cannot shorten it (raise time.end)"
@@ -193,7 +194,7 @@ def check_metrics(meta: dict, source: Path, metrics: Path) -> None:
     """Raise :class:`CheckpointError` (naming ``metrics``, the run folder's metrics.csv) unless
     it holds the rows a restart from the checkpoint's step k keeps, each once and in order:
     steps 1 to k, complete (:func:`fsi.output.io.read_rows`), and step k's ``t`` and ``dt`` (where
-    both have one) are the checkpoint's (``source``) within a relative :data:`TIME_TOLERANCE`."""
+    both have one) are the checkpoint's (``source``) within a relative :data:`SAME_TIME`."""
     k = meta["step"]
     if k == 0:
         return
@@ -230,13 +231,8 @@ def check_metrics(meta: dict, source: Path, metrics: Path) -> None:
             )
 
 
-TIME_TOLERANCE = 1e-9
-"""Times and steps of a checkpoint agree with metrics.csv and the state within this fraction
-(metrics.csv holds 10 significant digits)."""
-
-
 def _close(a: float, b: float) -> bool:
-    return abs(a - b) <= TIME_TOLERANCE * max(abs(a), abs(b))
+    return abs(a - b) <= SAME_TIME * max(abs(a), abs(b))
 
 
 def _spans(steps: list[int]) -> str:

@@ -19,7 +19,7 @@ from mpi4py import MPI
 from fsi import config
 from fsi.config import boundary_data
 from fsi.numerics import newton
-from fsi.numerics.timestepping import AdaptiveSteps, Step, StepSizeControl, steps
+from fsi.numerics.timestepping import SAME_TIME, AdaptiveSteps, Step, StepSizeControl, steps
 from fsi.output import io
 from fsi.run import checkpoint, time_errors
 from fsi.run.errors import Interrupted, OutputFailed, RunStopped, StepFailed
@@ -258,7 +258,7 @@ def _adaptive_steps(
             error = None if row[time_errors.COLUMN] == "" else row[time_errors.COLUMN]
             if control.accepts(error):
                 break
-            if step.dt <= control.min_dt * (1 + 1e-9):
+            if step.dt <= control.min_dt * (1 + SAME_TIME):
                 scales = saved.case.time.adaptive
                 raise StepFailed(
                     f"step {step.index} to t = {step.t:g} s: its local time error "

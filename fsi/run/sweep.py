@@ -29,6 +29,7 @@ import yaml
 
 from fsi import config
 from fsi.config import reader
+from fsi.numerics.timestepping import SAME_TIME
 from fsi.output import io, units
 from fsi.run import checkpoint
 
@@ -317,7 +318,7 @@ def folder_state(run: SweepRun) -> FolderState:
             "replace", f"started afresh (its folder holds a run with another {other[0]})"
         )
     t = checkpoint_time(folder)
-    at_end = t is not None and abs(t - end) <= 1e-9 * end
+    at_end = t is not None and abs(t - end) <= SAME_TIME * end
     if t is not None and ((t < end and not at_end) or (at_end and not different)):
         return FolderState("resume", f"resumed from its checkpoint at t = {t:.6g} s")
     if t is None:
@@ -339,14 +340,14 @@ def _covering_end(folder: Path, different: Sequence[str], end: float) -> float |
         reached = float(json.loads((folder / "summary.json").read_text())["end_time_s"])
     except (OSError, ValueError, KeyError, TypeError):
         return None
-    return reached if reached > end * (1 + 1e-9) else None
+    return reached if reached > end * (1 + SAME_TIME) else None
 
 
 def _reached(summary: Path, end: float) -> bool:
     """Whether ``summary`` is a run's complete summary.json with ``end_time_s`` = ``end``."""
     try:
         data = json.loads(summary.read_text())
-        return abs(float(data["end_time_s"]) - end) <= 1e-9 * end
+        return abs(float(data["end_time_s"]) - end) <= SAME_TIME * end
     except (OSError, ValueError, KeyError, TypeError):
         return False
 
@@ -615,9 +616,9 @@ def headline_values(folder: Path, end: float | None = None) -> dict[str, float |
         rows = io.read_metrics(folder / "metrics.csv")
     except (OSError, ValueError) as e:  # io.MetricsError is a ValueError
         raise ResultError(str(e)) from e
-    cut = end is not None and any(r["t"] > end * (1 + 1e-9) for r in rows)
+    cut = end is not None and any(r["t"] > end * (1 + SAME_TIME) for r in rows)
     if cut:
-        rows = [r for r in rows if r["t"] <= end * (1 + 1e-9)]
+        rows = [r for r in rows if r["t"] <= end * (1 + SAME_TIME)]
     rigid = summary.get("structure_mode") == "rigid"
     values: dict[str, float | None] = {}
     for h in HEADLINES:
