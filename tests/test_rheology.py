@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 import support_run
 import ufl
-from support_config import LAWS
 
 from fsi import compat, config
 from fsi.config import reader
@@ -172,9 +171,13 @@ def test_rheology_round_trips_through_yaml(tmp_path):
 
 
 def test_every_configured_model_has_a_law():
-    """The registry knows each ``fluid.rheology.model`` tag the schema admits, and no other."""
-    tags = {
-        typing.get_args(typing.get_type_hints(option)["model"])[0]
+    """The physics' laws (fsi.physics.rheology.LAWS) know each ``fluid.rheology.model`` tag the
+    schema admits, and no other, and each law takes exactly its section's parameters."""
+    sections = {
+        typing.get_args(typing.get_type_hints(option)["model"])[0]: option
         for option in typing.get_args(config.Rheology)
     }
-    assert set(LAWS) == tags
+    assert set(rheology.LAWS) == set(sections)
+    for tag, section in sections.items():
+        parameters = {f for f in section.__dataclass_fields__ if f != "model"}
+        assert set(rheology.LAWS[tag].__dataclass_fields__) == parameters, tag
