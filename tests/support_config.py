@@ -1,4 +1,0 @@
-"""Test helpers of the configuration's sections (fsi/config)."""
-
-
-
