@@ -74,7 +74,7 @@ from fsi.config.structure_section import (
     WallMaterial,
 )
 from fsi.config.time_section import MAX_CYCLES, AdaptiveStepping, Time, TimeSegment
-from fsi.config.validation import cautions, mesh_only, validate
+from fsi.config.validation import cannot_run, cautions, mesh_only, validate
 
 __all__ = [
     # the case and its files
@@ -86,6 +86,7 @@ __all__ = [
     "validate",
     "cautions",
     "mesh_only",
+    "cannot_run",
     "to_dict",
     "to_yaml",
     "dump",

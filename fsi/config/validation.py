@@ -72,6 +72,24 @@ def mesh_only(case: Case) -> str | None:
     return None
 
 
+def cannot_run(case: Case) -> str | None:
+    """Why ``fsi run`` (and each run of ``fsi sweep``) refuses this case, checked before any
+    computation, or None: :func:`mesh_only`, or a coupled structure of another degree than the
+    fluid's P2 velocity."""
+    reason = mesh_only(case)
+    if reason is not None:
+        return reason
+    mode = case.structure.mode
+    if mode != "rigid" and case.structure.interface_load == "fluid":
+        if case.structure.degree != 2:
+            return (
+                f"structure.degree: the coupling pairs the fluid's P2 velocity nodes with "
+                f"the structure's interface nodes, so structure.mode '{mode}' needs "
+                f"structure.degree 2, got {case.structure.degree}"
+            )
+    return None
+
+
 MAX_LENGTH = 1.0e100
 """The largest length (m) a geometry may give: the geometry's arithmetic squares lengths, and
 ``geometry.height: 1.7e308`` overflowed into a traceback (exit 1) instead of a refusal."""

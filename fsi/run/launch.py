@@ -103,9 +103,9 @@ def _checked_start(request: RunRequest, case: config.Case, comm: MPI.Comm):
     read (returned, or None without one) and ``--out`` may be written; :class:`Refused` if
     one fails."""
     from fsi.output import io
-    from fsi.run import checkpoint, simulation
+    from fsi.run import checkpoint
 
-    reason = simulation.unsupported(case)
+    reason = config.cannot_run(case)
     if reason is not None:
         raise Refused(f"{request.config}: {reason}")
     restart = None

@@ -39,22 +39,6 @@ class RunResult:
     summary: dict
 
 
-def unsupported(case: config.Case) -> str | None:
-    """Why this case cannot run (checked before any computation), or None."""
-    mesh_only = config.mesh_only(case)
-    if mesh_only is not None:
-        return mesh_only
-    mode = case.structure.mode
-    if mode != "rigid" and case.structure.interface_load == "fluid":
-        if case.structure.degree != 2:
-            return (
-                f"structure.degree: the coupling pairs the fluid's P2 velocity nodes with "
-                f"the structure's interface nodes, so structure.mode '{mode}' needs "
-                f"structure.degree 2, got {case.structure.degree}"
-            )
-    return None
-
-
 def run(
     case: config.Case,
     out: Path,

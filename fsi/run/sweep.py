@@ -149,8 +149,6 @@ def plan(
     load = config.loader(case_file)
     _check_base(load, sets, varied, [*sets, *first])
 
-    from fsi.run import simulation
-
     runs: list[SweepRun] = []
     seen: dict[str, SweepRun] = {}
     folders: dict[str, SweepRun] = {}
@@ -165,7 +163,7 @@ def plan(
             case = load(overrides)
         except config.ConfigError as e:
             raise SweepError(str(e.from_source(_culprit(choice, e.key)))) from None
-        reason = simulation.unsupported(case)
+        reason = config.cannot_run(case)
         if reason is not None:
             raise SweepError(f"{_culprit(choice, '')}: {reason}")
         run = SweepRun(index, choice, case, overrides, out / folder_name(choice))
