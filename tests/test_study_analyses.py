@@ -9,6 +9,7 @@ import pytest
 
 from fsi.study import analyses as study_analyses
 from fsi.study import runs as study_runs
+from fsi.study import wall_analyses
 
 
 def summary(at: dict[float, dict], degree: float = 0.5, **maxima) -> dict:
@@ -74,7 +75,7 @@ def test_a_wall_is_quasi_static_where_it_moves_as_its_static_compliance_says():
             0.05: {"peak_displacement": 3.0e-6, "peak_pressure": 0.0},  # no pressure: no ratio
         }
     )
-    assert [study_analyses.quasi_static(s, c, t) for t in (0.01, 0.02, 0.05)] == [
+    assert [wall_analyses.quasi_static(s, c, t) for t in (0.01, 0.02, 0.05)] == [
         False,
         True,
         False,
@@ -82,9 +83,9 @@ def test_a_wall_is_quasi_static_where_it_moves_as_its_static_compliance_says():
     near, below = (
         summary({0.02: {"peak_displacement": d, "peak_pressure": 5.0}}) for d in (1.5e-6, 1.4e-6)
     )
-    assert study_analyses.quasi_static(near, c, 0.02)  # 0.30 µm/Pa
-    assert not study_analyses.quasi_static(below, c, 0.02)  # 0.28 µm/Pa
-    assert not study_analyses.quasi_static(None, c, 0.02)
+    assert wall_analyses.quasi_static(near, c, 0.02)  # 0.30 µm/Pa
+    assert not wall_analyses.quasi_static(below, c, 0.02)  # 0.28 µm/Pa
+    assert not wall_analyses.quasi_static(None, c, 0.02)
 
 
 def _compliance_text(ratio_per_degree: dict[float, float]) -> str:
@@ -97,7 +98,7 @@ def _compliance_text(ratio_per_degree: dict[float, float]) -> str:
             shape[f"plaque_shape/d={d},cap={cap}"] = summary(at, degree=d)
     main = {"fixed_newtonian_coarse": shape[f"plaque_shape/d={0.5},cap={1e-4}"]}
     static = {"fixed_wall": 4e-10, "moving_wall": 4.4e-7}
-    return study_analyses.compliance(shape, {}, main, paper, static)
+    return wall_analyses.compliance(shape, {}, main, paper, static)
 
 
 def test_the_compliance_verdict_is_the_factor_two_it_states():

@@ -26,8 +26,8 @@ from pathlib import Path
 
 from fsi import config
 from fsi.output import report
-from fsi.study.analyses import uniform_pressure_compliance
 from fsi.study.runs import CONFIGS, LABELS, summarise
+from fsi.study.wall_analyses import uniform_pressure_compliance
 from fsi.study.wall_compliance import estimates
 
 ROOT = Path(__file__).resolve().parents[2]
