@@ -24,13 +24,13 @@ from mpi4py import MPI
 from fsi import config
 from fsi.output import paths
 from fsi.run import launch, sweep_command
-from fsi.run.launch import (
+from fsi.run.errors import (
     EXIT_INTERNAL,
     EXIT_OK,
     EXIT_OUTPUT_FAILED,
     EXIT_USAGE,
-    say_error,
 )
+from fsi.run.launch import say_error
 
 log = logging.getLogger("fsi")
 

@@ -14,7 +14,7 @@ import pytest
 
 from fsi import cli, config
 from fsi.output import io
-from fsi.run import sweep
+from fsi.run import sweep, sweep_execution, sweep_results
 
 STENOSIS = "configs/stenosis_moving_newtonian.yaml"
 CHANNEL = "configs/channel_poiseuille.yaml"
@@ -239,7 +239,7 @@ def test_a_stop_between_runs_ends_the_sweep_before_the_next(shared_tmp, capsys):
         started.append(run.index)
         return 0, ""
 
-    status = sweep.execute(
+    status = sweep_execution.execute(
         runs, variations, out, run_one, lambda: signal.SIGTERM, ["fsi", "sweep", "..."]
     )
     assert status == 128 + signal.SIGTERM and started == []
@@ -342,13 +342,13 @@ def test_sweep_plots_name_the_quantities_and_their_units():
     """The x-axis names the varied quantity and its unit as the config declares it, the y-axis
     the headline's quantity (its unit is chosen from the values): not config keys."""
     case = config.load("configs/stenosis_moving_newtonian.yaml")
-    assert sweep.axis_label(case, "geometry.cap_thickness") == "cap thickness (m)"
-    assert sweep.axis_label(case, "geometry.stenosis_degree") == "stenosis degree"
-    assert sweep.axis_label(case, "fluid.inlet.amplitude") == "inlet amplitude (Pa)"
-    assert sweep.axis_label(case, "structure.cap.young_modulus") == "cap young modulus (Pa)"
-    assert sweep.axis_label(case, "fluid.rheology.viscosity") == "rheology viscosity (Pa s)"
-    assert sweep.axis_label(case, "mesh.level") == "mesh level"
-    labels = [h.label for h in sweep.HEADLINES]
+    assert sweep_results.axis_label(case, "geometry.cap_thickness") == "cap thickness (m)"
+    assert sweep_results.axis_label(case, "geometry.stenosis_degree") == "stenosis degree"
+    assert sweep_results.axis_label(case, "fluid.inlet.amplitude") == "inlet amplitude (Pa)"
+    assert sweep_results.axis_label(case, "structure.cap.young_modulus") == "cap young modulus (Pa)"
+    assert sweep_results.axis_label(case, "fluid.rheology.viscosity") == "rheology viscosity (Pa s)"
+    assert sweep_results.axis_label(case, "mesh.level") == "mesh level"
+    labels = [h.label for h in sweep_results.HEADLINES]
     assert len(set(labels)) == len(labels) and all("_" not in label for label in labels)
 
 
@@ -461,9 +461,9 @@ def test_a_sweep_plot_title_fits_its_figure():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    for h in sweep.HEADLINES:
+    for h in sweep_results.HEADLINES:
         figure, axes = plt.subplots(1, 1, figsize=(5.0, 3.8), squeeze=False)
-        sweep.suptitle(figure, h.meaning)
+        sweep_results.suptitle(figure, h.meaning)
         figure.tight_layout()
         figure.canvas.draw()
         box = figure._suptitle.get_window_extent(figure.canvas.get_renderer())

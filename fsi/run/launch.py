@@ -23,11 +23,10 @@ from pathlib import Path
 from mpi4py import MPI
 
 from fsi import config
+from fsi.run.errors import EXIT_OK, EXIT_OUTPUT_FAILED, EXIT_SOLVE_FAILED, EXIT_USAGE
 from fsi.run.signals import StopOnSignal
 
 log = logging.getLogger("fsi")
-
-EXIT_OK, EXIT_INTERNAL, EXIT_USAGE, EXIT_SOLVE_FAILED, EXIT_OUTPUT_FAILED = 0, 1, 2, 3, 4
 
 
 class Refused(Exception):

@@ -11,7 +11,9 @@ from pathlib import Path
 from mpi4py import MPI
 
 from fsi import config
-from fsi.run.launch import EXIT_OK, EXIT_USAGE, Refused, RunRequest, run_case, say_error
+from fsi.run import sweep_execution
+from fsi.run.errors import EXIT_OK, EXIT_USAGE
+from fsi.run.launch import Refused, RunRequest, run_case, say_error
 from fsi.run.signals import StopOnSignal
 
 
@@ -22,7 +24,6 @@ def sweep(args: argparse.Namespace) -> int:
     Slurm job array, whose tasks (``--task``) run them, and ``--collect`` for the table
     (fsi/run/slurm.py). A stop signal stops the current run as ``fsi run`` and the sweep after
     it."""
-    from fsi.run import sweep
 
     comm = MPI.COMM_WORLD
     try:
@@ -32,14 +33,16 @@ def sweep(args: argparse.Namespace) -> int:
         say_error(comm, str(e))
         return EXIT_USAGE
     if not args.dry_run and args.task is None and not args.collect:
-        refused = comm.bcast(sweep.refusal(runs, args.overwrite) if comm.rank == 0 else "")
+        refused = comm.bcast(
+            sweep_execution.refusal(runs, args.overwrite) if comm.rank == 0 else ""
+        )
         if refused:
             say_error(comm, f"--out {args.out}: {refused}")
             return EXIT_USAGE
     if definition is not None or args.task is not None:
         return _sweep_slurm(args, definition, variations, runs, comm)
     if args.dry_run:
-        lines = sweep.describe_plan(runs, args.overwrite) if comm.rank == 0 else []
+        lines = sweep_execution.describe_plan(runs, args.overwrite) if comm.rank == 0 else []
         if comm.rank == 0:
             print("\n".join(lines), flush=True)
         return EXIT_OK
@@ -53,7 +56,9 @@ def sweep(args: argparse.Namespace) -> int:
         *[a for s in args.overrides for a in ("--set", s)],
     ]
     with StopOnSignal() as stop:
-        return sweep.execute(runs, variations, args.out, _sweep_run_one(args), stop, resume, comm)
+        return sweep_execution.execute(
+            runs, variations, args.out, _sweep_run_one(args), stop, resume, comm
+        )
 
 
 def _sweep_plan(args: argparse.Namespace, comm: MPI.Comm):
