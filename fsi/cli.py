@@ -460,16 +460,16 @@ def _mesh(args: argparse.Namespace, case: config.Case) -> int:
 
 
 def _report(args: argparse.Namespace) -> int:
-    from fsi.output import report
+    from fsi.output import report, report_runs
 
     comm = MPI.COMM_WORLD
     status = EXIT_OK
     if comm.rank == 0:  # reading and plotting a few files: rank 0 alone
         try:
-            report.check_times(args.times)
-            report.check_out(args.out)
-            runs = report.load_runs(args.runs)
-        except report.ReportError as e:
+            report_runs.check_times(args.times)
+            report_runs.check_out(args.out)
+            runs = report_runs.load_runs(args.runs)
+        except report_runs.ReportError as e:
             print(f"fsi: error: {e}", file=sys.stderr)
             status = EXIT_USAGE
         else:

@@ -15,7 +15,7 @@ import numpy as np
 import ufl
 
 from fsi import cli, compat
-from fsi.output import io, metrics, report
+from fsi.output import io, metrics, report_figures, report_runs
 from fsi.physics import rheology
 
 
@@ -69,10 +69,13 @@ def viscosity_field(
     return _field(law.mu(rheology.shear_rate(u)), u.function_space.mesh, "viscosity", degree)
 
 
-def flow_rate_plot(runs: Sequence[report.Run], path: Path) -> bool:
+def flow_rate_plot(runs: Sequence[report_runs.Run], path: Path) -> bool:
     """The inlet (solid) and outlet (dashed, same colour) flow rates per unit depth over time,
     in cm²/s, as a PNG; False if no run has them."""
-    return report.draw(report.flow_rate_groups(runs), "flow rate", "flow_rate", path) is not None
+    return (
+        report_figures.draw(report_figures.flow_rate_groups(runs), "flow rate", "flow_rate", path)
+        is not None
+    )
 
 
 def read_mesh_with_tags(comm: MPI.Comm, path: str):

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from fsi import config
-from fsi.output import report
+from fsi.output import report_runs
 from fsi.study import document as study_document
 from fsi.study import runs as study_runs
 
@@ -18,7 +18,7 @@ TIMES = [0.0025, 0.005, 0.01, 0.02, 0.05, 0.1, 0.8]
 
 def run(
     name: str, sss: float, displacement: float = 1e-6, recirculation: float = 6e-3, end: float = 0.8
-) -> report.Run:
+) -> report_runs.Run:
     """A run whose columns are constant in time (their maxima are the values given)."""
     rows = [
         {
@@ -36,7 +36,7 @@ def run(
         for i, t in enumerate(TIMES)
         if t <= end
     ]
-    return report.Run(Path(name), config.Case(), rows, {"steps": len(rows)})
+    return report_runs.Run(Path(name), config.Case(), rows, {"steps": len(rows)})
 
 
 def summaries(runs: dict) -> dict:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from fsi.output import report
+from fsi.output import report_runs
 from fsi.study.runs import (
     DENSITY,
     PULSE_AMPLITUDE,
@@ -644,7 +644,9 @@ def summaries(folder: Path, analyses: dict, docs_runs: Path) -> dict[str, Summar
             else:
                 names.append(item.label)
         runs = {
-            n: report.load_run(folder / n) for n in names if (folder / n / "metrics.csv").is_file()
+            n: report_runs.load_run(folder / n)
+            for n in names
+            if (folder / n / "metrics.csv").is_file()
         }
         out[analysis] = make_summaries(runs, docs_runs, names)
     return out

@@ -25,7 +25,7 @@ import sys
 from pathlib import Path
 
 from fsi import config
-from fsi.output import report
+from fsi.output import report_runs
 from fsi.study.runs import CONFIGS, LABELS, summarise
 from fsi.study.wall_analyses import uniform_pressure_compliance
 from fsi.study.wall_compliance import estimates
@@ -62,7 +62,7 @@ def run(model: str, name: str, out: Path, settings: list[str], ranks: int, reuse
 
 def row(folder: Path) -> dict:
     """What the comparison takes from one run."""
-    loaded = report.load_run(folder)
+    loaded = report_runs.load_run(folder)
     summary = summarise(loaded)
     maxima, rest = summary["maxima"], summary["at"][f"{AT_REST:g}"]
     cap, when = maxima["max_principal_cap"]

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fsi.output import plot, report
+from fsi.output import plot, report, report_runs
 from fsi.study.runs import (
     CONFIGS,
     LABELS,
@@ -146,7 +146,7 @@ RECIRCULATION_TIME = 0.1
 """Figure 9's time: the recirculation zone is developed (its lengths are in the findings)."""
 
 
-def best(runs: dict, summaries: dict, c: str) -> report.Run | None:
+def best(runs: dict, summaries: dict, c: str) -> report_runs.Run | None:
     """The fine run folder of configuration ``c`` if that run finished, else the coarse one."""
     fine = f"{c}_fine"
     return runs.get(fine) if finished(summaries.get(fine)) else runs.get(f"{c}_coarse")

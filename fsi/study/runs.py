@@ -19,7 +19,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from fsi.output import report
+from fsi.output import report, report_runs
 
 ROOT = Path(__file__).resolve().parents[2]
 PAPER = ROOT / "docs" / "reference" / "boujena2014_tables.csv"
@@ -84,17 +84,17 @@ MAXIMA = {
 """The maxima over the run that the findings compare: name → the row's value (None: not there)."""
 
 
-def load(folder: Path, runs) -> dict[str, report.Run]:
+def load(folder: Path, runs) -> dict[str, report_runs.Run]:
     """The runs there are (finished or not), by name."""
     loaded = {}
     for run in runs:
         path = folder / run.name
         if (path / "metrics.csv").is_file():
-            loaded[run.name] = report.load_run(path)
+            loaded[run.name] = report_runs.load_run(path)
     return loaded
 
 
-def summarise(run: report.Run) -> dict:
+def summarise(run: report_runs.Run) -> dict:
     """The run's provenance and case (the settings the analyses vary), its three peaks and
     flow rate at :data:`TIMES`, the :data:`MAXIMA` (value, time) and, with field files, where
     its largest |σ₁₂| is."""
@@ -150,7 +150,7 @@ PRESSURE_TIME = 0.01
 """s: where the peak pressure sits after the pulse is kept in the summary at this time."""
 
 
-def pressure_peak_at(run: report.Run, t: float) -> list[float]:
+def pressure_peak_at(run: report_runs.Run, t: float) -> list[float]:
     """Where the fluid's largest pressure is at time ``t``: its node's coordinates (m) as the
     field file's drawing puts them (:func:`fsi.output.plot.read_field`'s default)."""
     from fsi.output import plot
@@ -161,7 +161,7 @@ def pressure_peak_at(run: report.Run, t: float) -> list[float]:
 
 
 def make_summaries(
-    runs: dict[str, report.Run], folder: Path, names: Sequence[str]
+    runs: dict[str, report_runs.Run], folder: Path, names: Sequence[str]
 ) -> dict[str, dict]:
     """Each named run's summary: made from its run folder (and written to ``folder``) if it is
     loaded, else read from ``folder`` (the committed one) if there."""
@@ -265,7 +265,7 @@ def difference(row: dict) -> float | None:
     return (row["fsi"] - row["paper"]) / abs(row["paper"])
 
 
-def largest_at(run: report.Run, field: str, t: float) -> tuple[float, float, str]:
+def largest_at(run: report_runs.Run, field: str, t: float) -> tuple[float, float, str]:
     """Where the cell field's largest |value| is at time t: the cell's centroid (reference
     coordinates, m) and its region."""
     from fsi.geometry.tags import Region
