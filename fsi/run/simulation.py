@@ -21,7 +21,7 @@ from fsi.config import boundary_data
 from fsi.numerics import newton
 from fsi.numerics.timestepping import SAME_TIME, AdaptiveSteps, Step, StepSizeControl, steps
 from fsi.output import io
-from fsi.run import checkpoint, time_errors
+from fsi.run import checkpoint, checkpoint_checks, time_errors
 from fsi.run.errors import Interrupted, OutputFailed, RunStopped, StepFailed
 from fsi.run.outputs import RunOutputs
 from fsi.run.state_arrays import Layout
@@ -393,7 +393,9 @@ class _Checkpoints:
                 comm,
                 good.state,
                 self.layouts,
-                checkpoint.metadata(self.case, comm, good.step, good.t, good.dt, good.next_dt),
+                checkpoint_checks.metadata(
+                    self.case, comm, good.step, good.t, good.dt, good.next_dt
+                ),
             )
         except checkpoint.CheckpointError as e:  # raised on every rank: said once
             if comm.rank == 0:
