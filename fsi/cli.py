@@ -513,7 +513,7 @@ def _plot_options_refused(args: argparse.Namespace) -> str | None:
 def _draw_plot(args: argparse.Namespace) -> tuple[Path, str | None]:
     """The picture ``fsi plot`` asks for, written to ``--out``; and a note for stdout, or
     None. Raises PlotError, OSError."""
-    from fsi.output import plot, wall_plot
+    from fsi.output import field_files, plot, wall_plot
 
     plot.check_out(args.out)
     refused = _plot_options_refused(args)
@@ -522,7 +522,9 @@ def _draw_plot(args: argparse.Namespace) -> tuple[Path, str | None]:
     if args.field in wall_plot.INDICES:
         index = wall_plot.read(args.run, args.field, args.cycle)
         return wall_plot.draw(index, args.out), None
-    snapshot = plot.read_field(args.run, args.field, args.time, warp=args.warp, region=args.region)
+    snapshot = field_files.read_field(
+        args.run, args.field, args.time, warp=args.warp, region=args.region
+    )
     flow = plot.streamline_field(snapshot) if args.streamlines else None
     written = plot.draw(snapshot, args.out, component=args.component, flow=flow)
     note = None

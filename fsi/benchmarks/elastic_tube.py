@@ -55,7 +55,7 @@ from fsi.benchmarks.womersley_tube import TubeParameters, WomersleyTube
 from fsi.coupled import coupling, partitioned
 from fsi.geometry.tags import Boundary
 from fsi.numerics.timestepping import steps
-from fsi.output import plot
+from fsi.output import field_files
 from fsi.physics import fluid_boundaries, solid
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -119,7 +119,7 @@ def peak_time(t: np.ndarray, values: np.ndarray) -> tuple[float, float]:
 
 def axis_pressure(run: Path, t: float) -> tuple[np.ndarray, np.ndarray]:
     """z (sorted) and p of the pressure nodes on the axis (y = 0) at the stored time ``t``."""
-    snapshot = plot.read_field(run, "pressure", t, warp=0.0)
+    snapshot = field_files.read_field(run, "pressure", t, warp=0.0)
     xy, p = snapshot.reference, snapshot.values
     on_axis = np.abs(xy[:, 1]) < 1e-12
     z, values = xy[on_axis, 0], p[on_axis]
@@ -130,7 +130,7 @@ def axis_pressure(run: Path, t: float) -> tuple[np.ndarray, np.ndarray]:
 def front_arrivals(run: Path, level: float, stations: np.ndarray) -> np.ndarray:
     """The first time (s) the axis pressure reaches ``level`` at each station (linear in time
     between stored fields, along the axis between nodes); NaN where it never does."""
-    times = plot.stored_times(run, "pressure")
+    times = field_files.stored_times(run, "pressure")
     arrival = np.full(len(stations), np.nan)
     previous = None
     for t in times:

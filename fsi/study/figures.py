@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fsi.output import plot, report, report_runs
+from fsi.output import field_files, plot, report, report_runs
 from fsi.study.runs import (
     CONFIGS,
     LABELS,
@@ -248,7 +248,7 @@ def figure_wall_shear(runs: dict, summaries: dict, path: Path) -> Path | None:
         run = best(runs, summaries, c)
         if run is None or run.rows[-1]["t"] < RECIRCULATION_TIME:
             continue
-        snap = plot.read_field(run.path, "wall_shear_stress", RECIRCULATION_TIME)
+        snap = field_files.read_field(run.path, "wall_shear_stress", RECIRCULATION_TIME)
         x, y = snap.coordinates[:, 0], snap.coordinates[:, 1]
         nodes = boundary_nodes(snap.triangles)
         lower = nodes[

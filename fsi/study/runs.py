@@ -152,10 +152,10 @@ PRESSURE_TIME = 0.01
 
 def pressure_peak_at(run: report_runs.Run, t: float) -> list[float]:
     """Where the fluid's largest pressure is at time ``t``: its node's coordinates (m) as the
-    field file's drawing puts them (:func:`fsi.output.plot.read_field`'s default)."""
-    from fsi.output import plot
+    field file's drawing puts them (:func:`fsi.output.field_files.read_field`'s default)."""
+    from fsi.output import field_files
 
-    snapshot = plot.read_field(run.path, "pressure", t)
+    snapshot = field_files.read_field(run.path, "pressure", t)
     k = int(np.argmax(snapshot.values))
     return [float(v) for v in snapshot.coordinates[k]]
 
@@ -269,10 +269,10 @@ def largest_at(run: report_runs.Run, field: str, t: float) -> tuple[float, float
     """Where the cell field's largest |value| is at time t: the cell's centroid (reference
     coordinates, m) and its region."""
     from fsi.geometry.tags import Region
-    from fsi.output import plot
+    from fsi.output import field_files
 
-    values = plot.read_field(run.path, field, t, warp=0.0)
-    regions = plot.read_field(run.path, "region", t, warp=0.0)
+    values = field_files.read_field(run.path, field, t, warp=0.0)
+    regions = field_files.read_field(run.path, "region", t, warp=0.0)
     k = int(np.argmax(np.abs(values.values)))
     centroid = values.coordinates[values.triangles[k]].mean(axis=0)
     return centroid[0], centroid[1], Region(int(round(regions.values[k]))).label

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from fsi import config
-from fsi.output import plot
+from fsi.output import field_files
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -47,11 +47,11 @@ def nearest(points: np.ndarray, target: tuple[float, float]) -> int:
 
 def samples(run: Path, z: float, radius: float, start: float) -> tuple[np.ndarray, ...]:
     """Times, the wall's radial displacement (m) and the pressure (Pa) at (z, radius)."""
-    times = [t for t in plot.stored_times(run, "eta") if t >= start - 1e-12]
+    times = [t for t in field_files.stored_times(run, "eta") if t >= start - 1e-12]
     wall, blood, where = [], [], None
     for t in times:
-        eta = plot.read_field(run, "eta", t, warp=0.0)
-        p = plot.read_field(run, "pressure", t, warp=0.0)
+        eta = field_files.read_field(run, "eta", t, warp=0.0)
+        p = field_files.read_field(run, "pressure", t, warp=0.0)
         if where is None:
             where = (nearest(eta.reference, (z, radius)), nearest(p.reference, (z, radius)))
         wall.append(eta.values[where[0], 1])
