@@ -15,7 +15,7 @@ import numpy as np
 import ufl
 
 from fsi import cli, compat
-from fsi.output import io, metrics, report_figures, report_runs
+from fsi.output import metrics, metrics_csv, report_figures, report_runs
 from fsi.physics import rheology
 
 
@@ -25,7 +25,7 @@ def fsi_run(case_file: str, out: Path, overrides: Sequence[str] = ()) -> tuple[i
     settings = ["output.fields_every=100000", *overrides]
     args = ["run", case_file, "--out", str(out), *sum((["--set", s] for s in settings), [])]
     status = cli.main(args)
-    return status, io.read_metrics(out / "metrics.csv")
+    return status, metrics_csv.read_metrics(out / "metrics.csv")
 
 
 def reattachment_point(s: np.ndarray, tau: np.ndarray) -> float | None:

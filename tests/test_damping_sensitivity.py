@@ -26,7 +26,7 @@ import math
 import pytest
 
 from fsi import cli, config
-from fsi.output import io
+from fsi.output import metrics_csv
 from fsi.performance import comparison
 
 CASE = "configs/stenosis_moving_newtonian.yaml"
@@ -60,7 +60,7 @@ def run(out, schedule, case: str = CASE) -> list[dict]:
         ]
     )
     assert code == 0
-    return io.read_metrics(out / "metrics.csv")
+    return metrics_csv.read_metrics(out / "metrics.csv")
 
 
 def at(rows: list[dict], t: float) -> dict:

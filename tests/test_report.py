@@ -14,7 +14,7 @@ import pytest
 import support_run
 
 from fsi import cli, config
-from fsi.output import io, report, report_figures, report_runs, units
+from fsi.output import metrics_csv, report, report_figures, report_runs, units
 
 SHORT = [
     "structure.mode=rigid",
@@ -50,7 +50,7 @@ def run_dir():
 
 def test_tables_hold_the_rows_at_the_report_times(run_dir, capsys):
     run = report_runs.load_run(run_dir)
-    rows = io.read_metrics(run_dir / "metrics.csv")
+    rows = metrics_csv.read_metrics(run_dir / "metrics.csv")
     by_t = {round(r["t"], 9): r for r in rows}
     table = report.peaks_table([run], "peak_velocity", "Peak velocity", "velocity")
     unit = units.choose_unit("velocity", [by_t[t]["peak_velocity"] for t in (0.002, 0.004)])

@@ -34,7 +34,7 @@ from mpi4py import MPI
 import pytest
 
 from fsi import cli
-from fsi.output import io
+from fsi.output import metrics_csv
 from fsi.performance.comparison import largest_differences
 
 CASE = "configs/stenosis_moving_carreau.yaml"
@@ -55,7 +55,7 @@ BOUND = 5e-4
 def pulse(out, overrides) -> list[dict]:
     args = ["run", CASE, "--out", str(out), "--set", "output.fields_every=1000"]
     assert cli.main([*args, *sum((["--set", s] for s in [*PULSE, *overrides]), [])]) == 0
-    return io.read_metrics(out / "metrics.csv")
+    return metrics_csv.read_metrics(out / "metrics.csv")
 
 
 PREVIOUS = [  # the settings before #11

@@ -60,7 +60,7 @@ from fsi.benchmarks.oscillation import (
     compare,
     relative_difference,
 )
-from fsi.output import io
+from fsi.output import metrics_csv
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -165,7 +165,7 @@ def analyse_run(
     run: Path, case_name: str, ref_set: str, window: int, start: float | None
 ) -> tuple[list[str], list[Row], dict]:
     """Lines describing each column's signal, the comparison rows, and the run's facts."""
-    rows_csv = io.read_metrics(run / "metrics.csv")
+    rows_csv = metrics_csv.read_metrics(run / "metrics.csv")
     if not rows_csv:
         raise SystemExit(f"{run / 'metrics.csv'}: no rows")
     case = resolved_config(run)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fsi import config
-from fsi.output import io
+from fsi.output import metrics_csv
 
 
 class ReportError(ValueError):
@@ -115,8 +115,8 @@ def load_run(path: Path) -> Run:
     except config.ConfigError as e:
         raise ReportError(f"{path}: {e}") from None
     try:
-        rows = io.read_metrics(path / "metrics.csv")
-    except io.MetricsError as e:
+        rows = metrics_csv.read_metrics(path / "metrics.csv")
+    except metrics_csv.MetricsError as e:
         raise ReportError(str(e)) from None
     except OSError as e:
         raise ReportError(f"{path / 'metrics.csv'}: unreadable ({e.strerror or e})") from None

@@ -14,7 +14,7 @@ import argparse
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
-from fsi.output import io
+from fsi.output import metrics_csv
 
 HEADLINE = (
     "peak_velocity",
@@ -66,11 +66,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("runs", type=Path, nargs="+")
     parser.add_argument("--bound", type=float, default=1e-2)
     args = parser.parse_args(argv)
-    reference = io.read_metrics(args.reference / "metrics.csv")
+    reference = metrics_csv.read_metrics(args.reference / "metrics.csv")
     print(f"reference {args.reference}: {len(reference)} steps; {effort(reference)} per step")
     status = 0
     for run in args.runs:
-        rows = io.read_metrics(run / "metrics.csv")
+        rows = metrics_csv.read_metrics(run / "metrics.csv")
         differences = largest_differences(rows, reference)
         column, worst = max(differences.items(), key=lambda item: item[1])
         print(f"\n{run}: {effort(rows)} per step; largest difference {worst:.2e} ({column})")

@@ -93,7 +93,7 @@ def worker(args: argparse.Namespace) -> int:
     from petsc4py import PETSc
 
     from fsi import config
-    from fsi.output import io
+    from fsi.output import metrics_csv
     from fsi.performance.profiling import Profiler, attach_coupled, attach_rigid, window
     from fsi.run import errors, outputs, simulation, steppers
 
@@ -131,7 +131,7 @@ def worker(args: argparse.Namespace) -> int:
         simulation.march(case, out, comm, stepper, start)
     except errors.RunStopped as e:
         failure = str(e).splitlines()[0][:200]
-    rows = io.read_metrics(out / "metrics.csv") if comm.rank == 0 else []
+    rows = metrics_csv.read_metrics(out / "metrics.csv") if comm.rank == 0 else []
     if comm.rank == 0:
         shutil.rmtree(out, ignore_errors=True)
     wall = [b[0] - a[0] for a, b in zip(marks, marks[1:])]

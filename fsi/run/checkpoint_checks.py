@@ -23,7 +23,7 @@ import fsi
 from fsi import config
 from fsi.config import reader
 from fsi.numerics.timestepping import SAME_TIME
-from fsi.output import io
+from fsi.output import metrics_csv
 
 FORMAT = 1
 
@@ -171,8 +171,9 @@ def _real(value) -> bool:
 def check_metrics(meta: dict, source: Path, metrics: Path) -> None:
     """Raise :class:`CheckpointError` (naming ``metrics``, the run folder's metrics.csv) unless
     it holds the rows a restart from the checkpoint's step k keeps, each once and in order:
-    steps 1 to k, complete (:func:`fsi.output.io.read_rows`), and step k's ``t`` and ``dt`` (where
-    both have one) are the checkpoint's (``source``) within a relative :data:`SAME_TIME`."""
+    steps 1 to k, complete (:func:`fsi.output.metrics_csv.read_rows`), and step k's ``t`` and
+    ``dt`` (where both have one) are the checkpoint's (``source``) within a relative
+    :data:`SAME_TIME`."""
     k = meta["step"]
     if k == 0:
         return
@@ -180,8 +181,8 @@ def check_metrics(meta: dict, source: Path, metrics: Path) -> None:
     if not metrics.is_file():
         raise CheckpointError(f"{metrics}: missing; {keeps}")
     try:
-        rows = io.read_rows(metrics, until_step=k)
-    except io.MetricsError as e:
+        rows = metrics_csv.read_rows(metrics, until_step=k)
+    except metrics_csv.MetricsError as e:
         raise CheckpointError(f"{e} ({keeps})") from None
     except OSError as e:
         raise CheckpointError(f"{metrics}: unreadable ({e.strerror or e})") from None

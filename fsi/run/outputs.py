@@ -17,7 +17,7 @@ from mpi4py import MPI
 
 from fsi import config
 from fsi.numerics.timestepping import SAME_TIME, Step
-from fsi.output import io, provenance
+from fsi.output import io, metrics_csv, provenance
 from fsi.output.columns import heartbeat
 from fsi.run import checkpoint
 from fsi.run.errors import OutputFailed
@@ -53,7 +53,7 @@ class RunOutputs:
         self.stepper, self.restart = stepper, restart
         self.period = config.heartbeat_period(case)
         self._log: logging.Handler | None = None
-        self.table: io.MetricsTable | None = None
+        self.table: metrics_csv.MetricsTable | None = None
         self.writers: list[tuple[io.FieldWriter, list]] = []
         try:
             self._open()
@@ -91,7 +91,9 @@ class RunOutputs:
         source = None if restart is None or continuing else restart.run_dir / "metrics.csv"
         self.table = io.collectively(
             comm,
-            lambda: io.MetricsTable(comm, metrics, columns, keep_until_step=first, source=source),
+            lambda: metrics_csv.MetricsTable(
+                comm, metrics, columns, keep_until_step=first, source=source
+            ),
             metrics,
         )
         if continuing and comm.rank == 0:

@@ -20,7 +20,7 @@ import yaml
 from fsi import config
 from fsi.config import reader
 from fsi.numerics.timestepping import SAME_TIME
-from fsi.output import io, units
+from fsi.output import io, metrics_csv, units
 from fsi.run.sweep import SweepRun, Variation
 
 # --------------------------------------------------------------------------------------------
@@ -132,8 +132,8 @@ def headline_values(folder: Path, end: float | None = None) -> dict[str, float |
     run short, for those of summary.json (over the whole run). Raises :class:`ResultError`."""
     try:
         summary = json.loads((folder / "summary.json").read_text())
-        rows = io.read_metrics(folder / "metrics.csv")
-    except (OSError, ValueError) as e:  # io.MetricsError is a ValueError
+        rows = metrics_csv.read_metrics(folder / "metrics.csv")
+    except (OSError, ValueError) as e:  # metrics_csv.MetricsError is a ValueError
         raise ResultError(str(e)) from e
     cut = end is not None and any(r["t"] > end * (1 + SAME_TIME) for r in rows)
     if cut:
