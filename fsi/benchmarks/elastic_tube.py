@@ -56,7 +56,7 @@ from fsi.coupled import coupling, partitioned
 from fsi.geometry.tags import Boundary
 from fsi.numerics.timestepping import steps
 from fsi.output import field_files
-from fsi.physics import fluid_boundaries, solid
+from fsi.physics import fluid_boundaries, solid_boundaries
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -244,8 +244,8 @@ def womersley_problem(case: config.Case, exact: WomersleyTube) -> partitioned.Co
         fluid_boundaries.Velocity(Boundary.INTERFACE),
         fluid_boundaries.Axis(Boundary.AXIS),
     )
-    solid_conditions = solid.SolidBoundaryConditions(
-        dirichlet=(solid.PrescribedDisplacement(displacement, (Boundary.CLAMPED,)),)
+    solid_conditions = solid_boundaries.SolidBoundaryConditions(
+        dirichlet=(solid_boundaries.PrescribedDisplacement(displacement, (Boundary.CLAMPED,)),)
     )
     problem = partitioned.build_coupled(
         case, fluid_conditions=fluid_conditions, solid_conditions=solid_conditions

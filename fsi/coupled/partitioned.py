@@ -18,7 +18,7 @@ from fsi.coupled import coupling
 from fsi.coupled.adapters import FluidInterface, SolidInterface
 from fsi.coupled.interface import InterfaceMap
 from fsi.geometry.tags import Boundary, Region
-from fsi.physics import fluid, fluid_boundaries, fluid_case, mesh, solid
+from fsi.physics import fluid, fluid_boundaries, fluid_case, mesh, solid, solid_boundaries
 from fsi.physics.mesh_motion import MeshMotion
 
 
@@ -68,7 +68,7 @@ def build_coupled(
     comm: MPI.Comm = MPI.COMM_WORLD,
     *,
     fluid_conditions: Sequence[fluid_boundaries.BoundaryCondition] | None = None,
-    solid_conditions: solid.SolidBoundaryConditions | None = None,
+    solid_conditions: solid_boundaries.SolidBoundaryConditions | None = None,
 ) -> CoupledProblem:
     """Build the coupled problem of ``case`` (structure.mode fixed_wall or moving_wall): one mesh
     of the fluid and the structure (the stenosis' wall + cap + lipid, or the Turek–Hron flag),
