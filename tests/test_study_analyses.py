@@ -9,7 +9,7 @@ import pytest
 
 from fsi.study import analyses as study_analyses
 from fsi.study import runs as study_runs
-from fsi.study import wall_analyses
+from fsi.study import sensitivity, wall_analyses
 
 
 def summary(at: dict[float, dict], degree: float = 0.5, **maxima) -> dict:
@@ -113,10 +113,10 @@ def test_the_compliance_verdict_is_the_factor_two_it_states():
 
 def test_richardson_recovers_the_limit_and_order_of_a_power_law():
     """f(h) = 3 + 0.5 h² on h = 4, 2, 1: order 2, limit 3; a non-monotone sequence has none."""
-    order, limit = study_analyses.richardson(3 + 0.5 * 16, 3 + 0.5 * 4, 3 + 0.5)
+    order, limit = sensitivity.richardson(3 + 0.5 * 16, 3 + 0.5 * 4, 3 + 0.5)
     assert order == pytest.approx(2.0) and limit == pytest.approx(3.0)
-    assert study_analyses.richardson(1.0, 2.0, 1.5) is None
-    assert study_analyses.richardson(1.0, 1.0, 1.0) is None
+    assert sensitivity.richardson(1.0, 2.0, 1.5) is None
+    assert sensitivity.richardson(1.0, 1.0, 1.0) is None
 
 
 def test_the_plane_stress_reading_is_plane_strain_with_the_equivalent_moduli():

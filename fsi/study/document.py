@@ -17,6 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from fsi.study import analyses as study_analyses
+from fsi.study import sensitivity
 from fsi.study.figures import field_figures, figure_convergence, figure_sss
 from fsi.study.runs import (
     CONFIGS,
@@ -494,7 +495,7 @@ def write(folder: Path, study_runs, docs: Path, analyses: dict | None = None) ->
     )
     parts.append(
         "Of the stress maxima:\n\n"
-        + study_analyses.convergence(extra.get("convergence", {}), summaries)
+        + sensitivity.convergence(extra.get("convergence", {}), summaries)
         + "\n"
     )
     parts.append(
@@ -565,9 +566,7 @@ def write(folder: Path, study_runs, docs: Path, analyses: dict | None = None) ->
         "pressure pulse into a longer column drives a slower flow; item 4 has the estimate); "
         "the moving wall lengthened as it is becomes another wall (clamped further apart it is "
         "far softer: its largest |η|), so it is not compared (`--only analyses --analysis "
-        "downstream`):\n\n"
-        + study_analyses.downstream(extra.get("downstream", {}), summaries)
-        + "\n"
+        "downstream`):\n\n" + sensitivity.downstream(extra.get("downstream", {}), summaries) + "\n"
     )
     parts.append(
         "## Wall time on this machine (2 cores)\n\n"
