@@ -136,35 +136,12 @@ def compliance(
     if not by_degree or shipped is None:
         return "(runs missing)"
     lines, best = _shape_table(by_degree, t, target)
-    fine = ratio(main.get("fixed_newtonian_fine"), t)
-    mesh_change = "" if fine is None else f"; fine mesh {100 * (fine / shipped - 1):+.1f} %"
-    printed = {
-        q: [
-            paper_value(paper, q, t, "fixed", m, f)
-            for m in ("coarse", "fine")
-            for f in ("newtonian", "carreau")
-        ]
-        for q in ("displacement", "pressure")
-    }
     swept = {
         key: sorted({s["case"]["geometry"][key] for s in shape.values()})
         for key in ("stenosis_degree", "cap_thickness", "lipid_length")
     }
     text = [
-        f"The study's fixed wall moves by {in_um(min(printed['displacement']))}–"
-        f"{in_um(max(printed['displacement']))} µm at 10 ms under a peak pressure of "
-        f"{min(printed['pressure']):.2g}–{max(printed['pressure']):.2g} Pa: "
-        f"{fmt(1e6 * target, 2)} µm per Pa (coarse; "
-        f"{fmt(1e6 * paper_ratio(paper, t, 'fixed', 'fine'), 2)} fine), and "
-        f"{fmt(1e6 * paper_ratio(paper, 0.1, 'fixed', 'coarse'), 2)} µm/Pa at 0.1 s. fsi's "
-        f"moves {fmt(1e6 * shipped, 2)} µm/Pa at 10 ms (fixed_newtonian_coarse{mesh_change}), "
-        f"{fmt(target / shipped, 2)}× less. Under a "
-        "uniform pressure, with no flow and no inertia, the shipped plaque moves only "
-        f"{fmt(1e6 * static['fixed_wall'], 2)} µm per Pa (`static_compliance` in "
-        f"scripts/study_analyses.py), {fmt(shipped / static['fixed_wall'], 2)}× less than in "
-        "the flow: a plaque of ν = 0.45 bonded to a rigid wall hardly compresses, and what "
-        "moves it is the flow's pressure differences along it and its shear, not the "
-        "pressure level.",
+        _fixed_wall_paragraph(main, paper, static, target, shipped),
         "",
         "The study states neither the stenosis degree, nor the cap thickness, nor the lipid "
         "pool's size (docs/model.md §1). `fsi sweep` of the three (degree "
@@ -197,6 +174,40 @@ def compliance(
         "below). We do not change printed parameters to match the study's tables."
     )
     return "\n".join(text)
+
+
+def _fixed_wall_paragraph(
+    main: Summaries, paper: dict, static: dict[str, float], target: float, shipped: float
+) -> str:
+    """The study's fixed wall's displacement per Pa at 10 ms beside fsi's, in the flow and
+    under a uniform pressure."""
+    t = 0.01
+    fine = ratio(main.get("fixed_newtonian_fine"), t)
+    mesh_change = "" if fine is None else f"; fine mesh {100 * (fine / shipped - 1):+.1f} %"
+    printed = {
+        q: [
+            paper_value(paper, q, t, "fixed", m, f)
+            for m in ("coarse", "fine")
+            for f in ("newtonian", "carreau")
+        ]
+        for q in ("displacement", "pressure")
+    }
+    return (
+        f"The study's fixed wall moves by {in_um(min(printed['displacement']))}–"
+        f"{in_um(max(printed['displacement']))} µm at 10 ms under a peak pressure of "
+        f"{min(printed['pressure']):.2g}–{max(printed['pressure']):.2g} Pa: "
+        f"{fmt(1e6 * target, 2)} µm per Pa (coarse; "
+        f"{fmt(1e6 * paper_ratio(paper, t, 'fixed', 'fine'), 2)} fine), and "
+        f"{fmt(1e6 * paper_ratio(paper, 0.1, 'fixed', 'coarse'), 2)} µm/Pa at 0.1 s. fsi's "
+        f"moves {fmt(1e6 * shipped, 2)} µm/Pa at 10 ms (fixed_newtonian_coarse{mesh_change}), "
+        f"{fmt(target / shipped, 2)}× less. Under a "
+        "uniform pressure, with no flow and no inertia, the shipped plaque moves only "
+        f"{fmt(1e6 * static['fixed_wall'], 2)} µm per Pa (`static_compliance` in "
+        f"scripts/study_analyses.py), {fmt(shipped / static['fixed_wall'], 2)}× less than in "
+        "the flow: a plaque of ν = 0.45 bonded to a rigid wall hardly compresses, and what "
+        "moves it is the flow's pressure differences along it and its shear, not the "
+        "pressure level."
+    )
 
 
 def _shape_table(by_degree: dict[float, list[dict]], t: float, target: float) -> tuple:
@@ -299,29 +310,8 @@ def damping(
         ("5 ms steps after the pulse, ρ∞ = 0", runs.get("damping/large_steps")),
     ]
     times = [t for t in TIMES if t <= 0.1]
-    lines = [
-        "| run | " + " | ".join(f"{t:g} s: |η| (µm), |η|/p (µm/Pa)" for t in times) + " |",
-        "|---" * (1 + len(times)) + "|",
-        "| study, coarse | "
-        + " | ".join(
-            f"{in_um(paper_value(paper, 'displacement', t, 'moving', 'coarse'))}, "
-            f"{fmt(1e6 * paper_ratio(paper, t, 'moving', 'coarse'), 3)}"
-            for t in times
-        )
-        + " |",
-    ]
-    for label, s in variants:
-        if s is None:
-            lines.append(f"| {label} | " + " | ".join("–" for _ in times) + " |")
-            continue
-        cells = [
-            f"{in_um(at(s, t, 'peak_displacement'))}, "
-            f"{fmt(None if ratio(s, t) is None else 1e6 * ratio(s, t), 3)}"
-            for t in times
-        ]
-        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    lines = _damping_table(variants, paper, times)
     c = static["moving_wall"]
-    omega = 2 * math.pi * RING_HZ
     window = [t for t in TIMES if t <= QUASI_STATIC_BY]
     verdicts = [(label, [t for t in window if quasi_static(s, c, t)]) for label, s in variants if s]
     text = [
@@ -348,6 +338,17 @@ def damping(
         )
         + ".",
         "",
+        *_damping_findings(c),
+        _large_steps(runs.get("damping/large_steps")),
+        _late_compliance(main, paper, c, (plane or {}).get("plane_stress/moving_newtonian")),
+    ]
+    return "\n".join(text)
+
+
+def _damping_findings(c: float) -> list[str]:
+    """What the damping runs show, for the moving wall of static compliance ``c`` (m/Pa)."""
+    omega = 2 * math.pi * RING_HZ
+    return [
         "- **No relaxation time makes the wall quasi-static by 10 ms**: a small τ leaves it "
         "ringing, a large one makes it creep back slowly from the pulse's "
         f"{PULSE_AMPLITUDE / 1e3:g} kPa (at {fmt(1e6 * c, 2)} µm/Pa, "
@@ -362,10 +363,34 @@ def damping(
         "- **Without the wall's inertia the wall still rings**: the mass that moves is the "
         "blood's (the added mass of the lumen's column), the spring the wall's; the ring is a "
         "property of the coupled system, not of the tissue's density.",
-        _large_steps(runs.get("damping/large_steps")),
-        _late_compliance(main, paper, c, (plane or {}).get("plane_stress/moving_newtonian")),
     ]
-    return "\n".join(text)
+
+
+def _damping_table(variants: list, paper: dict, times: list[float]) -> list[str]:
+    """The rows of the damping table: the study's, then each variant's |η| and |η|/p at
+    ``times``."""
+    lines = [
+        "| run | " + " | ".join(f"{t:g} s: |η| (µm), |η|/p (µm/Pa)" for t in times) + " |",
+        "|---" * (1 + len(times)) + "|",
+        "| study, coarse | "
+        + " | ".join(
+            f"{in_um(paper_value(paper, 'displacement', t, 'moving', 'coarse'))}, "
+            f"{fmt(1e6 * paper_ratio(paper, t, 'moving', 'coarse'), 3)}"
+            for t in times
+        )
+        + " |",
+    ]
+    for label, s in variants:
+        if s is None:
+            lines.append(f"| {label} | " + " | ".join("–" for _ in times) + " |")
+            continue
+        cells = [
+            f"{in_um(at(s, t, 'peak_displacement'))}, "
+            f"{fmt(None if ratio(s, t) is None else 1e6 * ratio(s, t), 3)}"
+            for t in times
+        ]
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return lines
 
 
 def _late_compliance(
