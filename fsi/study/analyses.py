@@ -48,47 +48,7 @@ def pressure(
 ) -> str:
     """The peak pressure's decay from 10 ms to 0.1 s and its value at 0.8 s: the study's, ours,
     ours with the inlet before the physiological-flow issue, and with other stenosis degrees."""
-    lines = [
-        "| run | p(10 ms) (Pa) | p(0.1 s) (Pa) | p(10 ms) / p(0.1 s) | p(0.8 s) (Pa) |",
-        "|---|---|---|---|---|",
-    ]
-
-    def row(label, p10, p100, p800=None):
-        decay = None if p10 is None or not p100 else p10 / p100
-        lines.append(f"| {label} | {fmt(p10)} | {fmt(p100)} | {fmt(decay, 3)} | {fmt(p800)} |")
-        return decay
-
-    study = [
-        row(
-            f"study, fixed wall, Newtonian, {mesh}",
-            *(paper_value(paper, "pressure", t, "fixed", mesh) for t in (0.01, 0.1, 0.8)),
-        )
-        for mesh in ("coarse", "fine")
-    ]
-    ours = [
-        row(f"fsi, {name}", *(at(main.get(name), t, "peak_pressure") for t in (0.01, 0.1, 0.8)))
-        for name in ("fixed_newtonian_coarse", "fixed_newtonian_fine")
-    ]
-    for name, label in (
-        ("backward_euler", "backward Euler"),
-        ("large_steps_bdf2", "5 ms steps after the pulse, BDF2"),
-        ("large_steps_backward_euler", "5 ms steps after the pulse, backward Euler"),
-    ):
-        found = steps.get(f"steps/{name}")
-        if found is not None:
-            row(f"fsi, coarse, {label}", *(at(found, t, "peak_pressure") for t in (0.01, 0.1)))
-    old = inlet.get("inlet/fixed_newtonian_normal_flow")
-    before = row(
-        "fsi, coarse, the inlet held normal (before the physiological-flow issue)",
-        *(at(old, t, "peak_pressure") for t in (0.01, 0.1, 0.8)),
-    )
-    for s in sorted(degree.values(), key=lambda s: s["case"]["geometry"]["stenosis_degree"]):
-        d = s["case"]["geometry"]["stenosis_degree"]
-        if d != 0.5:
-            row(
-                f"fsi, coarse, stenosis degree {d:g}",
-                *(at(s, t, "peak_pressure") for t in (0.01, 0.1)),
-            )
+    lines, study, ours, before = _pressure_table(inlet, degree, steps, main, paper)
     if None in study + ours or before is None:
         return "\n".join(lines)
     late = [
@@ -136,6 +96,55 @@ def pressure(
             "largest peak pressure.",
         ]
     )
+
+
+def _pressure_table(
+    inlet: Summaries, degree: Summaries, steps: Summaries, main: Summaries, paper: dict
+) -> tuple[list[str], list, list, float | None]:
+    """The rows of the pressure's decay table, and the decays p(10 ms) / p(0.1 s) of the
+    study (coarse, fine), of fsi (coarse, fine) and of fsi with the inlet held normal."""
+    lines = [
+        "| run | p(10 ms) (Pa) | p(0.1 s) (Pa) | p(10 ms) / p(0.1 s) | p(0.8 s) (Pa) |",
+        "|---|---|---|---|---|",
+    ]
+
+    def row(label, p10, p100, p800=None):
+        decay = None if p10 is None or not p100 else p10 / p100
+        lines.append(f"| {label} | {fmt(p10)} | {fmt(p100)} | {fmt(decay, 3)} | {fmt(p800)} |")
+        return decay
+
+    study = [
+        row(
+            f"study, fixed wall, Newtonian, {mesh}",
+            *(paper_value(paper, "pressure", t, "fixed", mesh) for t in (0.01, 0.1, 0.8)),
+        )
+        for mesh in ("coarse", "fine")
+    ]
+    ours = [
+        row(f"fsi, {name}", *(at(main.get(name), t, "peak_pressure") for t in (0.01, 0.1, 0.8)))
+        for name in ("fixed_newtonian_coarse", "fixed_newtonian_fine")
+    ]
+    for name, label in (
+        ("backward_euler", "backward Euler"),
+        ("large_steps_bdf2", "5 ms steps after the pulse, BDF2"),
+        ("large_steps_backward_euler", "5 ms steps after the pulse, backward Euler"),
+    ):
+        found = steps.get(f"steps/{name}")
+        if found is not None:
+            row(f"fsi, coarse, {label}", *(at(found, t, "peak_pressure") for t in (0.01, 0.1)))
+    old = inlet.get("inlet/fixed_newtonian_normal_flow")
+    before = row(
+        "fsi, coarse, the inlet held normal (before the physiological-flow issue)",
+        *(at(old, t, "peak_pressure") for t in (0.01, 0.1, 0.8)),
+    )
+    for s in sorted(degree.values(), key=lambda s: s["case"]["geometry"]["stenosis_degree"]):
+        d = s["case"]["geometry"]["stenosis_degree"]
+        if d != 0.5:
+            row(
+                f"fsi, coarse, stenosis degree {d:g}",
+                *(at(s, t, "peak_pressure") for t in (0.01, 0.1)),
+            )
+    return lines, study, ours, before
 
 
 # --------------------------------------------------------------------------------------------
@@ -334,22 +343,7 @@ def pressure_at_10ms(p10: Summaries, main: Summaries, paper: dict) -> str:
     p_base = at(base, 0.01, "peak_pressure")
     if p_base is None or not p10:
         return ""
-    lines = [
-        "| coarse fixed-wall Newtonian run | p(10 ms) (Pa) | change | p(20 ms) (Pa) |",
-        "|---|---|---|---|",
-        f"| shipped | {fmt(p_base)} | – | {fmt(at(base, 0.02, 'peak_pressure'))} |",
-    ]
-    changes = {}
-    for name, (label, _) in P10_VARIANTS.items():
-        s = p10.get(f"p10/{name}")
-        p = at(s, 0.01, "peak_pressure")
-        if p is None:
-            continue
-        changes[name] = p / p_base - 1
-        lines.append(
-            f"| {label} | {fmt(p)} | {100 * changes[name]:+.1f} % | "
-            f"{fmt(at(s, 0.02, 'peak_pressure'))} |"
-        )
+    lines, changes = _p10_table(p10, base, p_base)
     same = [abs(c) for n, c in changes.items() if n != "plaque_both_sides"]
     if not same:
         return ""
@@ -390,6 +384,28 @@ def pressure_at_10ms(p10: Summaries, main: Summaries, paper: dict) -> str:
             "pressure of its flow, and none of these runs gives fsi such a part.",
         ]
     )
+
+
+def _p10_table(p10: Summaries, base: dict, p_base: float) -> tuple[list[str], dict[str, float]]:
+    """The rows of the p(10 ms) table (the shipped run ``base``, then each of the
+    :data:`P10_VARIANTS`) and each variant's relative change of p(10 ms)."""
+    lines = [
+        "| coarse fixed-wall Newtonian run | p(10 ms) (Pa) | change | p(20 ms) (Pa) |",
+        "|---|---|---|---|",
+        f"| shipped | {fmt(p_base)} | – | {fmt(at(base, 0.02, 'peak_pressure'))} |",
+    ]
+    changes = {}
+    for name, (label, _) in P10_VARIANTS.items():
+        s = p10.get(f"p10/{name}")
+        p = at(s, 0.01, "peak_pressure")
+        if p is None:
+            continue
+        changes[name] = p / p_base - 1
+        lines.append(
+            f"| {label} | {fmt(p)} | {100 * changes[name]:+.1f} % | "
+            f"{fmt(at(s, 0.02, 'peak_pressure'))} |"
+        )
+    return lines, changes
 
 
 MESHES = ("coarse", "fine")
