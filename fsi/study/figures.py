@@ -54,46 +54,10 @@ def figure_sss(runs: dict, path: Path) -> Path:
     colours = {"fixed": "C0", "moving": "C3"}
     styles = {"coarse": "-", "fine": "--"}
 
-    def series(run, end=None):
-        """(t, the plaque's max |σ₁₂|), t in ms up to ``end`` (s), else in s."""
-        pts = [(r["t"], plaque_max(r)) for r in run.rows if plaque_max(r)]
-        return [(t if end is None else 1e3 * t, v) for t, v in pts if end is None or t <= end]
-
     for col, end in enumerate((PULSE_END, None)):
         top, bottom = axes[0, col], axes[1, col]
-        for c in CONFIGS:
-            wall, fluid = c.split("_")
-            for level, style in styles.items():
-                run = runs.get(f"{c}_{level}")
-                if run is None:
-                    continue
-                pts = series(run, end)
-                if not pts:
-                    continue
-                wide = fluid == "newtonian"
-                top.plot(
-                    *zip(*pts),
-                    style,
-                    color=colours[wall],
-                    lw=3.5 if wide else 1.1,
-                    alpha=0.35 if wide else 1.0,
-                    label=f"{LABELS[c]}, {level}",
-                )
-        for wall in colours:
-            for level, style in styles.items():
-                n, c = runs.get(f"{wall}_newtonian_{level}"), runs.get(f"{wall}_carreau_{level}")
-                if n is None or c is None:
-                    continue
-                carreau = dict(series(c, end))
-                pts = [(t, carreau[t] / v) for t, v in series(n, end) if t in carreau]
-                if pts:
-                    bottom.plot(
-                        *zip(*pts),
-                        style,
-                        color=colours[wall],
-                        lw=1.1,
-                        label=f"{wall} wall, {level}",
-                    )
+        _sss_curves(top, runs, end, colours, styles)
+        _sss_ratios(bottom, runs, end, colours, styles)
         top.set_yscale("log")
         top.grid(True, which="both", alpha=0.3)
         bottom.axhline(1.0, color="k", lw=0.6)
@@ -111,6 +75,53 @@ def figure_sss(runs: dict, path: Path) -> Path:
     axes[1, 1].legend(fontsize=7)
     plot.save_figure(fig, path, dpi=130)
     return path
+
+
+def _plaque_series(run, end=None):
+    """(t, the plaque's max |σ₁₂|), t in ms up to ``end`` (s), else in s."""
+    pts = [(r["t"], plaque_max(r)) for r in run.rows if plaque_max(r)]
+    return [(t if end is None else 1e3 * t, v) for t, v in pts if end is None or t <= end]
+
+
+def _sss_curves(top, runs: dict, end: float | None, colours: dict, styles: dict) -> None:
+    """Figure 6's upper panel: each run's plaque max |σ₁₂| up to ``end`` (None: the whole beat)."""
+    for c in CONFIGS:
+        wall, fluid = c.split("_")
+        for level, style in styles.items():
+            run = runs.get(f"{c}_{level}")
+            if run is None:
+                continue
+            pts = _plaque_series(run, end)
+            if not pts:
+                continue
+            wide = fluid == "newtonian"
+            top.plot(
+                *zip(*pts),
+                style,
+                color=colours[wall],
+                lw=3.5 if wide else 1.1,
+                alpha=0.35 if wide else 1.0,
+                label=f"{LABELS[c]}, {level}",
+            )
+
+
+def _sss_ratios(bottom, runs: dict, end: float | None, colours: dict, styles: dict) -> None:
+    """Figure 6's lower panel: the Carreau/Newtonian ratio of each wall and mesh."""
+    for wall in colours:
+        for level, style in styles.items():
+            n, c = runs.get(f"{wall}_newtonian_{level}"), runs.get(f"{wall}_carreau_{level}")
+            if n is None or c is None:
+                continue
+            carreau = dict(_plaque_series(c, end))
+            pts = [(t, carreau[t] / v) for t, v in _plaque_series(n, end) if t in carreau]
+            if pts:
+                bottom.plot(
+                    *zip(*pts),
+                    style,
+                    color=colours[wall],
+                    lw=1.1,
+                    label=f"{wall} wall, {level}",
+                )
 
 
 def figure_convergence(summaries: dict, path: Path) -> Path:
