@@ -174,44 +174,20 @@ def warp_for(displacement: float) -> float:
 
 
 def field_figures(runs: dict, summaries: dict, figures: Path) -> list[tuple[str, Path]]:
-    """Figures 7–9 from the field files (fsi/output/plot.py): σ₁₂ on the deformed structure of
-    each configuration at the time of the plaque's largest |σ₁₂|, the colours spanning the
+    """Figures 7–9 from the field files (fsi/output/field_files.py): σ₁₂ on the deformed structure
+    of each configuration at the time of the plaque's largest |σ₁₂|, the colours spanning the
     plaque's range (a larger value elsewhere, the moving wall's singular clamped corner, shows
     saturated and is marked); the velocity's streamlines of the Carreau runs (the study's
     Figure 9 is Carreau) at t = RECIRCULATION_TIME, and the wall shear stress along the
     diseased wall."""
     out = []
     for c in sorted(CONFIGS, key=lambda c: FIGURE_OF_WALL[c.split("_")[0]]):
-        wall = c.split("_")[0]
         run = best(runs, summaries, c)
         if run is None:
             continue
-        s = summaries[run.path.name]
-        plaque, whole, where = peak(s, "plaque_sss"), peak(s, "max_sss"), s.get("largest_sss_at")
-        if plaque is None:
-            continue
-        marks, marked = [], ""
-        if where is not None and where["region"] == "wall" and whole[0] > plaque[0]:
-            marks.append((where["x"], where["y"], "clamped corner (singular)"))
-            marked = (
-                f"; the cross marks the clamped corner where the whole structure's largest "
-                f"|σ₁₂|, {whole[0]:.4g} Pa at t = {whole[1]:.4g} s, sits (a singularity of the "
-                "boundary conditions, see the findings)"
-            )
-        path = figures / f"study_sss_{c}.png"
-        warp = warp_for(report.value_at(run.rows, plaque[1], "peak_displacement") or 0.0)
-        plot.field_snapshot(
-            run.path, "sss", plaque[1], path, warp=warp, limit=plaque[0], marks=marks
-        )
-        out.append(
-            (
-                f"Figure {FIGURE_OF_WALL[wall]}: σ₁₂ on the structure, {LABELS[c]} "
-                f"({run.path.name}), displacement ×{warp:g}, at t = {plaque[1]:.4g} s, "
-                f"when the plaque's |σ₁₂| is largest ({plaque[0]:.4g} Pa); the colours span "
-                f"±{plaque[0]:.4g} Pa{marked}",
-                path,
-            )
-        )
+        figure = _stress_figure(c, run, summaries[run.path.name], figures)
+        if figure is not None:
+            out.append(figure)
     for c in ("fixed_carreau", "moving_carreau"):
         run = best(runs, summaries, c)
         if run is None or run.rows[-1]["t"] < RECIRCULATION_TIME:
@@ -237,6 +213,34 @@ def field_figures(runs: dict, summaries: dict, figures: Path) -> list[tuple[str,
             )
         )
     return out
+
+
+def _stress_figure(c: str, run, s: dict, figures: Path) -> tuple[str, Path] | None:
+    """Figure 7 or 8 of configuration ``c``: σ₁₂ on the deformed structure of ``run`` (summary
+    ``s``) at the time of the plaque's largest |σ₁₂|, drawn into ``figures``; its caption and
+    path, or None without a plaque maximum."""
+    wall = c.split("_")[0]
+    plaque, whole, where = peak(s, "plaque_sss"), peak(s, "max_sss"), s.get("largest_sss_at")
+    if plaque is None:
+        return None
+    marks, marked = [], ""
+    if where is not None and where["region"] == "wall" and whole[0] > plaque[0]:
+        marks.append((where["x"], where["y"], "clamped corner (singular)"))
+        marked = (
+            f"; the cross marks the clamped corner where the whole structure's largest "
+            f"|σ₁₂|, {whole[0]:.4g} Pa at t = {whole[1]:.4g} s, sits (a singularity of the "
+            "boundary conditions, see the findings)"
+        )
+    path = figures / f"study_sss_{c}.png"
+    warp = warp_for(report.value_at(run.rows, plaque[1], "peak_displacement") or 0.0)
+    plot.field_snapshot(run.path, "sss", plaque[1], path, warp=warp, limit=plaque[0], marks=marks)
+    return (
+        f"Figure {FIGURE_OF_WALL[wall]}: σ₁₂ on the structure, {LABELS[c]} "
+        f"({run.path.name}), displacement ×{warp:g}, at t = {plaque[1]:.4g} s, "
+        f"when the plaque's |σ₁₂| is largest ({plaque[0]:.4g} Pa); the colours span "
+        f"±{plaque[0]:.4g} Pa{marked}",
+        path,
+    )
 
 
 def boundary_nodes(triangles: np.ndarray) -> np.ndarray:
