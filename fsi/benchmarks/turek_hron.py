@@ -61,6 +61,7 @@ from fsi.benchmarks.oscillation import (
     relative_difference,
 )
 from fsi.output import metrics_csv
+from fsi.run import errors
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -328,6 +329,27 @@ def format_report(
 
 
 def main(argv: list[str] | None = None) -> int:
+    parser = _parser()
+    args = parser.parse_args(argv)
+    comm = MPI.COMM_WORLD
+    if args.out is not None and args.case is None:
+        parser.error("--out needs --case")
+    if args.analyse_only is not None:
+        args.case = _case_of_run(args, parser, comm)
+    ref_set = reference_set(args.case, args.reference)
+    status = 0
+    if args.out is not None:
+        run, status = args.out, _run(args, comm)
+        if status == errors.EXIT_USAGE:
+            return status
+    else:
+        run = args.analyse_only
+    if not _analysed(run, args, ref_set, comm):
+        return 1
+    return status
+
+
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "--case",
@@ -371,58 +393,63 @@ def main(argv: list[str] | None = None) -> int:
         choices=["featflow", "paper"],
         help="FSI2's and FSI3's reference set (default featflow)",
     )
-    args = parser.parse_args(argv)
-    comm = MPI.COMM_WORLD
-    if args.out is not None and args.case is None:
-        parser.error("--out needs --case")
-    if args.analyse_only is not None:
-        try:  # every rank reads it: all of them stop alike
-            name = str(resolved_config(args.analyse_only).get("name", ""))
-        except (OSError, yaml.YAMLError) as e:
-            parser.error(f"--analyse-only: {e}")
-        name = name.removeprefix("turek_hron_")
-        if args.case is None and name not in REFERENCES:
-            parser.error(
-                f"{args.analyse_only}: case '{name}' is not a Turek–Hron case; give --case"
+    return parser
+
+
+def _case_of_run(args: argparse.Namespace, parser: argparse.ArgumentParser, comm) -> str:
+    """``--analyse-only DIR``: the case DIR's config.yaml names, or ``--case`` (with a warning
+    where they differ)."""
+    try:  # every rank reads it: all of them stop alike
+        name = str(resolved_config(args.analyse_only).get("name", ""))
+    except (OSError, yaml.YAMLError) as e:
+        parser.error(f"--analyse-only: {e}")
+    name = name.removeprefix("turek_hron_")
+    if args.case is None and name not in REFERENCES:
+        parser.error(f"{args.analyse_only}: case '{name}' is not a Turek–Hron case; give --case")
+    if args.case not in (None, name) and comm.rank == 0:
+        print(
+            f"warning: {args.analyse_only} holds case '{name}', analysed as '{args.case}'",
+            file=sys.stderr,
+        )
+    return args.case or name
+
+
+def _run(args: argparse.Namespace, comm) -> int:
+    """Run the case into ``--out`` through ``fsi run``'s own code path (:func:`fsi.cli.main`),
+    writing DIR/benchmark.json (the command, wall time, ranks, load); its exit status."""
+    run = args.out
+    cfg = ROOT / "configs" / f"turek_hron_{args.case}.yaml"
+    overrides = ([f"mesh.level={args.level}"] if args.level else []) + args.overrides
+    argv_run = ["run", str(cfg), "--out", str(run)]
+    for item in overrides:
+        argv_run += ["--set", item]
+    load_start = os.getloadavg()
+    tic = time.perf_counter()
+    status = cli.main(argv_run)
+    wall = time.perf_counter() - tic
+    if status == errors.EXIT_USAGE:
+        return status
+    if comm.rank == 0:
+        run.mkdir(parents=True, exist_ok=True)
+        (run / "benchmark.json").write_text(
+            json.dumps(
+                {
+                    "command": ["fsi", *argv_run],
+                    "wall_time_s": wall,
+                    "ranks": comm.size,
+                    "load": {"start": load_start, "end": os.getloadavg()},
+                    "status": status,
+                },
+                indent=2,
             )
-        if args.case not in (None, name) and comm.rank == 0:
-            print(
-                f"warning: {args.analyse_only} holds case '{name}', analysed as '{args.case}'",
-                file=sys.stderr,
-            )
-        args.case = args.case or name
-    ref_set = reference_set(args.case, args.reference)
-    status = 0
-    if args.out is not None:
-        run = args.out
-        cfg = ROOT / "configs" / f"turek_hron_{args.case}.yaml"
-        overrides = ([f"mesh.level={args.level}"] if args.level else []) + args.overrides
-        argv_run = ["run", str(cfg), "--out", str(run)]
-        for item in overrides:
-            argv_run += ["--set", item]
-        load_start = os.getloadavg()
-        tic = time.perf_counter()
-        status = cli.main(argv_run)
-        wall = time.perf_counter() - tic
-        if status == cli.EXIT_USAGE:
-            return status
-        if comm.rank == 0:
-            run.mkdir(parents=True, exist_ok=True)
-            (run / "benchmark.json").write_text(
-                json.dumps(
-                    {
-                        "command": ["fsi", *argv_run],
-                        "wall_time_s": wall,
-                        "ranks": comm.size,
-                        "load": {"start": load_start, "end": os.getloadavg()},
-                        "status": status,
-                    },
-                    indent=2,
-                )
-                + "\n"
-            )
-    else:
-        run = args.analyse_only
+            + "\n"
+        )
+    return status
+
+
+def _analysed(run: Path, args: argparse.Namespace, ref_set: str, comm) -> bool:
+    """Analyse ``run`` on rank 0 (DIR/benchmark.txt), the others waiting for its verdict: True
+    unless the analysis failed."""
     failed = None
     if comm.rank == 0:  # the other ranks wait for its verdict (no rank may hang on an error)
         try:
@@ -433,6 +460,4 @@ def main(argv: list[str] | None = None) -> int:
         except (OSError, ValueError, SystemExit, yaml.YAMLError) as e:
             failed = f"{run}: {e}"
             print(f"benchmark_turek_hron: error: {failed}", file=sys.stderr)
-    if comm.bcast(failed, root=0) is not None:
-        return 1
-    return status
+    return comm.bcast(failed, root=0) is None
