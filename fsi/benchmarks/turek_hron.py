@@ -191,37 +191,55 @@ def analyse_run(
         ref = Reference.parse(references[column])
         tol = TOLERANCES[column]
         if case_name in PERIODIC:
-            try:
-                osc = analyse(tc, y, start=start, window=window)
-            except OscillationError as e:
-                lines.append(f"{column}: not analysed: {e}")
-                continue
-            lines.append(
-                f"{column:<5} = {osc.mean:.5g} ± {osc.amplitude:.5g} {unit} "
-                f"[{osc.frequency:.5g} Hz] over t = [{osc.start:.4f}, {osc.end:.4f}] s "
-                f"({window} period{'s' if window > 1 else ''}); {osc.periods} periods "
-                f"after t = {start:g} s, last two differ by "
-                f"{osc.period_change * 100:+.3f} %"
-            )
-            for stat, diff in compare(osc, ref, tol).items():
-                table.append(Row(column, stat, "Hz" if stat == "frequency" else unit, diff))
+            _periodic_lines(column, unit, tc, y, ref, tol, start, window, lines, table)
         else:
-            tail = tc >= tc[-1] * (1 - STEADY_TAIL)
-            value = y[-1]
-            drift = (y[tail].max() - y[tail].min()) / abs(value) if value else np.inf
-            lines.append(
-                f"{column:<5} = {value:.6g} {unit} at t = {tc[-1]:g} s; over the last "
-                f"{STEADY_TAIL:.0%} of the run (t ≥ {tc[-1] * (1 - STEADY_TAIL):g} s) it "
-                f"moved by {drift:.2e} of its value"
-            )
-            table.append(
-                Row(
-                    column,
-                    "value",
-                    unit,
-                    Difference(value, ref.mean, relative_difference(value, ref.mean), tol.mean),
-                )
-            )
+            _steady_lines(column, unit, tc, y, ref, tol, lines, table)
+    facts = _facts(run, case, rows_csv, t)
+    return lines, table, facts
+
+
+def _periodic_lines(column, unit, tc, y, ref, tol, start, window, lines, table) -> None:
+    """A periodic column's line (mean ± amplitude [frequency] over the last ``window``
+    periods after ``start``) and its comparison rows, appended to ``lines`` and ``table``."""
+    try:
+        osc = analyse(tc, y, start=start, window=window)
+    except OscillationError as e:
+        lines.append(f"{column}: not analysed: {e}")
+        return
+    lines.append(
+        f"{column:<5} = {osc.mean:.5g} ± {osc.amplitude:.5g} {unit} "
+        f"[{osc.frequency:.5g} Hz] over t = [{osc.start:.4f}, {osc.end:.4f}] s "
+        f"({window} period{'s' if window > 1 else ''}); {osc.periods} periods "
+        f"after t = {start:g} s, last two differ by "
+        f"{osc.period_change * 100:+.3f} %"
+    )
+    for stat, diff in compare(osc, ref, tol).items():
+        table.append(Row(column, stat, "Hz" if stat == "frequency" else unit, diff))
+
+
+def _steady_lines(column, unit, tc, y, ref, tol, lines, table) -> None:
+    """A steady column's line (its last value and its drift over the run's last
+    STEADY_TAIL) and its comparison row, appended to ``lines`` and ``table``."""
+    tail = tc >= tc[-1] * (1 - STEADY_TAIL)
+    value = y[-1]
+    drift = (y[tail].max() - y[tail].min()) / abs(value) if value else np.inf
+    lines.append(
+        f"{column:<5} = {value:.6g} {unit} at t = {tc[-1]:g} s; over the last "
+        f"{STEADY_TAIL:.0%} of the run (t ≥ {tc[-1] * (1 - STEADY_TAIL):g} s) it "
+        f"moved by {drift:.2e} of its value"
+    )
+    table.append(
+        Row(
+            column,
+            "value",
+            unit,
+            Difference(value, ref.mean, relative_difference(value, ref.mean), tol.mean),
+        )
+    )
+
+
+def _facts(run: Path, case: dict, rows_csv: list[dict], t: np.ndarray) -> dict:
+    """The run's facts for the report: mesh level, steps, times, ranks, dofs, effort, load."""
     summary_path = run / "summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
     bench_path = run / "benchmark.json"
@@ -246,7 +264,7 @@ def analyse_run(
         "load": bench.get("load"),
         "complete": bool(summary),
     }
-    return lines, table, facts
+    return facts
 
 
 def _averages(values) -> str:
@@ -266,11 +284,21 @@ def format_report(
         f"reference: {REFERENCE_NAMES[ref_set]} ({source}); tolerances: solids4foam's acceptance",
     ]
     out += lines
+    out += _comparison_table(table)
+    out.append("")
+    out += _run_facts(facts)
+    return "\n".join(out)
+
+
+def _comparison_table(table: list[Row]) -> list[str]:
+    """The report's table: each checked statistic measured, its reference, the relative
+    difference, the tolerance and the verdict; then how many pass."""
+    out = [""]
     header = (
         f"{'column':<7}{'statistic':<11}{'unit':<5}{'measured':>12}{'reference':>12}"
         f"{'rel. diff':>11}{'tolerance':>11}{'pass':>6}"
     )
-    out += ["", header, "-" * len(header)]
+    out += [header, "-" * len(header)]
     for r in table:
         d = r.difference
         tol = "–" if d.tolerance is None else f"{d.tolerance:.0%}"
@@ -284,7 +312,12 @@ def format_report(
         f"{sum(checked)}/{len(checked)} checked quantities within tolerance"
         + ("" if table else " (nothing analysed: see above)")
     )
-    out.append("")
+    return out
+
+
+def _run_facts(facts: dict) -> list[str]:
+    """The report's last lines: the mesh, the steps, the time and effort, the load."""
+    out = []
     dt = ", ".join(f"{v:g}" for v in facts["dt"])
     wall, per_step = facts["wall_time_s"], facts["mean_step_time_s"]
     sizes = ", ".join(
@@ -322,7 +355,7 @@ def format_report(
             f"{os.cpu_count()} CPUs)"
         )
     )
-    return "\n".join(out)
+    return out
 
 
 # --------------------------------------------------------------------------------------------
