@@ -153,6 +153,16 @@ def draw(
         image = ax.tripcolor(triangulation, facecolors=values, cmap=cmap, norm=norm)
     if flow is not None:
         _streamlines(ax, flow, lo, hi)
+    _frame(ax, snapshot, lo, hi, marks)
+    bar_label = f"{prefix}{label}" + (f" ({unit})" if unit else "")
+    _colour_bar(fig, ax, image, bar_label, quantity, shown, wide=aspect < 0.6, norm=norm)
+    save_figure(fig, path)
+    return path
+
+
+def _frame(ax, snapshot: Snapshot, lo: np.ndarray, hi: np.ndarray, marks) -> None:
+    """The picture's marks (a cross and a label each), its extent ``lo``..``hi`` (mm) at equal
+    aspect, its axis labels and its title."""
     for x, y, text in marks:
         ax.plot(1e3 * x, 1e3 * y, "kx", ms=9, mew=2)
         ax.annotate(text, (1e3 * x, 1e3 * y), xytext=(6, 6), textcoords="offset points", fontsize=8)
@@ -163,10 +173,6 @@ def draw(
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title(snapshot), fontsize=9)
-    bar_label = f"{prefix}{label}" + (f" ({unit})" if unit else "")
-    _colour_bar(fig, ax, image, bar_label, quantity, shown, wide=aspect < 0.6, norm=norm)
-    save_figure(fig, path)
-    return path
 
 
 def _in_unit(
