@@ -252,6 +252,57 @@ def degree_study(
 
 
 def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    comm = MPI.COMM_WORLD
+    PETSc.Log.begin()
+
+    def say(*text):
+        if comm.rank == 0:
+            print(*text, flush=True)
+
+    load_start = os.getloadavg()
+    say(
+        f"fluid benchmark: {comm.size} rank(s), dolfinx {dolfinx.__version__}, PETSc "
+        f"{'.'.join(map(str, PETSc.Sys.getVersion()))}, Python {platform.python_version()}, "
+        f"{os.cpu_count()} CPUs, load average {load_start[0]:.2f} {load_start[1]:.2f} "
+        f"{load_start[2]:.2f}"
+    )
+    rows, studies = [], {}
+    for level in args.levels:
+        base = load_case(level, args.models[0], args.steps, args.dt, args.settings)
+        tic = time.perf_counter()
+        part = mesh.restrict(mesh.build(base, comm), Region.FLUID)
+        cells = part.mesh.topology.index_map(2).size_global
+        say(f"[{level}] fluid mesh: {cells} cells ({time.perf_counter() - tic:.1f} s)")
+        for model in args.models:
+            rows.append(_measure(level, model, part, cells, args, comm, say))
+        if "carreau" in args.models and args.degrees:
+            studies[level] = (
+                steppers.global_dofs(
+                    compat.mixed_space(part.mesh, [("Lagrange", 2, (2,)), ("Lagrange", 1, ())])
+                ),
+                degree_study(
+                    part,
+                    lambda d, level=level: load_case(
+                        level,
+                        "carreau",
+                        args.steps,
+                        args.dt,
+                        (*args.settings, f"fluid.quadrature_degree={d}"),
+                    ),
+                    args.degrees,
+                    args.repeats,
+                ),
+            )
+
+    load_end = os.getloadavg()
+    say()
+    _print_table(rows, args, comm, say, load_start, load_end)
+    _print_degree_studies(studies, comm, say)
+    return 0
+
+
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "--levels", nargs="+", default=["coarse", "fine"], choices=list(config.MESH_LEVELS)
@@ -278,80 +329,45 @@ def main(argv: list[str] | None = None) -> int:
         metavar="KEY=VALUE",
         help="a config override for every case (e.g. fluid.supg=false)",
     )
-    args = parser.parse_args(argv)
-    comm = MPI.COMM_WORLD
-    PETSc.Log.begin()
+    return parser
 
-    def say(*text):
-        if comm.rank == 0:
-            print(*text, flush=True)
 
-    load_start = os.getloadavg()
+def _measure(level: str, model: str, part, cells: int, args, comm, say) -> dict:
+    """One level and rheology: the solver set up, its steps run and its forms' assembly timed;
+    the table's row."""
+    case = load_case(level, model, args.steps, args.dt, args.settings)
+    tic = time.perf_counter()
+    solver = fluid_solver(part, case)
+    setup = comm.allreduce(time.perf_counter() - tic, op=MPI.MAX)
+    dofs = steppers.global_dofs(solver.W)
     say(
-        f"fluid benchmark: {comm.size} rank(s), dolfinx {dolfinx.__version__}, PETSc "
-        f"{'.'.join(map(str, PETSc.Sys.getVersion()))}, Python {platform.python_version()}, "
-        f"{os.cpu_count()} CPUs, load average {load_start[0]:.2f} {load_start[1]:.2f} "
-        f"{load_start[2]:.2f}"
+        f"[{level}/{model}] {dofs} dofs, solver set-up {setup:.1f} s (JIT if not cached);"
+        f" {args.steps} steps of {args.dt:g} s"
     )
-    rows, studies = [], {}
-    for level in args.levels:
-        base = load_case(level, args.models[0], args.steps, args.dt, args.settings)
-        tic = time.perf_counter()
-        part = mesh.restrict(mesh.build(base, comm), Region.FLUID)
-        cells = part.mesh.topology.index_map(2).size_global
-        say(f"[{level}] fluid mesh: {cells} cells ({time.perf_counter() - tic:.1f} s)")
-        for model in args.models:
-            case = load_case(level, model, args.steps, args.dt, args.settings)
-            tic = time.perf_counter()
-            solver = fluid_solver(part, case)
-            setup = comm.allreduce(time.perf_counter() - tic, op=MPI.MAX)
-            dofs = steppers.global_dofs(solver.W)
-            say(
-                f"[{level}/{model}] {dofs} dofs, solver set-up {setup:.1f} s (JIT if not cached);"
-                f" {args.steps} steps of {args.dt:g} s"
-            )
-            run = run_steps(solver, case)
-            J, F, F_lifted = assembly_times(solver, args.repeats)
-            rows.append(
-                {
-                    "level": level,
-                    "model": model,
-                    "dofs": dofs,
-                    "cells": cells,
-                    "degree": case.fluid.quadrature_degree,
-                    "J_best": J.min() / dofs * 1e6,
-                    "J_mean": J.mean() / dofs * 1e6,
-                    "F_best": F.min() / dofs * 1e6,
-                    "F_lifted_best": F_lifted.min() / dofs * 1e6,
-                    **run,
-                }
-            )
-            say(
-                f"[{level}/{model}] done: {run['steps']} steps, Newton {run['iterations']:.2f}"
-                f"/step, step {run['step_s']:.3f} s"
-            )
-            del solver
-        if "carreau" in args.models and args.degrees:
-            studies[level] = (
-                steppers.global_dofs(
-                    compat.mixed_space(part.mesh, [("Lagrange", 2, (2,)), ("Lagrange", 1, ())])
-                ),
-                degree_study(
-                    part,
-                    lambda d, level=level: load_case(
-                        level,
-                        "carreau",
-                        args.steps,
-                        args.dt,
-                        (*args.settings, f"fluid.quadrature_degree={d}"),
-                    ),
-                    args.degrees,
-                    args.repeats,
-                ),
-            )
+    run = run_steps(solver, case)
+    J, F, F_lifted = assembly_times(solver, args.repeats)
+    row = {
+        "level": level,
+        "model": model,
+        "dofs": dofs,
+        "cells": cells,
+        "degree": case.fluid.quadrature_degree,
+        "J_best": J.min() / dofs * 1e6,
+        "J_mean": J.mean() / dofs * 1e6,
+        "F_best": F.min() / dofs * 1e6,
+        "F_lifted_best": F_lifted.min() / dofs * 1e6,
+        **run,
+    }
+    say(
+        f"[{level}/{model}] done: {run['steps']} steps, Newton {run['iterations']:.2f}"
+        f"/step, step {run['step_s']:.3f} s"
+    )
+    del solver
+    return row
 
-    load_end = os.getloadavg()
-    say()
+
+def _print_table(rows: list[dict], args, comm, say, load_start, load_end) -> None:
+    """The benchmark's table: one row per level and rheology, with its legend."""
     linear = "/".join(str(v) for v in config.load(CASE).fluid.solver.petsc_options.values())
     degree = rows[0]["degree"] if rows else "-"
     say(
@@ -394,6 +410,10 @@ def main(argv: list[str] | None = None) -> int:
         "symbolic factorisation); J+F s: per step, the Jacobian and residual evaluations inside "
         "Newton." + ("  !: a step failed." if any(r["failed"] for r in rows) else "")
     )
+
+
+def _print_degree_studies(studies: dict, comm, say) -> None:
+    """The Carreau Jacobian's assembly time against the quadrature degree, per level."""
     for level, (dofs, study) in studies.items():
         say()
         say(f"Carreau Jacobian vs quadrature degree — {level}, {dofs} dofs, {comm.size} rank(s)")
@@ -417,4 +437,3 @@ def main(argv: list[str] | None = None) -> int:
             " JIT s: the solver's set-up, form compilation included (cached after the first"
             " run)."
         )
-    return 0
