@@ -230,26 +230,7 @@ def print_profile(say, results: dict) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--config", type=Path, default=CASE)
-    parser.add_argument("--level", default="coarse", choices=list(config.MESH_LEVELS))
-    parser.add_argument("--steps", type=int, default=40, help="steps of the schedule to run")
-    parser.add_argument(
-        "--accelerations",
-        nargs="+",
-        default=["aitken", "iqn-ils"],
-        choices=["aitken", "iqn-ils", "constant"],
-    )
-    parser.add_argument("--no-rigid", action="store_true", help="skip the rigid-wall run")
-    parser.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY.PATH=VALUE",
-        help="override a value of every run",
-    )
-    args = parser.parse_args(argv)
+    args = _parser().parse_args(argv)
     comm = MPI.COMM_WORLD
     logging.disable(logging.WARNING)  # no progress or JIT chatter; failures are reported below
     PETSc.Log.begin()
@@ -290,6 +271,46 @@ def main(argv: list[str] | None = None) -> int:
     load_end = os.getloadavg()
 
     say()
+    _print_settings(say, args, results, settings, end, (load_start, load_end), comm)
+    print_table(say, results, comm)
+    coupled = {n: r for n, r in results.items() if not n.startswith("rigid")}
+    if coupled:
+        say()
+        print_accuracy(say, coupled, settings.coupling.tolerance)
+        say()
+        print_profile(say, results)
+    return 0
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--config", type=Path, default=CASE)
+    parser.add_argument("--level", default="coarse", choices=list(config.MESH_LEVELS))
+    parser.add_argument("--steps", type=int, default=40, help="steps of the schedule to run")
+    parser.add_argument(
+        "--accelerations",
+        nargs="+",
+        default=["aitken", "iqn-ils"],
+        choices=["aitken", "iqn-ils", "constant"],
+    )
+    parser.add_argument("--no-rigid", action="store_true", help="skip the rigid-wall run")
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY.PATH=VALUE",
+        help="override a value of every run",
+    )
+    return parser
+
+
+def _print_settings(
+    say, args, results: dict, settings: config.Case, end: float, load, comm
+) -> None:
+    """The table's heading: the case, the dofs, the coupling and Newton settings, the load
+    average at the start and the end (``load``)."""
+    load_start, load_end = load
     say(
         f"Coupling benchmark — {args.config.name} ({args.level}), steps 1..{args.steps} "
         f"(t <= {end:g} s), {comm.size} rank(s), dolfinx {dolfinx.__version__}"
@@ -317,11 +338,3 @@ def main(argv: list[str] | None = None) -> int:
         f"load average at start {load_start[0]:.2f}, at end {load_end[0]:.2f} "
         f"({os.cpu_count()} CPUs)"
     )
-    print_table(say, results, comm)
-    coupled = {n: r for n, r in results.items() if not n.startswith("rigid")}
-    if coupled:
-        say()
-        print_accuracy(say, coupled, c.tolerance)
-        say()
-        print_profile(say, results)
-    return 0
