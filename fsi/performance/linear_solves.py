@@ -129,21 +129,7 @@ def jacobians(case: config.Case, comm: MPI.Comm, n_steps: int) -> tuple[object, 
 
 
 def main(argv: list[str] | None = None) -> list[dict]:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--config", type=Path, default=CASE)
-    parser.add_argument("--level", default="fine")
-    parser.add_argument("--steps", type=int, default=3, help="steps taken before measuring")
-    parser.add_argument("--repeats", type=int, default=10)
-    parser.add_argument("--systems", nargs="+", choices=SYSTEMS, default=list(SYSTEMS))
-    parser.add_argument(
-        "--try",
-        dest="tries",
-        nargs=2,
-        action="append",
-        default=[],
-        metavar=("SYSTEM", "OPTIONS"),
-        help="another linear solver for SYSTEM: PETSc options 'key=value ...' without prefix",
-    )
+    parser = _parser()
     args = parser.parse_args(argv)
     for system, _ in args.tries:
         if system not in SYSTEMS:
@@ -173,6 +159,32 @@ def main(argv: list[str] | None = None) -> list[dict]:
             row = measure(comm, A, prefix, options, args.repeats)
             rows.append({"system": system, "dofs": dofs, "solver": label, **row})
     del problem, systems  # the matrices, with their solvers
+    _print_rows(say, rows, args.repeats)
+    return rows
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--config", type=Path, default=CASE)
+    parser.add_argument("--level", default="fine")
+    parser.add_argument("--steps", type=int, default=3, help="steps taken before measuring")
+    parser.add_argument("--repeats", type=int, default=10)
+    parser.add_argument("--systems", nargs="+", choices=SYSTEMS, default=list(SYSTEMS))
+    parser.add_argument(
+        "--try",
+        dest="tries",
+        nargs=2,
+        action="append",
+        default=[],
+        metavar=("SYSTEM", "OPTIONS"),
+        help="another linear solver for SYSTEM: PETSc options 'key=value ...' without prefix",
+    )
+    return parser
+
+
+def _print_rows(say, rows: list[dict], repeats: int) -> None:
+    """The table: per system and solver, set-up, refactorisation and solve times, iterations,
+    the residual and the factor's size."""
     say(
         f"{'system':10} {'dofs':>8} {'set-up s':>9} {'refactor ms':>12} {'solve ms':>9} "
         f"{'its':>5} {'|Ax-b|/|b|':>11} {'factor entries':>15}  solver"
@@ -185,8 +197,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
             f"{r['factor_entries']:15.3g}  {r['solver']}"
         )
     say(
-        f"times: the slowest rank's, median of {args.repeats} solves and "
-        f"{max(1, args.repeats // 3)} refactorisations; its: Krylov iterations of the last "
+        f"times: the slowest rank's, median of {repeats} solves and "
+        f"{max(1, repeats // 3)} refactorisations; its: Krylov iterations of the last "
         "solve (!: not converged); case: the config's own options (MUMPS LU)."
     )
-    return rows
