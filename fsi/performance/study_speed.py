@@ -134,6 +134,23 @@ def worker(args: argparse.Namespace) -> int:
     rows = metrics_csv.read_metrics(out / "metrics.csv") if comm.rank == 0 else []
     if comm.rank == 0:
         shutil.rmtree(out, ignore_errors=True)
+    result = _measured(args, comm, marks, start, setup, failure, profiler, stepper)
+    if comm.rank == 0:
+        n = max(len(rows), 1)
+        result["coupling_iterations"] = [r.get("coupling_iterations", 0) for r in rows]
+        result["newton_per_step"] = sum(r.get("newton_iterations", 0) for r in rows) / n
+        result["t_end"] = rows[-1]["t"] if rows else 0.0
+        Path(args.json).write_text(json.dumps(result))
+    return 0
+
+
+def _measured(
+    args, comm, marks, start: float, setup: float, failure: str, profiler, stepper
+) -> dict:
+    """A worker's result: its steps' wall and CPU times (from the ``marks`` at the end of each
+    step's output; the slowest rank's), set-up, memory and the profiled pieces per step."""
+    from mpi4py import MPI
+
     wall = [b[0] - a[0] for a, b in zip(marks, marks[1:])]
     cpu = [b[1] - a[1] for a, b in zip(marks, marks[1:])]
     warm = len(wall)
@@ -166,13 +183,7 @@ def worker(args: argparse.Namespace) -> int:
         / max(len(marks), 1),
         "summary": stepper.summary(),
     }
-    if comm.rank == 0:
-        n = max(len(rows), 1)
-        result["coupling_iterations"] = [r.get("coupling_iterations", 0) for r in rows]
-        result["newton_per_step"] = sum(r.get("newton_iterations", 0) for r in rows) / n
-        result["t_end"] = rows[-1]["t"] if rows else 0.0
-        Path(args.json).write_text(json.dumps(result))
-    return 0
+    return result
 
 
 # --------------------------------------------------------------------------------------------
@@ -225,6 +236,13 @@ def print_tables(results: list[dict], say) -> None:
     by = {(r["level"], r["mode"], r["ranks"]): r for r in results}
     levels = list(dict.fromkeys(r["level"] for r in results))
     ranks = sorted({r["ranks"] for r in results})
+    _print_runs(say, by, levels, ranks)
+    _print_profile(say, by, levels, ranks)
+    _print_scaling(say, by, levels, ranks)
+
+
+def _print_runs(say, by: dict, levels: list, ranks: list) -> None:
+    """Per level and rank count: dofs, s/step coupled and rigid, iterations, memory."""
     say(
         f"{'level':<8}{'ranks':>6}{'dofs f+s':>16}{'steps':>6}{'coupled':>9}{'rigid':>8}"
         f"{'ratio':>7}{'coup':>6}{'max':>4}{'fNI':>7}{'fLU':>7}{'MB/rank (coupled)':>20}"
@@ -257,6 +275,10 @@ def print_tables(results: list[dict], say) -> None:
         "coupled/rigid; coup, max: coupling iterations per step; fNI, fLU: the coupled run's "
         "fluid Newton iterations and LU factorisations per step; MB/rank: peak resident memory."
     )
+
+
+def _print_profile(say, by: dict, levels: list, ranks: list) -> None:
+    """Where a coupled step's time goes, by group of profiled pieces."""
     say()
     say(
         "Where a coupled step's time goes (ms per step: each part the slowest rank's; metrics: "
@@ -276,6 +298,10 @@ def print_tables(results: list[dict], say) -> None:
                 f"{parts[g]:>11.1f} ({100 * parts[g] / c['step_ms']:>3.0f}%)" for g in names
             )
             say(f"{level:<8}{n:>6}{cells}{c['step_ms']:>10.1f}")
+
+
+def _print_scaling(say, by: dict, levels: list, ranks: list) -> None:
+    """The 2-rank speed-up per level and the growth of the cost per step with the dofs."""
     say()
     say("Scaling of the coupled step")
     for level in levels:
