@@ -21,7 +21,7 @@ from fsi.config.coupling_section import Coupling, MeshMotionSettings
 from fsi.config.domain import (
     MESH_LEVELS,
     ChannelGeometry,
-    Geometry,
+    GeometrySettings,
     MeshSettings,
     StenosisGeometry,
     TubeGeometry,
@@ -95,7 +95,7 @@ __all__ = [
     "heartbeat_period",
     "run_time",
     # geometry, mesh
-    "Geometry",
+    "GeometrySettings",
     "StenosisGeometry",
     "ChannelGeometry",
     "TubeGeometry",

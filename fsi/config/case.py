@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from fsi.config.coupling_section import Coupling, MeshMotionSettings
-from fsi.config.domain import Geometry, MeshSettings, StenosisGeometry
+from fsi.config.domain import GeometrySettings, MeshSettings, StenosisGeometry
 from fsi.config.fluid_section import Fluid
 from fsi.config.output_section import Output
 from fsi.config.structure_section import Structure
@@ -20,7 +20,7 @@ class Case:
     dataclass whose fields are that section's keys (docs/configuration.md)."""
 
     name: str = "case"
-    geometry: Geometry = field(default_factory=StenosisGeometry)
+    geometry: GeometrySettings = field(default_factory=StenosisGeometry)
     mesh: MeshSettings = field(default_factory=MeshSettings)
     fluid: Fluid = field(default_factory=Fluid)
     structure: Structure = field(default_factory=Structure)
