@@ -11,24 +11,28 @@ not be written (disk full, folder read-only; the last checkpoint that could be w
 from __future__ import annotations
 
 import argparse
-import gc
 import logging
 import os
-import shlex
 import signal
 import sys
 import traceback
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 from mpi4py import MPI
 
 from fsi import config
+from fsi.output import paths
+from fsi.run import launch, sweep_command
+from fsi.run.errors import (
+    EXIT_INTERNAL,
+    EXIT_OK,
+    EXIT_OUTPUT_FAILED,
+    EXIT_USAGE,
+)
+from fsi.run.launch import say_error
 
 log = logging.getLogger("fsi")
-
-EXIT_OK, EXIT_INTERNAL, EXIT_USAGE, EXIT_SOLVE_FAILED, EXIT_OUTPUT_FAILED = 0, 1, 2, 3, 4
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -106,7 +110,7 @@ def _add_out(
 
 def _path(text: str) -> Path:
     """A path argument; an empty one is refused (it would mean the current directory), and so
-    is one the file system cannot name (:func:`_too_long`)."""
+    is one the file system cannot name (:func:`fsi.output.paths.too_long`)."""
     return _named_path(text, room=0)
 
 
@@ -123,49 +127,10 @@ run folders are checked on their own; ``checkpoint.partial/rank0000.npz`` is 29)
 def _named_path(text: str, room: int) -> Path:
     if not text.strip():
         raise argparse.ArgumentTypeError("expected a path, not an empty string")
-    why = _too_long(Path(text), room)
+    why = paths.too_long(Path(text), room)
     if why:
         raise argparse.ArgumentTypeError(why)
     return Path(text)
-
-
-def _is_dir(path: Path) -> bool:
-    """``path.is_dir()``, False where the path itself is too long to look up."""
-    try:
-        return path.is_dir()
-    except OSError:
-        return False
-
-
-def _too_long(path: Path, room: int = 0) -> str | None:
-    """Why the file system would refuse ``path`` with ENAMETOOLONG (a name in it longer than
-    ``NAME_MAX``, or, as an absolute path with ``room`` bytes more, longer than ``PATH_MAX``),
-    or None. The limits are those of the nearest folder of ``path`` that exists (255 and
-    4096 bytes where it cannot say): each command then refuses it as a wrong argument, where
-    opening it raised OSError, a traceback, exit 1."""
-    absolute = Path(os.path.abspath(path))
-    existing = next((p for p in (absolute, *absolute.parents) if _is_dir(p)), Path("/"))
-    try:
-        name_max = os.pathconf(existing, "PC_NAME_MAX")
-        path_max = os.pathconf(existing, "PC_PATH_MAX")
-    except (OSError, ValueError):
-        name_max, path_max = 255, 4096
-    for name in path.parts:
-        size = len(os.fsencode(name))
-        if size > name_max:
-            shown = name if len(name) <= 24 else f"{name[:12]}...{name[-8:]}"
-            return (
-                f"the name {shown!r} in the path is {size} bytes long, longer than the "
-                f"{name_max} bytes a file name may have"
-            )
-    size = len(os.fsencode(str(absolute)))
-    if size + room >= path_max:
-        inside = f", less {room} for the files written inside it" if room else ""
-        return (
-            f"the path is {size} bytes long as an absolute path, longer than the "
-            f"{path_max - 1 - room} bytes allowed (PATH_MAX {path_max}{inside})"
-        )
-    return None
 
 
 def _add_run_arguments(p: argparse.ArgumentParser) -> None:
@@ -437,39 +402,23 @@ def _command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     if args.command == "plot":
         return _plot(args)
     if args.command == "sweep":
-        return _guarded(comm, lambda: _sweep(args))
+        return _guarded(comm, lambda: sweep_command.sweep(args))
     own = args.command == "run" and args.config is None
     try:
         if own:
-            args.config = _own_config(args)
+            args.config = launch.own_config(args.restart)
         case = config.load(args.config, args.overrides, run_config=own)
-    except _Refused as e:
-        _error(comm, str(e))
+    except launch.Refused as e:
+        say_error(comm, str(e))
         return EXIT_USAGE
     except config.ConfigError as e:
-        _error(comm, str(e))
+        say_error(comm, str(e))
         return EXIT_USAGE
     if args.command in ("run", "check") and comm.rank == 0:
         for caution in config.cautions(case):
             log.warning("fsi: warning: %s", caution)
     command = {"run": _run, "mesh": _mesh, "check": _check}[args.command]
     return _guarded(comm, lambda: command(args, case))
-
-
-def _own_config(args: argparse.Namespace) -> Path:
-    """``fsi run`` without a case file: the ``config.yaml`` of the run ``--restart`` names;
-    :class:`_Refused` without ``--restart`` or without that file."""
-    from fsi.run import checkpoint
-
-    if args.restart is None:
-        raise _Refused(
-            "fsi run: a case file is needed, or --restart DIR to continue DIR's run with its "
-            "own configuration"
-        )
-    try:
-        return checkpoint.own_config(args.restart)
-    except checkpoint.CheckpointError as e:
-        raise _Refused(f"--restart: {e}") from None
 
 
 def _guarded(comm: MPI.Comm, command: Callable[[], int]) -> int:
@@ -489,13 +438,18 @@ def _guarded(comm: MPI.Comm, command: Callable[[], int]) -> int:
         raise  # not reached
 
 
-def _error(comm: MPI.Comm, message: str) -> None:
-    """One ``fsi: error:`` line on stderr (rank 0; every rank has the same message)."""
-    if comm.rank == 0:
-        print(f"fsi: error: {message}", file=sys.stderr, flush=True)
+def _run(args: argparse.Namespace, case: config.Case) -> int:
+    request = launch.RunRequest(
+        args.config, args.out, args.overrides, args.restart, args.overwrite, args.allow_changes
+    )
+    return launch.run_case(request, case).status
 
 
 def _check(args: argparse.Namespace, case: config.Case) -> int:
+    reason = config.cannot_run(case)
+    if reason is not None:
+        say_error(MPI.COMM_WORLD, f"{args.config}: {reason}")
+        return EXIT_USAGE
     log.info(
         "%s: valid (case %r, geometry %s, mesh %s, structure %s)",
         args.config,
@@ -507,428 +461,21 @@ def _check(args: argparse.Namespace, case: config.Case) -> int:
     return EXIT_OK
 
 
-@dataclass(frozen=True)
-class RunRequest:
-    """What ``fsi run`` is asked to do: the case file and its ``--set`` overrides (for the
-    messages), ``--out``, ``--restart`` and ``--overwrite``."""
-
-    config: Path
-    out: Path
-    overrides: Sequence[str] = ()
-    restart: Path | None = None
-    overwrite: bool = False
-    allow_changes: bool = False
-
-
-@dataclass(frozen=True)
-class RunOutcome:
-    """How a run ended: its exit status and, unless it is done (0), why, in one line."""
-
-    status: int
-    reason: str = ""
-
-
-def _run(args: argparse.Namespace, case: config.Case) -> int:
-    request = RunRequest(
-        args.config, args.out, args.overrides, args.restart, args.overwrite, args.allow_changes
-    )
-    return run_case(request, case).status
-
-
-def run_case(request: RunRequest, case: config.Case) -> RunOutcome:
-    """Run ``case`` as ``fsi run`` does (the same checks, messages, files and stops; SIGINT,
-    SIGTERM and SIGUSR1 stop it after the current step).
-
-    Args:
-        request: the command line's case file, ``--out``, ``--set``, ``--restart`` and
-            ``--overwrite``.
-        case: the resolved case.
-
-    Returns:
-        The exit status and, unless the run is done, why it ended. Collective.
-    """
-    comm = MPI.COMM_WORLD
-    try:
-        restart = _checked_start(request, case, comm)
-    except _Refused as e:
-        return _refused(comm, str(e))
-    _warn_before_run(case, restart, comm)
-    return _run_checked(request, case, restart, comm)
-
-
-class _Refused(Exception):
-    """A run refused before any computation (its ``fsi: error:`` message)."""
-
-
-def _checked_start(request: RunRequest, case: config.Case, comm: MPI.Comm):
-    """The checks before any computation: the case is supported, ``--restart``'s checkpoint is
-    read (returned, or None without one) and ``--out`` may be written; :class:`_Refused` if
-    one fails."""
-    from fsi.output import io
-    from fsi.run import checkpoint, simulation
-
-    reason = simulation.unsupported(case)
-    if reason is not None:
-        raise _Refused(f"{request.config}: {reason}")
-    restart = None
-    try:
-        if request.restart is not None:
-            restart = checkpoint.read(request.restart, case, comm)
-    except checkpoint.CheckpointError as e:
-        raise _Refused(f"--restart: {e}") from e
-    changed = restart.changed_keys(case) if restart is not None else []
-    if changed and not request.allow_changes:
-        shown = ", ".join(changed[:6]) + (", ..." if len(changed) > 6 else "")
-        raise _Refused(
-            f"--restart: {request.config}{' (with --set)' if request.overrides else ''} "
-            "differs from the run being continued "
-            f"({restart.run_dir / 'config.yaml'}) in {shown}: a restart continues that run. "
-            f"Leave out the case file to continue it as it was (fsi run --restart "
-            f"{request.restart} --out {request.out}), or add --allow-changes"
-        )
-    continuing = restart is not None and restart.continues(request.out)
-    try:
-        io.check_folder(comm, request.out, earlier_run=continuing or request.overwrite)
-    except io.RunFolderError as e:
-        raise _Refused(f"--out: {e}") from e
-    return restart
-
-
-def _warn_before_run(case: config.Case, restart, comm: MPI.Comm) -> None:
-    """Log where a restart starts (and the mesh motion settings it changes), and warn of a
-    reference BLAS under MUMPS."""
-    from fsi.output import provenance
-
-    if restart is not None:
-        log.info("restarting from %s: step %d, t = %.6g s", restart.path, restart.step, restart.t)
-        changed = restart.changed_mesh_motion(case) if case.structure.mode != "rigid" else []
-        if changed:
-            log.warning(
-                "fsi: warning: %s differ from the run being continued: the fluid mesh is "
-                "re-extended at the first step, whose mesh velocity and forces jump",
-                ", ".join(f"mesh_motion.{k}" for k in changed),
-            )
-    if comm.rank == 0 and provenance.blas_name(provenance.blas_library()) == "reference":
-        log.warning(
-            "fsi: warning: MUMPS runs on Debian's reference BLAS, its LU factorisations ~3.6x "
-            "slower than on OpenBLAS (fine mesh); `make setup` installs libopenblas0-serial"
-        )
-
-
-def _run_checked(request: RunRequest, case: config.Case, restart, comm: MPI.Comm) -> RunOutcome:
-    """The run itself, once checked, under :class:`_StopOnSignal`; its outcome."""
-    from fsi.output import io
-    from fsi.run import checkpoint, errors, simulation
-
-    at_once = False  # a second interrupt: the ranks may be anywhere, no collective after it
-    try:
-        with io.RunLock(comm, request.out), _StopOnSignal() as stop:
-            result = simulation.run(case, request.out, comm, restart, stop)
-    except io.RunFolderError as e:  # another run holds --out
-        return _refused(comm, f"--out: {e}")
-    except checkpoint.CheckpointError as e:
-        return _refused(comm, f"--restart: {e}")
-    except errors.RunStopped as e:
-        return _stopped(request, e)
-    except KeyboardInterrupt:  # a second interrupt: at once, without a checkpoint
-        at_once = True
-        log.error(
-            "fsi: stopped at once; the last periodic checkpoint is in %s",
-            request.out / checkpoint.DIRECTORY,
-        )
-        return RunOutcome(128 + signal.SIGINT, "stopped at once (a second interrupt)")
-    finally:
-        # Free the run's dolfinx/PETSc objects here, on every rank at once: their destructors
-        # are collective (MUMPS), and a run that stopped leaves them in reference cycles
-        # (through its exception's traceback) that each rank's garbage collector would free at
-        # a different moment, hanging the ranks (seen in tests/test_faults.py on 2 ranks).
-        # petsc4py only stashes a collected parallel object: garbage_cleanup destroys them.
-        if not at_once:
-            from petsc4py import PETSc
-
-            gc.collect()
-            PETSc.garbage_cleanup(comm)
-            comm.barrier()
-    done = f"done: {result.steps} steps in {result.wall_time_s:.1f} s; wrote {request.out}"
-    log.info(done)
-    if comm.rank == 0:
-        io.append_to_log(request.out, [done])
-    return RunOutcome(EXIT_OK)
-
-
-def _refused(comm: MPI.Comm, message: str) -> RunOutcome:
-    """A run refused before any computation: exit status 2 and its ``fsi: error:`` line."""
-    _error(comm, message)
-    return RunOutcome(EXIT_USAGE, message)
-
-
-def _stopped(request: RunRequest, e: Exception) -> RunOutcome:
-    """Say why a run stopped early and where its checkpoint is (rank 0: every rank has the
-    same exception; also into DIR/run.log); return the exit status and why, in one line."""
-    from fsi.output import io
-    from fsi.run import errors
-
-    if isinstance(e, errors.Interrupted):
-        status = 128 + e.signal
-        reason = f"stopped by signal {e.signal} ({signal.Signals(e.signal).name})"
-        lines = [f"fsi: {reason}."]
-    elif isinstance(e, errors.OutputFailed):
-        status = EXIT_OUTPUT_FAILED
-        reason = f"cannot write the run's files: {e}"
-        lines = [f"fsi: {reason}"]
-    else:
-        status = EXIT_SOLVE_FAILED
-        reason = f"solve failed: {e}"
-        where = (
-            "before the first step"
-            if not e.started
-            else f"the finished steps are in {request.out / 'metrics.csv'}"
-        )
-        lines = [f"fsi: {reason} ({where})"]
-    if e.checkpoint is None:
-        lines.append("fsi: no checkpoint could be written.")
-    else:
-        change = (
-            " with what failed changed (e.g. a smaller time step with --set "
-            "'time.schedule=[...]', or the coupling or solver settings)"
-            if status == EXIT_SOLVE_FAILED
-            else ""
-        )
-        command = [
-            "fsi",
-            "run",
-            str(request.config),
-            "--out",
-            str(request.out),
-            "--restart",
-            str(request.out),
-            *[a for s in request.overrides for a in ("--set", s)],
-        ]
-        lines.append(
-            f"fsi: the state after step {e.step} (t = {e.t:.6g} s) is checkpointed in "
-            f"{e.checkpoint}. To continue from it{change}, run\n  "
-            f"{shlex.join(command)}"
-        )
-    if MPI.COMM_WORLD.rank == 0:
-        for line in lines:
-            log.error(line)
-        io.append_to_log(request.out, lines)
-    return RunOutcome(status, reason)
-
-
-class _StopOnSignal:
-    """While entered, SIGINT, SIGTERM and SIGUSR1 ask the run to stop after its current step
-    (the run polls the instance, which returns the signal's number or None); a second one stops
-    at once (KeyboardInterrupt). Open MPI's mpirun forwards SIGUSR1 to every rank but answers
-    SIGINT and SIGTERM by killing the ranks within a second: under mpirun, stop a run with
-    ``kill -USR1 <mpirun's pid>`` (docs/reliability.md)."""
-
-    SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGUSR1)
-
-    def __init__(self) -> None:
-        self.signal: int | None = None
-        self._previous: dict = {}
-
-    def __enter__(self) -> _StopOnSignal:
-        for s in self.SIGNALS:
-            self._previous[s] = signal.signal(s, self._handle)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        for s, handler in self._previous.items():
-            signal.signal(s, handler)
-
-    def __call__(self) -> int | None:
-        return self.signal
-
-    def _handle(self, signum: int, frame) -> None:
-        if self.signal is not None:
-            raise KeyboardInterrupt
-        self.signal = signum
-        if MPI.COMM_WORLD.rank == 0:  # a plain write: the handler may interrupt one to stderr
-            message = (
-                f"fsi: {signal.Signals(signum).name} received: stopping after this step "
-                "with a checkpoint (again: stop at once)\n"
-            )
-            try:
-                os.write(sys.stderr.fileno(), message.encode())
-            except (OSError, ValueError):  # no usable stderr (closed, or captured in memory)
-                pass
-
-
-def _sweep(args: argparse.Namespace) -> int:
-    """``fsi sweep``: every run validated (and ``--out`` checked) before the first starts; then
-    the runs one after the other in this process, each as ``fsi run`` (:func:`run_case`), and
-    the table (fsi/run/sweep.py); or, with ``--scheduler slurm``, the runs to do submitted as a
-    Slurm job array, whose tasks (``--task``) run them, and ``--collect`` for the table
-    (fsi/run/slurm.py). A stop signal stops the current run as ``fsi run`` and the sweep after
-    it."""
-    from fsi.run import sweep
-
-    comm = MPI.COMM_WORLD
-    try:
-        definition = _slurm_sweep(args, comm)
-        variations, runs = _sweep_plan(args, comm)
-    except _Refused as e:
-        _error(comm, str(e))
-        return EXIT_USAGE
-    if not args.dry_run and args.task is None and not args.collect:
-        refused = comm.bcast(sweep.refusal(runs, args.overwrite) if comm.rank == 0 else "")
-        if refused:
-            _error(comm, f"--out {args.out}: {refused}")
-            return EXIT_USAGE
-    if definition is not None or args.task is not None:
-        return _sweep_slurm(args, definition, variations, runs, comm)
-    if args.dry_run:
-        lines = sweep.describe_plan(runs, args.overwrite) if comm.rank == 0 else []
-        if comm.rank == 0:
-            print("\n".join(lines), flush=True)
-        return EXIT_OK
-    resume = [
-        "fsi",
-        "sweep",
-        str(args.config),
-        "--out",
-        str(args.out),
-        *[a for v in variations for a in ("--vary", v.option)],
-        *[a for s in args.overrides for a in ("--set", s)],
-    ]
-    with _StopOnSignal() as stop:
-        return sweep.execute(runs, variations, args.out, _sweep_run_one(args), stop, resume, comm)
-
-
-def _sweep_plan(args: argparse.Namespace, comm: MPI.Comm):
-    """The sweep's variations and validated runs, ``--out`` checked; :class:`_Refused`."""
-    from fsi.output import io
-    from fsi.run import sweep
-
-    try:
-        variations = sweep.parse_vary(args.vary)
-        runs = sweep.plan(args.config, variations, args.overrides, args.out)
-        io.check_folder(comm, args.out, earlier_run=True)
-    except (sweep.SweepError, config.ConfigError) as e:
-        raise _Refused(str(e)) from None
-    except io.RunFolderError as e:
-        raise _Refused(f"--out: {e}") from None
-    return variations, runs
-
-
-def _slurm_sweep(args: argparse.Namespace, comm: MPI.Comm):
-    """The checked :class:`fsi.run.slurm.SlurmSweep` of ``--scheduler slurm``, or of
-    ``--collect`` (DIR/sweep.json, whose case, ``--vary``, ``--set`` and folder then replace
-    ``args``'); None for a local sweep or a task. :class:`_Refused`."""
-    from fsi.run import slurm
-
-    if args.scheduler not in ("local", "slurm"):
-        raise _Refused(f"--scheduler {args.scheduler}: expected local or slurm")
-    try:
-        if args.collect:
-            if args.vary or args.overrides or args.out or args.scheduler != "local":
-                raise _Refused(
-                    "--collect takes the sweep's folder alone (DIR/sweep.json has the rest)"
-                )
-            definition = slurm.load(args.config)
-            args.config, args.out = Path(definition.case), Path(definition.out)
-            args.vary, args.overrides = list(definition.vary), list(definition.sets)
-            return definition
-        if not args.vary or args.out is None:
-            raise _Refused(
-                f"the following arguments are required: {'--out' if args.vary else '--vary'}"
-            )
-        if args.scheduler == "local" or args.task is not None:
-            if args.ranks_per_run != 1 or args.slurm_option:
-                raise _Refused("--ranks-per-run and --slurm-option go with --scheduler slurm")
-            return None
-        return slurm.prepare(
-            args.config,
-            args.out,
-            (args.vary, args.overrides),
-            args.ranks_per_run,
-            args.slurm_option,
-            args.dry_run,
-            comm,
-        )
-    except slurm.SlurmError as e:
-        raise _Refused(str(e)) from None
-
-
-def _sweep_run_one(args: argparse.Namespace):
-    """The function that runs one of the sweep's runs as ``fsi run`` (:func:`run_case`)."""
-    from fsi.run import sweep
-
-    def run_one(run: sweep.SweepRun, resume: bool, overwrite: bool) -> tuple[int, str]:
-        request = RunRequest(
-            args.config, run.folder, run.overrides, run.folder if resume else None, overwrite
-        )
-        outcome = run_case(request, run.case)
-        return outcome.status, outcome.reason
-
-    return run_one
-
-
-def _sweep_slurm(args: argparse.Namespace, definition, variations, runs, comm: MPI.Comm) -> int:
-    """``--task INDEX`` (one array task: run INDEX as a local sweep would), ``--scheduler
-    slurm`` (the table so far, then the runs to do submitted and the job id printed;
-    ``--dry-run``: the batch script written, not submitted) or ``--collect``."""
-    from fsi.run import slurm
-
-    if args.task is not None:
-        with _StopOnSignal():
-            status, message, job = slurm.run_task(runs, args.task, _sweep_run_one(args), comm)
-    else:
-        status, message, job = slurm.submit_or_collect(
-            definition, runs, variations, args.dry_run, args.collect, comm
-        )
-    if message:
-        _error(comm, message)
-    elif job is not None and comm.rank == 0:
-        print(job, flush=True)
-    return status
-
-
 def _mesh(args: argparse.Namespace, case: config.Case) -> int:
-    from fsi.output import io
-    from fsi.physics import mesh
-
-    comm = MPI.COMM_WORLD
-    try:
-        io.check_folder(comm, args.out, earlier_run=True)
-    except io.RunFolderError as e:
-        _error(comm, f"--out: {e}")
-        return EXIT_USAGE
-    tagged = mesh.build(case, comm)
-    summary = mesh.summary(tagged, case)
-    try:
-        io.write_mesh(args.out, tagged, summary)
-    except io.OutputError as e:
-        _error(comm, f"cannot write the mesh: {e}")
-        return EXIT_OUTPUT_FAILED
-    cells = summary["cells"]
-    log.info(
-        "mesh of %s (%s): %d %s (%s)",
-        args.config,
-        case.mesh.level,
-        cells["total"],
-        "tetrahedra" if config.dimension(case.geometry) == 3 else "triangles",
-        ", ".join(f"{k} {v}" for k, v in cells.items() if k != "total"),
-    )
-    for name, value in summary.get("measures", {}).items():
-        log.info("  %s: %.6g", name, value)
-    log.info("wrote %s and %s", args.out / "mesh.xdmf", args.out / "mesh.json")
-    return EXIT_OK
+    return launch.mesh_case(args.config, args.out, case)
 
 
 def _report(args: argparse.Namespace) -> int:
-    from fsi.output import report
+    from fsi.output import report, report_runs
 
     comm = MPI.COMM_WORLD
     status = EXIT_OK
     if comm.rank == 0:  # reading and plotting a few files: rank 0 alone
         try:
-            report.check_times(args.times)
-            report.check_out(args.out)
-            runs = report.load_runs(args.runs)
-        except report.ReportError as e:
+            report_runs.check_times(args.times)
+            report_runs.check_out(args.out)
+            runs = report_runs.load_runs(args.runs)
+        except report_runs.ReportError as e:
             print(f"fsi: error: {e}", file=sys.stderr)
             status = EXIT_USAGE
         else:
@@ -973,7 +520,7 @@ def _plot_options_refused(args: argparse.Namespace) -> str | None:
 def _draw_plot(args: argparse.Namespace) -> tuple[Path, str | None]:
     """The picture ``fsi plot`` asks for, written to ``--out``; and a note for stdout, or
     None. Raises PlotError, OSError."""
-    from fsi.output import plot, section, wall_plot
+    from fsi.output import field_files, plot, section, wall_plot
 
     plot.check_out(args.out)
     refused = _plot_options_refused(args)
@@ -983,7 +530,9 @@ def _draw_plot(args: argparse.Namespace) -> tuple[Path, str | None]:
         index = wall_plot.read(args.run, args.field, args.cycle)
         return wall_plot.draw(index, args.out), None
     plane = None if args.slice is None else section.Plane.parse(args.slice)
-    snapshot = plot.read_field(args.run, args.field, args.time, warp=args.warp, region=args.region)
+    snapshot = field_files.read_field(
+        args.run, args.field, args.time, warp=args.warp, region=args.region
+    )
     if plane is not None:
         snapshot = section.cut(snapshot, plane)
     flow = plot.streamline_field(snapshot) if args.streamlines else None

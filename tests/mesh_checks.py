@@ -18,7 +18,7 @@ def boundary_vertices(submesh) -> set[tuple[float, float]]:
     return set().union(*submesh.comm.allgather(local))
 
 
-def mesh_motion_settings(**kw) -> config.MeshMotion:
+def mesh_motion_settings(**kw) -> config.MeshMotionSettings:
     """The ``mesh_motion`` section with the keys ``kw`` (validated as in a case file)."""
     return config.from_dict({"mesh_motion": kw}).mesh_motion
 

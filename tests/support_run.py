@@ -15,7 +15,7 @@ import numpy as np
 import ufl
 
 from fsi import cli, compat
-from fsi.output import io, metrics, report
+from fsi.output import metrics, metrics_csv, report_figures, report_runs
 from fsi.physics import rheology
 
 
@@ -25,7 +25,7 @@ def fsi_run(case_file: str, out: Path, overrides: Sequence[str] = ()) -> tuple[i
     settings = ["output.fields_every=100000", *overrides]
     args = ["run", case_file, "--out", str(out), *sum((["--set", s] for s in settings), [])]
     status = cli.main(args)
-    return status, io.read_metrics(out / "metrics.csv")
+    return status, metrics_csv.read_metrics(out / "metrics.csv")
 
 
 def reattachment_point(s: np.ndarray, tau: np.ndarray) -> float | None:
@@ -69,10 +69,13 @@ def viscosity_field(
     return _field(law.mu(rheology.shear_rate(u)), u.function_space.mesh, "viscosity", degree)
 
 
-def flow_rate_plot(runs: Sequence[report.Run], path: Path) -> bool:
+def flow_rate_plot(runs: Sequence[report_runs.Run], path: Path) -> bool:
     """The inlet (solid) and outlet (dashed, same colour) flow rates per unit depth over time,
     in cm²/s, as a PNG; False if no run has them."""
-    return report.draw(report.flow_rate_groups(runs), "flow rate", "flow_rate", path) is not None
+    return (
+        report_figures.draw(report_figures.flow_rate_groups(runs), "flow rate", "flow_rate", path)
+        is not None
+    )
 
 
 def read_mesh_with_tags(comm: MPI.Comm, path: str):

@@ -14,7 +14,7 @@ import pytest
 from test_restart import assert_same_rows, differences, fsi_run, rows
 
 from fsi import config
-from fsi.output import io
+from fsi.output import metrics_csv
 from fsi.run import simulation
 
 PULSE = "configs/axisymmetric/tube_pulse.yaml"
@@ -45,7 +45,7 @@ def test_the_tube_widens_as_lames_cylinder_under_a_static_pressure(shared_tmp):
         ],
     )
     assert code == 0
-    row = io.read_metrics(out / "metrics.csv")[-1]
+    row = metrics_csv.read_metrics(out / "metrics.csv")[-1]
     p, a, b, E, nu = 100.0, 0.005, 0.006, 3.0e5, 0.3
     lame = p * a * (1 + nu) / E * ((1 - 2 * nu) * a * a / (b * b - a * a) + b * b / (b * b - a * a))
     assert row["ur_A"] == pytest.approx(lame, rel=2e-2), (row["ur_A"], lame)
@@ -93,8 +93,8 @@ def test_serial_and_parallel_axisymmetric_runs_agree(pulse_runs, shared_tmp):
     alone = shared_tmp / f"alone{comm.rank}"
     case = config.load(PULSE, [*COARSE, STEPS, "time.end=2.0e-4"])
     simulation.run(case, alone, MPI.COMM_SELF)
-    world = io.read_metrics(pulse_runs["straight"] / "metrics.csv")
-    self_rows = io.read_metrics(alone / "metrics.csv")
+    world = metrics_csv.read_metrics(pulse_runs["straight"] / "metrics.csv")
+    self_rows = metrics_csv.read_metrics(alone / "metrics.csv")
     assert len(world) == len(self_rows) == 2
     for a, b in zip(world, self_rows):
         for key in ("peak_velocity", "peak_pressure", "peak_displacement", "ur_A"):
@@ -118,7 +118,7 @@ def test_the_axisymmetric_stenosis_couples_its_ring_to_the_blood(shared_tmp):
         ],
     )
     assert code == 0
-    last = io.read_metrics(out / "metrics.csv")[-1]
+    last = metrics_csv.read_metrics(out / "metrics.csv")[-1]
     assert last["peak_displacement"] > 0
     radius = 0.0035
     scale = math.pi * radius**2 * last["peak_velocity"]

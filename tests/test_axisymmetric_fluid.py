@@ -25,7 +25,7 @@ from test_open_boundaries import (
 from fsi import config
 from fsi.geometry.tags import Boundary, Region
 from fsi.output import metrics
-from fsi.physics import fluid, inflow_profiles, mesh
+from fsi.physics import fluid, fluid_case, inflow_profiles, mesh
 from fsi.run import steppers
 
 L, R = 0.02, 0.004  # the pipe: length, radius (m)
@@ -50,7 +50,7 @@ def solver_of(case, submesh, tags, scheme: str) -> fluid.FluidSolver:
         submesh,
         tags,
         case.fluid,
-        steppers.fluid_boundaries(case),
+        fluid_case.fluid_conditions(case),
         scheme=scheme,
         axisymmetric=config.is_axisymmetric(case.geometry),
     )

@@ -36,7 +36,7 @@ from fsi import config
 from fsi.config import Material, SolverSettings
 from fsi.geometry.tags import Boundary, Region
 from fsi.numerics.timestepping import NewmarkFamily
-from fsi.physics import mesh, solid
+from fsi.physics import mesh, solid, solid_boundaries
 
 INNER, OUTER, LENGTH = 0.005, 0.008, 0.003  # a, b, L (m)
 YOUNG, POISSON, PRESSURE = 3e5, 0.45, 15.0  # Pa, -, Pa: σ_θθ(a)/E = 1.1e-4
@@ -72,8 +72,8 @@ def meridian_section(comm: MPI.Comm = MPI.COMM_WORLD) -> mesh.TaggedMesh:
 
 def thick_cylinder(law: str, pressure=lambda t: PRESSURE) -> solid.SolidSolver:
     """The quasi-static axisymmetric solver of the section, ends on rollers (u_z = 0)."""
-    bcs = solid.SolidBoundaryConditions(
-        dirichlet=(solid.Roller((Boundary.CLAMPED,), component=0),), pressure=pressure
+    bcs = solid_boundaries.SolidBoundaryConditions(
+        dirichlet=(solid_boundaries.Roller((Boundary.CLAMPED,), component=0),), pressure=pressure
     )
     material = Material(law=law, density=1000.0, young_modulus=YOUNG, poisson_ratio=POISSON)
     return solid.SolidSolver(

@@ -5,13 +5,10 @@ degree a solver of its own: SUPG's held τ lives at the degree's points; the deg
 failed with "Mismatch of tabulation points" when the degree was set on the form alone)."""
 
 import logging
-import sys
-from pathlib import Path
 
 from mpi4py import MPI
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-import benchmark_fluid  # noqa: E402
+from fsi.performance import fluid_speed as benchmark_fluid
 
 
 def test_both_tables_are_printed(capsys):

@@ -2,13 +2,9 @@
 iterations solve with, under the case's own solver and under another one asked for, and its
 figures are those of the solves it made. Coarse, after 2 steps; on 1 and 2 ranks alike."""
 
-import sys
-from pathlib import Path
-
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-import benchmark_linear  # noqa: E402
+from fsi.performance import linear_solves as benchmark_linear
 
 ITERATIVE = "ksp_type=cg pc_type=jacobi ksp_rtol=1e-10 ksp_max_it=20000"
 

@@ -25,7 +25,7 @@ from fsi import cli, compat, config
 from fsi.config.run_size import count_steps
 from fsi.geometry.tags import Region
 from fsi.numerics.timestepping import steps
-from fsi.output import report
+from fsi.output import report, report_runs
 from fsi.physics import fluid_boundaries, mesh
 from fsi.run import errors, simulation, steppers
 
@@ -197,7 +197,9 @@ def test_a_steady_periodic_flow_has_equal_indices_in_every_heartbeat(runs):
 
 
 def test_fsi_report_prints_the_heartbeats(runs):
-    text = report.markdown([report.load_run(runs["steady"]), report.load_run(runs["bdf2"])])
+    text = report.markdown(
+        [report_runs.load_run(runs["steady"]), report_runs.load_run(runs["bdf2"])]
+    )
     assert "## Heartbeats" in text
     section = text.split("## Heartbeats")[1]
     lines = [line for line in section.splitlines() if line.startswith("| ")]

@@ -26,7 +26,8 @@ import math
 import pytest
 
 from fsi import cli, config
-from fsi.output import comparison, io
+from fsi.output import metrics_csv
+from fsi.performance import comparison
 
 CASE = "configs/stenosis_moving_newtonian.yaml"
 WINDOW = 0.05  # s: the pulse and the ring, up to where it has decayed to ~3 % of the peak
@@ -59,7 +60,7 @@ def run(out, schedule, case: str = CASE) -> list[dict]:
         ]
     )
     assert code == 0
-    return io.read_metrics(out / "metrics.csv")
+    return metrics_csv.read_metrics(out / "metrics.csv")
 
 
 def at(rows: list[dict], t: float) -> dict:
@@ -111,7 +112,7 @@ heartbeat); every other headline column 1.5 % (measured ≤ 0.97 %)."""
 def test_the_headline_columns_between_the_report_times_change_as_documented(shared_tmp):
     """The moving-wall Carreau case (coarse) through the pulse window (t <= 0.05 s) with its
     0.25 ms steps and with 0.125 ms, every headline column of metrics.csv compared at every
-    common step (fsi/output/comparison.py: the largest difference over the steps relative to
+    common step (fsi/performance/comparison.py: the largest difference over the steps relative to
     the column's peak): the study's reported quantities hold 2 % at its report times (the test
     above), but between them the stress maxima move by up to 2 %, the smallest WSS by 3.4 % (it
     crosses zero at 1.4 Pa/ms near 10.7 ms) and the mean outlet pressure, a discretisation error

@@ -19,8 +19,7 @@ from test_open_boundaries import H, L, march_channel, study_fluid
 from fsi import cli, config
 from fsi.geometry.tags import Boundary
 from fsi.output import metrics
-from fsi.physics import fluid
-from fsi.run import steppers
+from fsi.physics import fluid, fluid_case
 
 G, MU = 300.0, 0.0035  # Pa/m, Pa s: the 300 Pa/m channel of test_open_boundaries
 
@@ -39,7 +38,7 @@ def poiseuille_errors(size: float) -> tuple[float, float, float]:
         ),
     )
     solver = fluid.FluidSolver(
-        submesh, tags, case.fluid, steppers.fluid_boundaries(case), scheme="steady"
+        submesh, tags, case.fluid, fluid_case.fluid_conditions(case), scheme="steady"
     )
     result = solver.step(1.0, 1.0)
     assert result.converged, result

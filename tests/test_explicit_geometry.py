@@ -17,7 +17,7 @@ import pytest
 
 from fsi import config
 from fsi.numerics.timestepping import steps
-from fsi.output.comparison import largest_differences
+from fsi.performance.comparison import largest_differences
 from fsi.run import steppers
 
 MOVING = "configs/stenosis_moving_newtonian.yaml"

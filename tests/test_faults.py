@@ -20,7 +20,7 @@ from mpi4py import MPI
 import pytest
 
 from fsi import cli, config
-from fsi.output import io
+from fsi.output import io, metrics_csv
 from fsi.run import errors, simulation
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -42,7 +42,7 @@ def fsi_run(out: Path, overrides=(), *extra: str) -> int:
 
 
 def metrics_steps(out: Path) -> list[int]:
-    return [int(row["step"]) for row in io.read_metrics(out / "metrics.csv")]
+    return [int(row["step"]) for row in metrics_csv.read_metrics(out / "metrics.csv")]
 
 
 def checkpoint_step(out: Path) -> int:
@@ -162,14 +162,14 @@ def test_a_read_only_out_ends_both_ranks_of_mpirun(read_only_folder):
 def test_a_write_failing_on_rank_0_alone_ends_every_rank(shared_tmp, monkeypatch, capsys):
     """metrics.csv is written by rank 0 alone: its failure (here a simulated full disk at step
     3) must reach the other ranks, which would otherwise wait in step 4's collectives."""
-    write = io.MetricsTable.write
+    write = metrics_csv.MetricsTable.write
 
     def full_at_step_3(self, row):
         if row["step"] == 3:
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self.path))
         write(self, row)
 
-    monkeypatch.setattr(io.MetricsTable, "write", full_at_step_3)
+    monkeypatch.setattr(metrics_csv.MetricsTable, "write", full_at_step_3)
     out = shared_tmp / "run"
     assert fsi_run(out, [*SHORT, "output.checkpoint_every=2"]) == cli.EXIT_OUTPUT_FAILED
     err = capsys.readouterr().err

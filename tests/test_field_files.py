@@ -13,7 +13,7 @@ import pytest
 
 from fsi import cli
 from fsi.geometry.tags import Region
-from fsi.output import io
+from fsi.output import metrics_csv
 
 CASE = "configs/stenosis_moving_newtonian.yaml"
 
@@ -66,7 +66,7 @@ def cell_data(xdmf: Path, t: float) -> dict[str, np.ndarray]:
 
 
 def test_the_per_region_maxima_are_the_maxima_of_the_written_fields(run):
-    rows = io.read_metrics(run / "metrics.csv")
+    rows = metrics_csv.read_metrics(run / "metrics.csv")
     assert len(rows) == 2
     for row in rows:
         cells = cell_data(run / "solid.xdmf", row["t"])

@@ -17,7 +17,7 @@ import pytest
 from fsi import cli, config
 from fsi.config import boundary_data, reader
 from fsi.geometry.tags import Boundary, Region
-from fsi.output import io, metrics
+from fsi.output import metrics, metrics_csv
 from fsi.physics import fluid, fluid_boundaries, inflow_profiles, mesh
 
 CHANNEL = "configs/channel_poiseuille.yaml"
@@ -43,7 +43,7 @@ def run(out, overrides) -> list[dict]:
     """``fsi run`` of the channel with ``overrides``; its metrics.csv rows."""
     args = ["run", CHANNEL, "--out", str(out), *sum((["--set", s] for s in overrides), [])]
     assert cli.main(args) == 0
-    return io.read_metrics(out / "metrics.csv")
+    return metrics_csv.read_metrics(out / "metrics.csv")
 
 
 def schedule(dt: float, end: float) -> list[str]:

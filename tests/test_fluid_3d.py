@@ -18,9 +18,9 @@ import scipy.special
 from fsi import config
 from fsi.geometry.tags import Boundary, Region
 from fsi.output import metrics
-from fsi.physics import fluid, inflow_profiles, mesh
+from fsi.output.wall_outputs import FluidOutputs
+from fsi.physics import fluid, fluid_case, inflow_profiles, mesh
 from fsi.physics.fluid_boundaries import DiskInlet, inlet_flow_rate
-from fsi.run import steppers
 
 L, R = 0.004, 0.002  # the pipe: length, radius (m)
 MU, RHO = 0.0035, 1060.0
@@ -62,7 +62,7 @@ def pipe(
 
 def solver_of(case, submesh, tags, scheme: str) -> fluid.FluidSolver:
     return fluid.FluidSolver(
-        submesh, tags, case.fluid, steppers.fluid_boundaries(case), scheme=scheme
+        submesh, tags, case.fluid, fluid_case.fluid_conditions(case), scheme=scheme
     )
 
 
@@ -81,7 +81,7 @@ def test_poiseuille_flow_rate_and_wall_shear_stress():
     result = solver.step(1.0, 1.0)
     assert result.converged and result.iterations >= 1, result
     exact = np.pi * R**4 * G / (8 * MU)
-    outputs = steppers.FluidOutputs(case, solver)
+    outputs = FluidOutputs(case, solver)
     row = outputs.update()
     q_in, q_out = row["inlet_flow_rate"], row["outlet_flow_rate"]
     assert abs(q_in / exact - 1) < 1e-2 and abs(q_out / exact - 1) < 1e-2, (q_in, q_out, exact)

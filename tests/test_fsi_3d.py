@@ -19,7 +19,7 @@ import pytest
 from test_restart import assert_same_rows, differences, fsi_run
 
 from fsi import config
-from fsi.output import io, metrics
+from fsi.output import metrics_csv, wall_indices
 from fsi.run import simulation
 
 PULSE = "configs/axisymmetric/tube_pulse.yaml"
@@ -57,7 +57,7 @@ def test_the_3d_tube_couples_its_wall_to_the_pulse(pulse_runs):
     tube's first half yet: between 5 % and 100 % of it), the blood flows in (m³/s), and
     wall_indices.csv has a z column and a row per wall sample."""
     assert pulse_runs["codes"] == [0, 0, 0]
-    found = io.read_metrics(pulse_runs["straight"] / "metrics.csv")
+    found = metrics_csv.read_metrics(pulse_runs["straight"] / "metrics.csv")
     assert len(found) == 2
     last = found[-1]
     assert last["coupling_iterations"] < 100 and last["coupling_residual"] < 1e-6
@@ -95,8 +95,8 @@ def test_serial_and_parallel_3d_runs_agree(pulse_runs, shared_tmp):
     alone = shared_tmp / f"alone{comm.rank}"
     case = config.load(PULSE, [*TUBE_3D, "time.end=2.0e-4"])
     simulation.run(case, alone, MPI.COMM_SELF)
-    world = io.read_metrics(pulse_runs["straight"] / "metrics.csv")
-    self_rows = io.read_metrics(alone / "metrics.csv")
+    world = metrics_csv.read_metrics(pulse_runs["straight"] / "metrics.csv")
+    self_rows = metrics_csv.read_metrics(alone / "metrics.csv")
     assert len(world) == len(self_rows) == 2
     for a, b in zip(world, self_rows):
         for key in ("peak_velocity", "peak_pressure", "peak_displacement", "ur_A", "max_wss"):
@@ -110,7 +110,7 @@ def test_vector_indices_of_a_rotating_and_a_reversing_shear():
     reversing linearly, τ(t) = (1 − 2t) e over [0, 1], TAWSS ½ exactly but Simpson's 1/3 (the
     documented kink error, |a|/6)."""
     steps = 720
-    indices = metrics.WallIndices(3, components=3)
+    indices = wall_indices.WallIndices(3, components=3)
     indices.set_value(np.array([[0.0, 2.0, 0.0], [1.0, 1.0, 1.0], [1.0, 0.0, 0.0]]))
     for k in range(1, steps + 1):
         t = k / steps
@@ -120,7 +120,7 @@ def test_vector_indices_of_a_rotating_and_a_reversing_shear():
     assert indices.osi[0] == pytest.approx(0.5, abs=1e-6)
     assert indices.tawss[1] == pytest.approx(np.sqrt(3), rel=1e-12) and indices.osi[1] < 1e-12
     assert indices.tawss[2] == pytest.approx(0.5, rel=1e-5)  # many small steps: no kink error
-    one = metrics.WallIndices(1, components=3)
+    one = wall_indices.WallIndices(1, components=3)
     one.set_value(np.array([[1.0, 0.0, 0.0]]))
     one.add(1.0, np.array([[-1.0, 0.0, 0.0]]))
     assert one.tawss[0] == pytest.approx(1 / 3, rel=1e-12)
@@ -134,7 +134,7 @@ def _cube_snapshot(center: str = "node"):
     import dolfinx.mesh
 
     from fsi import compat
-    from fsi.output.plot import Snapshot
+    from fsi.output.field_files import Snapshot
 
     cube = dolfinx.mesh.create_unit_cube(MPI.COMM_SELF, 2, 2, 2)
     x = cube.geometry.x
@@ -185,7 +185,7 @@ def test_a_section_of_tetrahedra_is_the_plane_s_polygon_with_exact_linear_values
 
 def test_a_section_refuses_a_bad_plane():
     from fsi.output import section
-    from fsi.output.plot import PlotError
+    from fsi.output.field_files import PlotError
 
     for text in ("w=0", "x", "y=abc", "z=inf"):
         with pytest.raises(PlotError, match="--slice"):
@@ -230,7 +230,7 @@ def test_the_gamg_preset_moves_the_3d_mesh_as_lu_does(method):
     gamg = {"ksp_type": "cg", "pc_type": "gamg", "ksp_rtol": 1e-12, "ksp_max_it": 1000}
     found = []
     for options in ({}, gamg):
-        settings = config.MeshMotion(
+        settings = config.MeshMotionSettings(
             method=method, **({"petsc_options": options} if options else {})
         )
         motion = MeshMotion(fluid, settings, moving=(Boundary.INTERFACE,))

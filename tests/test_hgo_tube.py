@@ -35,7 +35,7 @@ from fsi.benchmarks.hgo_tube import HGOParameters, Tube
 from fsi.config import Fibres, Material, SolverSettings
 from fsi.geometry.tags import Boundary, Region
 from fsi.numerics.timestepping import NewmarkFamily
-from fsi.physics import mesh, solid
+from fsi.physics import mesh, solid, solid_boundaries
 
 C, K1, K2, ANGLE, POISSON = 3.0e3, 2.3632e3, 0.8393, 29.0, 0.49999
 R_I, R_O, LENGTH, AXIAL_STRETCH = 0.71e-3, 1.10e-3, 0.2e-3, 1.5
@@ -66,10 +66,12 @@ def hgo_wall() -> Material:
 def hgo_tube(radial_cells: int) -> solid.SolidSolver:
     """The quasi-static HGO tube under P(t) = 25 kPa t, ends on rollers, z = L moved by
     (λ_z − 1) L; the initial guess is the homogeneous stretch."""
-    bcs = solid.SolidBoundaryConditions(
+    bcs = solid_boundaries.SolidBoundaryConditions(
         dirichlet=(
-            solid.Roller((Boundary.CLAMPED,), component=0),
-            solid.Roller((Boundary.OUTLET,), component=0, value=(AXIAL_STRETCH - 1) * LENGTH),
+            solid_boundaries.Roller((Boundary.CLAMPED,), component=0),
+            solid_boundaries.Roller(
+                (Boundary.OUTLET,), component=0, value=(AXIAL_STRETCH - 1) * LENGTH
+            ),
         ),
         pressure=lambda t: PEAK_PRESSURE * t,
     )
@@ -159,8 +161,8 @@ LOAD_STEPS = 100
 def drawn_tube(prestressed: bool, radial_cells: int = 8) -> solid.SolidSolver:
     """The section drawn at [R_i, R_o], ends on rollers (no axial stretch), quasi-static,
     P(t) = 10.7 kPa t."""
-    bcs = solid.SolidBoundaryConditions(
-        dirichlet=(solid.Roller((Boundary.CLAMPED, Boundary.OUTLET), component=0),),
+    bcs = solid_boundaries.SolidBoundaryConditions(
+        dirichlet=(solid_boundaries.Roller((Boundary.CLAMPED, Boundary.OUTLET), component=0),),
         pressure=lambda t: REFERENCE_PRESSURE * t,
     )
     return solid.SolidSolver(

@@ -11,7 +11,7 @@ import pytest
 
 from fsi import cli, config
 from fsi.config import reader
-from fsi.output import io
+from fsi.output import metrics_csv
 from fsi.physics import fluid_boundaries
 
 CHANNEL = "configs/channel_poiseuille.yaml"
@@ -93,7 +93,7 @@ def test_a_run_with_the_csv_inlet_equals_one_with_the_table_inlet(shared_tmp):
         out = shared_tmp / name
         overrides = sum((["--set", s] for s in [*THREE_STEPS, inlet]), [])
         assert cli.main(["run", CHANNEL, "--out", str(out), *overrides]) == 0
-        metrics[name] = io.read_metrics(out / "metrics.csv")
+        metrics[name] = metrics_csv.read_metrics(out / "metrics.csv")
     assert len(metrics["file"]) == 3
     assert metrics["file"][-1]["peak_pressure"] > 0
     for a, b in zip(metrics["file"], metrics["table"]):

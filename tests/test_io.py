@@ -7,25 +7,25 @@ import dolfinx.mesh
 import numpy as np
 
 from fsi import compat
-from fsi.output import io
+from fsi.output import io, metrics_csv
 
 
 def test_metrics_table_flushes_rows_and_restarts(shared_tmp):
     comm = MPI.COMM_WORLD
     path = shared_tmp / "metrics.csv"
-    table = io.MetricsTable(comm, path, ["step", "t", "peak_velocity"])
+    table = metrics_csv.MetricsTable(comm, path, ["step", "t", "peak_velocity"])
     for k in range(1, 4):
         table.write({"step": k, "t": 0.1 * k, "peak_velocity": 1.5 * k})
         comm.barrier()
-        assert len(io.read_metrics(path)) == k  # on disk at once, before close
+        assert len(metrics_csv.read_metrics(path)) == k  # on disk at once, before close
         comm.barrier()  # every rank has read before rank 0 writes the next row
     table.close()
     comm.barrier()
-    table = io.MetricsTable(comm, path, ["step", "t", "peak_velocity"], keep_until_step=2)
+    table = metrics_csv.MetricsTable(comm, path, ["step", "t", "peak_velocity"], keep_until_step=2)
     table.write({"step": 3, "t": 0.3, "peak_velocity": -1.0})
     table.close()
     comm.barrier()
-    rows = io.read_metrics(path)
+    rows = metrics_csv.read_metrics(path)
     assert [r["step"] for r in rows] == [1, 2, 3]
     assert rows[1]["peak_velocity"] == 3.0 and rows[2]["peak_velocity"] == -1.0
 
@@ -34,7 +34,7 @@ def test_a_negative_zero_is_written_as_zero(shared_tmp):
     """A flow rate of no flow is −∫ 0 = −0.0, which metrics.csv wrote as "-0": now "0"."""
     comm = MPI.COMM_WORLD
     path = shared_tmp / "zero.csv"
-    table = io.MetricsTable(comm, path, ["step", "t", "inlet_flow_rate"])
+    table = metrics_csv.MetricsTable(comm, path, ["step", "t", "inlet_flow_rate"])
     table.write({"step": 1, "t": 0.001, "inlet_flow_rate": -0.0})
     table.write({"step": 2, "t": 0.002, "inlet_flow_rate": -1.5e-300})
     table.close()

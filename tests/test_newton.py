@@ -35,7 +35,8 @@ from fsi.numerics.newton import Forcing, Newton
 from fsi.numerics.timestepping import steps
 from fsi.physics import fluid, mesh, solid
 from fsi.physics.fluid_boundaries import inlet_pressure
-from fsi.run.steppers import CoupledStepper, fluid_boundaries
+from fsi.physics.fluid_case import fluid_conditions
+from fsi.run.steppers import CoupledStepper
 
 CASE = "configs/stenosis_moving_carreau.yaml"
 SHORT = ["time.end=0.001", "time.schedule=[{until: 0.001, dt: 0.00025}]"]  # 4 steps
@@ -125,7 +126,7 @@ def test_fluid_with_reused_jacobians_finds_newtons_solution(whole):
     for reuse in ("none", "step", "run"):
         case = case_with("structure.mode=rigid", f"fluid.solver.jacobian_reuse={reuse}")
         solvers[reuse] = fluid.FluidSolver(
-            part.mesh, part.facet_tags, case.fluid, fluid_boundaries(case)
+            part.mesh, part.facet_tags, case.fluid, fluid_conditions(case)
         )
     newton = solvers["none"]
     iterations = {"step": 0, "run": 0}
@@ -245,7 +246,7 @@ def test_step_reuse_makes_a_step_depend_only_on_its_start(whole):
     case = case_with("structure.mode=rigid", "fluid.solver.jacobian_reuse=step")
     schedule = list(steps(case.time))
     runs = [
-        fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid, fluid_boundaries(case))
+        fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid, fluid_conditions(case))
         for _ in range(2)
     ]
     through, restarted = runs
@@ -271,7 +272,7 @@ def test_a_failed_solve_with_a_reused_jacobian_is_repeated_with_fresh_ones(whole
             f"fluid.solver.jacobian_reuse={reuse}",
         )
         solvers[reuse] = fluid.FluidSolver(
-            part.mesh, part.facet_tags, case.fluid, fluid_boundaries(case)
+            part.mesh, part.facet_tags, case.fluid, fluid_conditions(case)
         )
     st = next(iter(steps(case.time)))
     results = {reuse: s.step(st.t, st.dt) for reuse, s in solvers.items()}
@@ -314,7 +315,7 @@ def test_a_forced_solve_stops_at_its_forcing_with_newtons_solution(whole):
     part = mesh.restrict(whole, Region.FLUID)
     case = case_with("structure.mode=rigid", "fluid.solver.jacobian_reuse=run")
     solvers = [
-        fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid, fluid_boundaries(case))
+        fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid, fluid_conditions(case))
         for _ in range(2)
     ]
     first, s = solvers
@@ -382,7 +383,7 @@ def test_the_residual_skips_the_lifting_only_where_it_is_zero(whole, side):
     if side == "fluid":
         part = mesh.restrict(whole, Region.FLUID)
         case = case_with("structure.mode=rigid")
-        s = fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid, fluid_boundaries(case))
+        s = fluid.FluidSolver(part.mesh, part.facet_tags, case.fluid, fluid_conditions(case))
         unknown = s.U
     else:
         case = case_with("structure.interface_load=inlet_pressure")

@@ -23,8 +23,9 @@ from fsi import config
 from fsi.config import reader
 from fsi.geometry.tags import Boundary
 from fsi.numerics.timestepping import steps
-from fsi.output import comparison, metrics
-from fsi.physics import fluid, fluid_boundaries, rheology
+from fsi.output import metrics
+from fsi.performance import comparison
+from fsi.physics import fluid, fluid_boundaries, fluid_case, rheology
 from fsi.run import steppers
 
 STUDY = {
@@ -78,7 +79,7 @@ def march_channel(
         5e-4, {**fluid_section, "inlet": {"kind": "pressure", "formula": repr(gradient * L)}}
     )
     solver = fluid.FluidSolver(
-        submesh, tags, case.fluid, steppers.fluid_boundaries(case), scheme="bdf2"
+        submesh, tags, case.fluid, fluid_case.fluid_conditions(case), scheme="bdf2"
     )
     exact = exact_flow_rate(solver.law, gradient)
     t, late, iterations = 0.0, [], []
@@ -160,7 +161,7 @@ def steady_carreau_channel(gradient: float, jacobian_reuse: str):
 
     def solve(settings, start=None):
         solver = fluid.FluidSolver(
-            submesh, tags, settings, steppers.fluid_boundaries(case), scheme="steady"
+            submesh, tags, settings, fluid_case.fluid_conditions(case), scheme="steady"
         )
         if start is not None:
             solver.U.x.array[:] = start
@@ -305,7 +306,7 @@ def test_supg_leaves_poiseuille_flow_exact():
         ),
     )
     solver = fluid.FluidSolver(
-        submesh, tags, case.fluid, steppers.fluid_boundaries(case), scheme="steady"
+        submesh, tags, case.fluid, fluid_case.fluid_conditions(case), scheme="steady"
     )
     result = solver.step(1.0, 1.0)
     assert result.converged and result.iterations >= 1, result
@@ -323,7 +324,7 @@ def test_supg_moves_the_stenosis_only_in_its_outlet_pressure_and_by_a_bounded_am
     settings against the Galerkin form (``fluid.supg=false``, which runs this case), the
     config's schedule through the pulse and into the decay (to 0.2 s: 5 ms steps from 0.1 s).
 
-    Every headline column of metrics.csv (fsi/output/comparison.py) but one stays within 0.5 %
+    Every headline column of metrics.csv (fsi/performance/comparison.py) but one stays within 0.5 %
     of its peak (measured ≤ 0.26 %, the largest WSS). The mean outlet pressure moves more
     (measured 57 % of its peak; asserted below 75 %), but at this stress-free outlet its exact
     value is zero (the mean of μ ∂u_n/∂n, and the mean of ∂u_n/∂n is dQ/dx = 0 between rigid
@@ -396,7 +397,7 @@ def womersley_errors(size: float, outlet: dict) -> tuple[float, float]:
     section["outlet"] = {**section["outlet"], **outlet}
     case, submesh, tags = channel(size, section)
     solver = fluid.FluidSolver(
-        submesh, tags, case.fluid, steppers.fluid_boundaries(case), scheme="bdf2"
+        submesh, tags, case.fluid, fluid_case.fluid_conditions(case), scheme="bdf2"
     )
     rho, mu = case.fluid.density, case.fluid.rheology.viscosity
     u_hat, q_hat = plane_womersley(np.linspace(0, H, 701), rho, mu)

@@ -1,4 +1,4 @@
-"""fsi/output/oscillation.py on synthetic signals with known mean, amplitude and frequency.
+"""fsi/benchmarks/oscillation.py on synthetic signals with known mean, amplitude and frequency.
 
 The tolerances are the sampling bounds the module's docstring states, evaluated for each signal:
 a sampled extreme misses the true one by at most max|y''| dt²/8 (the peak lies within dt/2 of a
@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from fsi.output.oscillation import (
+from fsi.benchmarks.oscillation import (
     Oscillation,
     OscillationError,
     Reference,

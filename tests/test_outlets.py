@@ -52,7 +52,7 @@ def test_models_come_from_the_outlet_section():
     assert outlets.from_config(outlet({})) is None  # traction-free, the default
     assert outlets.from_config(
         outlet({"kind": "resistance", "resistance": 2e5, "reference_pressure": 10})
-    ) == config.ResistanceOutlet(2e5, 10)
+    ) == outlets.Resistance(2e5, 10)
     wk = outlets.from_config(
         outlet(
             {
@@ -65,11 +65,11 @@ def test_models_come_from_the_outlet_section():
             }
         )
     )
-    assert wk == config.WindkesselOutlet(1e5, 1e6, 1e-8, 50, 5)
+    assert wk == outlets.Windkessel(1e5, 1e6, 1e-8, 50, 5)
 
 
 def test_steady_windkessel_is_its_two_resistances_in_series():
-    wk = config.WindkesselOutlet(1e5, 1e6, 1e-8, initial_pressure=50.0, reference_pressure=5.0)
+    wk = outlets.Windkessel(1e5, 1e6, 1e-8, initial_pressure=50.0, reference_pressure=5.0)
     base, slope = wk.pressure_law(wk.initial_state(), (0.0, 0.0, 0.0))
     assert (base, slope) == pytest.approx((5.0, 1.1e6), rel=1e-14)
     after = wk.advance(wk.initial_state(), 1e-4, (0.0, 0.0, 0.0))
@@ -80,7 +80,7 @@ def test_steady_windkessel_is_its_two_resistances_in_series():
 def test_windkessel_follows_its_ode_at_the_order_of_the_scheme(order):
     """Backward Euler / variable-step BDF2 (started by one backward Euler step) on the RCR ODE
     for a constant Q: the error at t = 2 τ halves / quarters when dt halves."""
-    wk = config.WindkesselOutlet(0.0, 1e6, 2e-8, initial_pressure=300.0, reference_pressure=20.0)
+    wk = outlets.Windkessel(0.0, 1e6, 2e-8, initial_pressure=300.0, reference_pressure=20.0)
     Q, end = 2e-4, 0.04  # τ = R_d C = 0.02 s
     errors = []
     for steps in (20, 40, 80):

@@ -15,7 +15,7 @@ import pytest
 
 from fsi import cli, config
 from fsi.coupled import partitioned
-from fsi.output import io
+from fsi.output import metrics_csv
 from fsi.physics.mesh_motion import MeshQualityError
 from fsi.run import simulation
 
@@ -60,7 +60,7 @@ def test_every_step_converges_and_the_contract_files_are_written(runs, mode):
     assert code == 0
     case = config.load(out / "config.yaml")
     assert case.structure.mode == mode
-    rows = io.read_metrics(out / "metrics.csv")
+    rows = metrics_csv.read_metrics(out / "metrics.csv")
     assert [r["step"] for r in rows] == [1, 2, 3]
     for r in rows:
         assert 1 <= r["coupling_iterations"] <= case.coupling.max_iterations
@@ -89,8 +89,8 @@ def test_every_step_converges_and_the_contract_files_are_written(runs, mode):
 
 
 def test_the_wall_moves_only_in_the_moving_wall_mode(runs):
-    fixed = io.read_metrics(runs["fixed_wall"][1] / "metrics.csv")
-    moving = io.read_metrics(runs["moving_wall"][1] / "metrics.csv")
+    fixed = metrics_csv.read_metrics(runs["fixed_wall"][1] / "metrics.csv")
+    moving = metrics_csv.read_metrics(runs["moving_wall"][1] / "metrics.csv")
     for f, m in zip(fixed, moving):
         assert f["peak_displacement"] > 0  # the plaque deforms in both modes
         assert f["peak_wall_displacement"] == 0.0  # every wall dof is held (Dirichlet)
@@ -113,8 +113,8 @@ def test_parallel_run_equals_serial_run(runs, shared_tmp):
     case = config.load(CASE, ["structure.mode=moving_wall", *SHORT])
     alone = shared_tmp / f"self{comm.rank}"
     simulation.run(case, alone, MPI.COMM_SELF)
-    rows_world = io.read_metrics(runs["moving_wall"][1] / "metrics.csv")
-    rows_self = io.read_metrics(alone / "metrics.csv")
+    rows_world = metrics_csv.read_metrics(runs["moving_wall"][1] / "metrics.csv")
+    rows_self = metrics_csv.read_metrics(alone / "metrics.csv")
     assert len(rows_world) == len(rows_self) == 3
     for a, b in zip(rows_world, rows_self):
         assert a["coupling_iterations"] == b["coupling_iterations"]
@@ -133,7 +133,7 @@ def test_coupling_failure_exits_3_and_keeps_the_finished_rows(shared_tmp, fsi_lo
         ["run", CASE, "--out", str(out), *sets([*SHORT, inlet, "coupling.max_iterations=1"])]
     )
     assert code == 3
-    rows = io.read_metrics(out / "metrics.csv")
+    rows = metrics_csv.read_metrics(out / "metrics.csv")
     assert [r["step"] for r in rows] == [1]
     assert rows[0]["coupling_iterations"] == 1 and rows[0]["peak_velocity"] == 0.0
     assert not (out / "summary.json").exists()
@@ -155,7 +155,7 @@ def test_mesh_quality_guard_exits_3(shared_tmp, fsi_log):
         ]
     )
     assert code == 3
-    assert [r["step"] for r in io.read_metrics(out / "metrics.csv")] == [1]
+    assert [r["step"] for r in metrics_csv.read_metrics(out / "metrics.csv")] == [1]
     assert "mesh_motion.min_jacobian_ratio = 0.998" in fsi_log.text
     assert "step 2 to t = 0.002 s" in fsi_log.text
 

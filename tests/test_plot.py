@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from fsi import cli
-from fsi.output import plot
+from fsi.output import field_files, plot
 
 PNG = b"\x89PNG\r\n\x1a\n"
 CASE = "configs/stenosis_moving_newtonian.yaml"
@@ -67,7 +67,7 @@ def is_png(path: Path) -> bool:
 
 def test_a_fluid_field_is_drawn_with_the_values_of_the_file(run_dir):
     out = draw(run_dir, "pressure", "--field", "pressure", "--time", "0.001")
-    snapshot = plot.read_field(run_dir, "pressure", 0.001)
+    snapshot = field_files.read_field(run_dir, "pressure", 0.001)
     pressure = stored(run_dir / "fields.h5", "pressure", 0.001)
     assert snapshot.file.name == "fields.xdmf" and snapshot.time == pytest.approx(0.001)
     assert snapshot.values.shape == (len(pressure),)
@@ -86,7 +86,7 @@ def test_a_fluid_field_is_drawn_with_the_values_of_the_file(run_dir):
 
 def test_a_structure_field_is_drawn_warped(run_dir):
     out = draw(run_dir, "sss-warped", "--field", "sss", "--time", "0.003", "--warp", "100")
-    snapshot = plot.read_field(run_dir, "sss", 0.003, warp=100.0)
+    snapshot = field_files.read_field(run_dir, "sss", 0.003, warp=100.0)
     h5 = run_dir / "solid.restart2.h5"  # t = 0.003 is in the restarted segment only
     assert snapshot.file.name == "solid.restart2.xdmf"
     reference, _ = mesh(h5)
@@ -96,7 +96,9 @@ def test_a_structure_field_is_drawn_warped(run_dir):
     sss = stored(h5, "sss", 0.003).reshape(-1)
     assert snapshot.center == "cell" and snapshot.values.max() == sss.max()
     # The structure's default is its reference shape.
-    np.testing.assert_array_equal(plot.read_field(run_dir, "sss", 0.003).coordinates, reference)
+    np.testing.assert_array_equal(
+        field_files.read_field(run_dir, "sss", 0.003).coordinates, reference
+    )
     if MPI.COMM_WORLD.rank == 0:
         assert is_png(out)
         # The function the report calls: the same picture from Python.
@@ -107,7 +109,7 @@ def test_a_structure_field_is_drawn_warped(run_dir):
 
 def test_a_region_keeps_only_its_cells(run_dir):
     out = draw(run_dir, "sss-cap", "--field", "sss", "--time", "0.002", "--region", "cap")
-    snapshot = plot.read_field(run_dir, "sss", 0.002, region="cap")
+    snapshot = field_files.read_field(run_dir, "sss", 0.002, region="cap")
     h5 = run_dir / "solid.restart2.h5"  # t = 0.002 is in both segments: the later one wins
     assert snapshot.file.name == "solid.restart2.xdmf"
     tags = stored(h5, "region", 0.002).reshape(-1)
@@ -128,7 +130,7 @@ def test_streamlines_are_drawn_over_a_fluid_field(run_dir):
     lines = draw(
         run_dir, "velocity-streamlines", "--field", "velocity", "--time", "0.003", "--streamlines"
     )
-    snapshot = plot.read_field(run_dir, "velocity", 0.003)
+    snapshot = field_files.read_field(run_dir, "velocity", 0.003)
     flow = plot.streamline_field(snapshot)
     u = stored(run_dir / "fields.restart2.h5", "velocity", 0.003)
     assert u.shape[1] == 3 and not np.any(u[:, 2])  # 2D vectors stored with 3 components
@@ -140,9 +142,9 @@ def test_streamlines_are_drawn_over_a_fluid_field(run_dir):
 
 
 def test_the_nearest_stored_time_is_taken_and_said(run_dir, capsys):
-    assert plot.read_field(run_dir, "pressure", 0.0014).time == pytest.approx(0.001)
-    assert not plot.read_field(run_dir, "pressure", 0.0014).time_differs
-    beyond = plot.read_field(run_dir, "pressure", 0.0038)  # within a step of the last time
+    assert field_files.read_field(run_dir, "pressure", 0.0014).time == pytest.approx(0.001)
+    assert not field_files.read_field(run_dir, "pressure", 0.0014).time_differs
+    beyond = field_files.read_field(run_dir, "pressure", 0.0038)  # within a step of the last time
     assert beyond.time == pytest.approx(0.003) and beyond.time_differs
     assert "nearest stored to 0.0038 s" in plot.title(beyond)
     capsys.readouterr()
@@ -164,7 +166,7 @@ def test_the_nearest_stored_time_is_taken_and_said(run_dir, capsys):
     ],
 )
 def test_pick_time(times, t, expected):
-    i, step = plot.pick_time(times, t, "f.xdmf")
+    i, step = field_files.pick_time(times, t, "f.xdmf")
     assert (i, step) == (expected[0], pytest.approx(expected[1]))
 
 
@@ -173,7 +175,7 @@ def test_pick_time(times, t, expected):
 )
 def test_pick_time_refuses_a_time_outside_the_stored_range(times, t):
     with pytest.raises(plot.PlotError, match=r"--time .*outside the times stored in f\.xdmf"):
-        plot.pick_time(times, t, "f.xdmf")
+        field_files.pick_time(times, t, "f.xdmf")
 
 
 BAD = [
@@ -466,7 +468,7 @@ def test_a_colour_limit_caps_the_range_and_the_bar_says_so(run_dir, monkeypatch)
         "colorbar",
         lambda self, *a, **k: extends.append(k["extend"]) or real(self, *a, **k),
     )
-    sss = plot.read_field(run_dir, "sss", 0.003, region="cap")
+    sss = field_files.read_field(run_dir, "sss", 0.003, region="cap")
     half = 0.5 * float(np.abs(sss.values).max())  # Pa; both signs reach beyond it
     out = run_dir.parent / "capped.png"
     mark = [(0.0, 0.0, "clamped corner")]

@@ -16,7 +16,7 @@ import pytest
 from test_restart import assert_same_rows, assert_same_state, fsi_run, stored
 
 from fsi import cli
-from fsi.output import io
+from fsi.output import metrics_csv
 
 PULSE = "configs/axisymmetric/tube_pulse.yaml"
 # A fibre-reinforced wall stiff enough for a vessel of R 5 mm, h 1 mm at 2 kPa (c = 30 kPa,
@@ -61,9 +61,9 @@ def runs():
 def test_held_at_the_prestress_pressure_the_wall_stays_where_it_is_drawn(runs):
     """max |η| ≤ 1e-4 of the wall thickness at every step (measured 8e-17 m: round-off)."""
     assert runs["codes"] == [0, 0, 0, 0]
-    for row in io.read_metrics(runs["held"] / "metrics.csv"):
+    for row in metrics_csv.read_metrics(runs["held"] / "metrics.csv"):
         assert row["peak_displacement"] <= 1e-4 * 1e-3, row
-    raised = io.read_metrics(runs["straight"] / "metrics.csv")[-1]
+    raised = metrics_csv.read_metrics(runs["straight"] / "metrics.csv")[-1]
     assert raised["peak_displacement"] > 1e-6  # 2 kPa more moves it (measured 1.5e-5 m)
 
 

@@ -14,7 +14,7 @@ import pytest
 import support_run
 
 from fsi import cli, config
-from fsi.output import io, report, units
+from fsi.output import metrics_csv, report, report_figures, report_runs, units
 
 SHORT = [
     "structure.mode=rigid",
@@ -49,8 +49,8 @@ def run_dir():
 
 
 def test_tables_hold_the_rows_at_the_report_times(run_dir, capsys):
-    run = report.load_run(run_dir)
-    rows = io.read_metrics(run_dir / "metrics.csv")
+    run = report_runs.load_run(run_dir)
+    rows = metrics_csv.read_metrics(run_dir / "metrics.csv")
     by_t = {round(r["t"], 9): r for r in rows}
     table = report.peaks_table([run], "peak_velocity", "Peak velocity", "velocity")
     unit = units.choose_unit("velocity", [by_t[t]["peak_velocity"] for t in (0.002, 0.004)])
@@ -74,7 +74,7 @@ def test_cli_writes_report_and_plots(run_dir, capsys):
     if MPI.COMM_WORLD.rank == 0:
         text = (out / "report.md").read_text()
         assert "Table 1: Peak velocity" in text and "Table 3: Peak displacement" in text
-        assert text.startswith(report.markdown(report.load_runs([run_dir, again])))
+        assert text.startswith(report.markdown(report_runs.load_runs([run_dir, again])))
         assert (out / "peak_velocity.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert (out / "flow_rate.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert not (out / "max_sss.png").exists()  # a rigid run has no structure stress
@@ -96,10 +96,10 @@ def test_an_old_run_folder_without_flow_rates_still_reports(run_dir, capsys):
             writer.writeheader()
             writer.writerows(rows)
     comm.barrier()
-    assert "inlet_flow_rate" not in report.load_run(old).rows[0]
+    assert "inlet_flow_rate" not in report_runs.load_run(old).rows[0]
     out = run_dir.parent / f"old_report{comm.rank}"
     assert cli.main(["report", str(old), str(run_dir), "--out", str(out)]) == 0
-    assert support_run.flow_rate_plot([report.load_run(old)], out / "none.png") is False
+    assert support_run.flow_rate_plot([report_runs.load_run(old)], out / "none.png") is False
     if comm.rank == 0:
         lines = (out / "report.md").read_text().splitlines()
         old_rows = [i for i, line in enumerate(lines) if line.startswith("| old (")]
@@ -167,7 +167,7 @@ def test_a_row_cut_short_at_the_end_is_left_out(run_dir, shared_tmp, capsys, fsi
     reported, the cut one is left out with a warning naming the line."""
     comm = MPI.COMM_WORLD
     cut = copy_with_metrics(run_dir, shared_tmp / "cut", lambda lines: lines[:4] + [lines[4][:25]])
-    assert [r["step"] for r in report.load_run(cut).rows] == [1, 2, 3]
+    assert [r["step"] for r in report_runs.load_run(cut).rows] == [1, 2, 3]
     assert cli.main(["report", str(cut), "--times", "0.002", "0.004"]) == 0
     if comm.rank == 0:
         out = capsys.readouterr().out
@@ -272,7 +272,7 @@ def test_the_unit_is_the_largest_one_the_largest_value_is_at_least_1_in(
     ],
 )
 def test_the_scale_is_linear_log_or_panels_from_the_magnitudes(series, scale):
-    assert report.choose_scale(series) == scale
+    assert report_runs.choose_scale(series) == scale
 
 
 # --------------------------------------------------------------------------------------------
@@ -374,10 +374,10 @@ def captions(report_md: str) -> dict[str, str]:
 
 
 def test_every_plot_is_written_for_a_fixed_and_a_moving_wall(fixed_and_moving, folder):
-    runs = [report.load_run(path) for path in fixed_and_moving]
+    runs = [report_runs.load_run(path) for path in fixed_and_moving]
     written = report.write(runs, folder / "report")
     names = [path.name for path in written]
-    assert names == ["report.md"] + [f"{figure.name}.png" for figure in report.FIGURES]
+    assert names == ["report.md"] + [f"{figure.name}.png" for figure in report_figures.FIGURES]
     assert {
         "max_sss.png",
         "max_sss_plaque.png",
@@ -422,8 +422,10 @@ def test_every_plot_is_written_for_a_fixed_and_a_moving_wall(fixed_and_moving, f
 
 
 def test_the_plaque_curve_is_the_larger_of_the_cap_and_the_lipid(fixed_and_moving):
-    run = report.load_run(fixed_and_moving[1])
-    plaque = report.FIGURES[[f.name for f in report.FIGURES].index("max_sss_plaque")]
+    run = report_runs.load_run(fixed_and_moving[1])
+    plaque = report_figures.FIGURES[
+        [f.name for f in report_figures.FIGURES].index("max_sss_plaque")
+    ]
     (group,) = plaque.groups([run])
     (line,) = group.lines
     assert line.t == [r["t"] for r in run.rows]
@@ -439,8 +441,8 @@ def test_the_inlet_waveform_is_plotted_for_pressure_inlets_only(folder):
         folder / "c", stenosis_case("rigid", formula="800*sin(pi*t/0.01)**2"), columns
     )
     velocity = synthetic_run(folder / "d", config.load("configs/turek_hron_cfd1.yaml"), columns)
-    runs = [report.load_run(path) for path in (pulse_a, velocity, pulse_b, formula)]
-    groups = report.inlet_pressure_groups(runs)
+    runs = [report_runs.load_run(path) for path in (pulse_a, velocity, pulse_b, formula)]
+    groups = report_figures.inlet_pressure_groups(runs)
     assert [g.label.split(":")[0] for g in groups] == ["a, b", "c"]  # one line per waveform
     (shared,), (own,) = (g.lines for g in groups)
     assert shared.t[0] == 0 and shared.t[-1] == pytest.approx(STEPS * DT)
@@ -449,7 +451,7 @@ def test_the_inlet_waveform_is_plotted_for_pressure_inlets_only(folder):
     assert own.y == [pytest.approx(800 * math.sin(math.pi * t / 0.01) ** 2) for t in own.t]
     assert "inlet_pressure.png" in [p.name for p in report.write(runs, folder / "with")]
     # A velocity inlet has no P(t): no plot.
-    assert report.inlet_pressure_groups(runs[1:2]) == []
+    assert report_figures.inlet_pressure_groups(runs[1:2]) == []
     written = report.write(runs[1:2], folder / "without")
     assert "inlet_pressure.png" not in [p.name for p in written]
     assert not (folder / "without" / "inlet_pressure.png").exists()
@@ -466,7 +468,7 @@ def test_old_runs_without_the_new_columns_still_report(fixed_and_moving, folder,
         in ("peak_velocity", "peak_displacement", "max_sss", "coupling_iterations", "wall_time_s")
     }
     old = synthetic_run(folder / "old", stenosis_case("fixed_wall"), old_columns, finished=False)
-    written = {p.name for p in report.write([report.load_run(old)], folder / "alone")}
+    written = {p.name for p in report.write([report_runs.load_run(old)], folder / "alone")}
     assert written == {
         "report.md",
         "max_sss.png",
@@ -480,20 +482,23 @@ def test_old_runs_without_the_new_columns_still_report(fixed_and_moving, folder,
     assert "| old (fixed_wall, newtonian, coarse) | 40 (stopped) | 0.01 |" in text
     assert set(captions(text)) == written - {"report.md"}
     # Beside a new run: every plot, the old run's lines where it has the column.
-    runs = [report.load_run(old), report.load_run(fixed_and_moving[1])]
-    assert len(report.write(runs, folder / "beside")) == 1 + len(report.FIGURES)
-    assert [len(g.lines[0].t) for g in report.maximum_groups(runs, ("max_sss_cap",))] == [0, 40]
+    runs = [report_runs.load_run(old), report_runs.load_run(fixed_and_moving[1])]
+    assert len(report.write(runs, folder / "beside")) == 1 + len(report_figures.FIGURES)
+    assert [len(g.lines[0].t) for g in report_figures.maximum_groups(runs, ("max_sss_cap",))] == [
+        0,
+        40,
+    ]
     # The command line, in-process (the report is made on rank 0).
     out = folder.parent / "cli"
     assert cli.main(["report", str(old), str(fixed_and_moving[1]), "--out", str(out)]) == 0
     if MPI.COMM_WORLD.rank == 0:
-        assert len(captions((out / "report.md").read_text())) == len(report.FIGURES)
+        assert len(captions((out / "report.md").read_text())) == len(report_figures.FIGURES)
         assert "| Peak displacement (µm) |" in capsys.readouterr().out
 
 
 def test_the_boundary_pressures_are_the_mean_inlet_and_outlet_pressures(fixed_and_moving):
-    run = report.load_run(fixed_and_moving[0])
-    (group,) = report.boundary_pressure_groups([run])
+    run = report_runs.load_run(fixed_and_moving[0])
+    (group,) = report_figures.boundary_pressure_groups([run])
     inlet, outlet = group.lines
     assert (inlet.style, outlet.style) == ("-", "--")
     assert inlet.t == outlet.t == [r["t"] for r in run.rows]
@@ -502,12 +507,17 @@ def test_the_boundary_pressures_are_the_mean_inlet_and_outlet_pressures(fixed_an
 
 
 def test_heartbeat_ends_are_the_multiples_of_each_period_up_to_the_end():
-    assert report.heartbeat_ends([0.004], 0.01) == pytest.approx([0.004, 0.008])
-    assert report.heartbeat_ends([0.0025], 0.01) == pytest.approx([0.0025, 0.005, 0.0075, 0.01])
-    assert report.heartbeat_ends([0.004, 0.002], 0.008) == pytest.approx(
+    assert report_figures.heartbeat_ends([0.004], 0.01) == pytest.approx([0.004, 0.008])
+    assert report_figures.heartbeat_ends([0.0025], 0.01) == pytest.approx(
+        [0.0025, 0.005, 0.0075, 0.01]
+    )
+    assert report_figures.heartbeat_ends([0.004, 0.002], 0.008) == pytest.approx(
         [0.002, 0.004, 0.006, 0.008]
     )
-    assert report.heartbeat_ends([], 1.0) == [] and report.heartbeat_ends([0.5], 0.4) == []
+    assert (
+        report_figures.heartbeat_ends([], 1.0) == []
+        and report_figures.heartbeat_ends([0.5], 0.4) == []
+    )
 
 
 def test_runs_with_heartbeats_have_them_marked_and_said(folder):
@@ -528,12 +538,12 @@ def test_runs_with_heartbeats_have_them_marked_and_said(folder):
         }
     )
     columns = {"peak_velocity": lambda t: 0.2 + t, "mean_inlet_pressure": lambda t: 50.0}
-    runs = [report.load_run(synthetic_run(folder / "beats", beating, columns))]
+    runs = [report_runs.load_run(synthetic_run(folder / "beats", beating, columns))]
     text = report.write(runs, folder / "beats_report")[0].read_text()
     note = "Dotted vertical lines: the ends of the heartbeats (period 0.004 s)."
     for name in ("peak_velocity.png", "inlet_pressure.png", "boundary_pressure.png"):
         assert note in captions(text)[name]
-    plain = [report.load_run(synthetic_run(folder / "plain", stenosis_case("rigid"), columns))]
+    plain = [report_runs.load_run(synthetic_run(folder / "plain", stenosis_case("rigid"), columns))]
     assert (
         "Dotted vertical lines" not in report.write(plain, folder / "plain_report")[0].read_text()
     )
@@ -563,27 +573,30 @@ def test_report_times_after_a_short_run_are_said_to_be_unreached(folder, capsys)
     case = replace(stenosis_case("fixed_wall"), output=config.Output(
         report_times=(0.005, 0.02, 0.05)))  # fmt: skip
     run = synthetic_run(folder / "short", case, study_columns(300, 5e-6, 0))  # to 10 ms
-    text = report.markdown(report.load_runs([run]))
+    text = report.markdown(report_runs.load_runs([run]))
     assert text.startswith(
         "**Note**: no run reaches the report times 0.02, 0.05 s (output.report_times of short): "
         "the runs end by t = 0.01 s, and those columns hold '–'. Give times within the runs: "
         "`fsi report ... --times T ...`."
     ), text[:300]
-    assert "Note" not in report.markdown(report.load_runs([run]), [0.005])
+    assert "Note" not in report.markdown(report_runs.load_runs([run]), [0.005])
     reached = replace(case, name="reached", output=config.Output(report_times=(0.005,)))
     other = synthetic_run(folder / "reached", reached, study_columns(300, 5e-6, 0))
-    assert "Note" not in report.markdown(report.load_runs([other]))
+    assert "Note" not in report.markdown(report_runs.load_runs([other]))
 
 
 def test_runs_in_folders_of_the_same_name_are_told_apart(folder, capsys):
     """``fsi report A/run B/run``: each run is named with as many parent folders as it takes,
     in the tables, the legends and the pictures' file names (none written over another)."""
-    assert report.unique_names([Path("x/A/run"), Path("x/B/run"), Path("y/other")]) == [
+    assert report_runs.unique_names([Path("x/A/run"), Path("x/B/run"), Path("y/other")]) == [
         "A/run",
         "B/run",
         "other",
     ]
-    assert report.unique_names([Path("x/A/run"), Path("x/A/run")]) == ["run", "run"]  # the same
+    assert report_runs.unique_names([Path("x/A/run"), Path("x/A/run")]) == [
+        "run",
+        "run",
+    ]  # the same
     paths = []
     for parent, stress in (("A", 300.0), ("B", 600.0)):
         run = synthetic_run(

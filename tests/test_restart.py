@@ -35,7 +35,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from fsi import cli, config
-from fsi.run import checkpoint, simulation, state_arrays
+from fsi.run import checkpoint, checkpoint_checks, simulation, state_arrays
 
 RIGID = "configs/stenosis_fixed_newtonian.yaml"
 COUPLED = "configs/stenosis_moving_newtonian.yaml"
@@ -735,7 +735,7 @@ def test_a_checkpoint_is_replaced_atomically(shared_tmp):
             comm,
             {"x": np.array([step + comm.rank / 10])},
             layouts,
-            checkpoint.metadata(case, comm, step, 1e-3 * step, 1e-3),
+            checkpoint_checks.metadata(case, comm, step, 1e-3 * step, 1e-3),
         )
 
     def load() -> list:
@@ -773,7 +773,7 @@ def test_a_checkpoint_is_replaced_atomically(shared_tmp):
             comm,
             {"x": np.array([np.nan])},
             layouts,
-            checkpoint.metadata(case, comm, 3, 3e-3, 1e-3),
+            checkpoint_checks.metadata(case, comm, 3, 3e-3, 1e-3),
         )
     assert load() == expected(2)
     assert listing() == [["checkpoint.previous", "metrics.csv"]] * comm.size

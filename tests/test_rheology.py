@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 import support_run
 import ufl
-from support_config import LAWS
 
 from fsi import compat, config
 from fsi.config import reader
@@ -26,13 +25,15 @@ def law_of(model: str, **parameters) -> rheology.ViscosityLaw:
 
 
 def test_defaults_build_the_right_laws():
-    assert law_of("newtonian") == config.Newtonian(0.0035)
+    assert law_of("newtonian") == rheology.NewtonianViscosity(0.0035)
     # The study's Carreau parameters (docs/model.md §2).
-    assert law_of("carreau") == config.Carreau(0.0456, 0.0032, 10.03, 0.344)
-    assert law_of("carreau_yasuda") == config.CarreauYasuda(0.056, 0.00345, 1.902, 0.22, 1.25)
-    assert law_of("cross") == config.Cross(0.0364, 0.0035, 0.38, 1.45)
-    assert law_of("power_law") == config.PowerLaw(0.017, 0.708, 0.0169)
-    assert law_of("casson") == config.Casson(0.0035, 0.005, 100.0)
+    assert law_of("carreau") == rheology.CarreauViscosity(0.0456, 0.0032, 10.03, 0.344)
+    assert law_of("carreau_yasuda") == rheology.CarreauYasudaViscosity(
+        0.056, 0.00345, 1.902, 0.22, 1.25
+    )
+    assert law_of("cross") == rheology.CrossViscosity(0.0364, 0.0035, 0.38, 1.45)
+    assert law_of("power_law") == rheology.PowerLawViscosity(0.017, 0.708, 0.0169)
+    assert law_of("casson") == rheology.CassonViscosity(0.0035, 0.005, 100.0)
 
 
 def test_carreau_values_and_limits():
@@ -170,9 +171,13 @@ def test_rheology_round_trips_through_yaml(tmp_path):
 
 
 def test_every_configured_model_has_a_law():
-    """The registry knows each ``fluid.rheology.model`` tag the schema admits, and no other."""
-    tags = {
-        typing.get_args(typing.get_type_hints(option)["model"])[0]
+    """The physics' laws (fsi.physics.rheology.LAWS) know each ``fluid.rheology.model`` tag the
+    schema admits, and no other, and each law takes exactly its section's parameters."""
+    sections = {
+        typing.get_args(typing.get_type_hints(option)["model"])[0]: option
         for option in typing.get_args(config.Rheology)
     }
-    assert set(LAWS) == tags
+    assert set(rheology.LAWS) == set(sections)
+    for tag, section in sections.items():
+        parameters = {f for f in section.__dataclass_fields__ if f != "model"}
+        assert set(rheology.LAWS[tag].__dataclass_fields__) == parameters, tag

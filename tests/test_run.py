@@ -12,7 +12,7 @@ import pytest
 
 import fsi
 from fsi import cli, config
-from fsi.output import io, provenance
+from fsi.output import io, metrics_csv, provenance
 from fsi.run import errors, simulation
 
 SHORT = ["structure.mode=rigid", "time.end=0.004", "time.schedule=[{until: 0.004, dt: 0.001}]"]
@@ -22,7 +22,7 @@ CASE = "configs/stenosis_fixed_newtonian.yaml"
 def test_rigid_run_writes_the_contract_files(shared_tmp):
     out = shared_tmp / "run"
     assert cli.main(["run", CASE, "--out", str(out), *sum((["--set", s] for s in SHORT), [])]) == 0
-    rows = io.read_metrics(out / "metrics.csv")
+    rows = metrics_csv.read_metrics(out / "metrics.csv")
     assert [r["step"] for r in rows] == [1, 2, 3, 4]
     for column in (
         "step",
@@ -76,8 +76,8 @@ def test_serial_and_parallel_runs_agree(shared_tmp):
     world = simulation.run(case, shared_tmp / "world", comm)
     alone = simulation.run(case, shared_tmp / f"self{comm.rank}", MPI.COMM_SELF)
     assert world.steps == alone.steps
-    rows_world = io.read_metrics(shared_tmp / "world" / "metrics.csv")
-    rows_self = io.read_metrics(shared_tmp / f"self{comm.rank}" / "metrics.csv")
+    rows_world = metrics_csv.read_metrics(shared_tmp / "world" / "metrics.csv")
+    rows_self = metrics_csv.read_metrics(shared_tmp / f"self{comm.rank}" / "metrics.csv")
     for a, b in zip(rows_world, rows_self):
         assert a["peak_velocity"] == pytest.approx(b["peak_velocity"], rel=1e-8)
         assert a["peak_pressure"] == pytest.approx(b["peak_pressure"], rel=1e-8)
@@ -119,7 +119,7 @@ def test_rigid_stenosis_stays_stable_after_the_pulse(shared_tmp):
     assert (
         cli.main(["run", CASE, "--out", str(out), *sum((["--set", s] for s in overrides), [])]) == 0
     )
-    rows = io.read_metrics(out / "metrics.csv")
+    rows = metrics_csv.read_metrics(out / "metrics.csv")
     after = [r["peak_velocity"] for r in rows if r["t"] >= 0.01]
     assert rows[-1]["t"] == pytest.approx(0.06)
     assert all(b <= a * 1.001 for a, b in zip(after, after[1:])), "the flow must keep slowing down"
@@ -141,7 +141,7 @@ def test_a_stenosis_with_plaque_on_both_sides_runs_in_every_mode(shared_tmp):
         ]
         args = ["run", CASE, "--out", str(shared_tmp / mode)]
         assert cli.main(args + sum((["--set", s] for s in overrides), [])) == 0, mode
-        rows[mode] = io.read_metrics(shared_tmp / mode / "metrics.csv")
+        rows[mode] = metrics_csv.read_metrics(shared_tmp / mode / "metrics.csv")
         assert [r["step"] for r in rows[mode]] == [1, 2, 3, 4]
     for rigid, fixed in zip(rows["rigid"], rows["fixed_wall"]):
         assert fixed["peak_pressure"] == pytest.approx(rigid["peak_pressure"], rel=1e-4)
@@ -161,7 +161,7 @@ def test_structure_alone_under_the_inlet_pressure(shared_tmp):
         ]
         args = ["run", CASE, "--out", str(out), *sum((["--set", s] for s in overrides), [])]
         assert cli.main(args) == 0
-        rows = io.read_metrics(out / "metrics.csv")
+        rows = metrics_csv.read_metrics(out / "metrics.csv")
         assert len(rows) == 6 and all(r["max_sss"] > 0 for r in rows)
         assert rows[-1]["peak_pressure"] == pytest.approx(600 * (1 - np.cos(2 * np.pi * 0.6)))
         peaks[mode] = max(r["peak_displacement"] for r in rows)
@@ -241,8 +241,8 @@ def test_structure_alone_turek_hron_writes_point_a(shared_tmp):
     case = config.load("configs/turek_hron_csm1.yaml", ["time.end=0.1"])  # 2 steps of 0.05 s
     simulation.run(case, shared_tmp / "world", comm)
     simulation.run(case, shared_tmp / f"self{comm.rank}", MPI.COMM_SELF)
-    world = io.read_metrics(shared_tmp / "world" / "metrics.csv")
-    alone = io.read_metrics(shared_tmp / f"self{comm.rank}" / "metrics.csv")
+    world = metrics_csv.read_metrics(shared_tmp / "world" / "metrics.csv")
+    alone = metrics_csv.read_metrics(shared_tmp / f"self{comm.rank}" / "metrics.csv")
     assert [r["step"] for r in world] == [r["step"] for r in alone] == [1, 2]
     for a, b in zip(world, alone):
         assert a["uy_A"] < 0 and a["ux_A"] < 0

@@ -17,7 +17,7 @@ import pytest
 from slurm_cluster import Cluster, ClusterError
 
 from fsi import cli
-from fsi.output import io
+from fsi.output import metrics_csv
 from fsi.run import slurm
 
 STENOSIS = "configs/stenosis_moving_newtonian.yaml"
@@ -319,7 +319,7 @@ def test_a_task_signalled_before_its_time_limit_stops_and_a_resubmission_continu
     assert cluster.wait(job, SWEEP_WAIT)
     assert sweep_main(out, "--collect") == 0
     assert [r["status"] for r in read_table(out)] == ["stopped"]
-    last = int(max(r["step"] for r in io.read_metrics(first / "metrics.csv")))
+    last = int(max(r["step"] for r in metrics_csv.read_metrics(first / "metrics.csv")))
 
     end = f"time.end={round((last + 2) * 0.001, 6)}"
     assert sweep_main(CHANNEL, *options, "--set", end) == 0
@@ -327,6 +327,8 @@ def test_a_task_signalled_before_its_time_limit_stops_and_a_resubmission_continu
     assert cluster.wait(job, SWEEP_WAIT)
     assert sweep_main(out, "--collect") == 0
     assert [r["status"] for r in read_table(out)] == ["done"]
-    assert [r["step"] for r in io.read_metrics(first / "metrics.csv")] == list(range(1, last + 3))
+    assert [r["step"] for r in metrics_csv.read_metrics(first / "metrics.csv")] == list(
+        range(1, last + 3)
+    )
     log = next((out / slurm.TASKS).glob(f"{job}_1.log")).read_text()
     assert f"resumed from its checkpoint at t = {last * 0.001:.6g} s" in log

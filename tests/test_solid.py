@@ -28,7 +28,7 @@ from fsi.config import Material, SolverSettings, reader
 from fsi.geometry import turek_hron
 from fsi.geometry.tags import STRUCTURE_REGIONS, Boundary, Region
 from fsi.numerics.timestepping import NewmarkFamily, steps
-from fsi.physics import materials, mesh, solid, solid_residual
+from fsi.physics import materials, mesh, solid, solid_boundaries, solid_residual
 from fsi.physics.fluid_boundaries import inlet_pressure
 from fsi.run import steppers
 
@@ -333,7 +333,9 @@ def test_patch_test_reproduces_a_homogeneous_deformation(stenosis, law_name):
     _, _, domain = stenosis
     m = Material(law=law_name, density=1200.0, young_modulus=1.6e6, poisson_ratio=0.45)
     A, c = np.array([[1.1, 0.2], [-0.1, 0.95]]), np.array([1e-4, -2e-4])
-    bcs = solid.SolidBoundaryConditions(dirichlet=(solid.PrescribedDisplacement(_affine(A, c)),))
+    bcs = solid_boundaries.SolidBoundaryConditions(
+        dirichlet=(solid_boundaries.PrescribedDisplacement(_affine(A, c)),)
+    )
     s = solid.SolidSolver(
         domain, {r: m for r in STRUCTURE_REGIONS}, bcs, NewmarkFamily.quasi_static(), solver=TIGHT
     )
@@ -369,7 +371,9 @@ def test_large_rigid_rotation_is_stress_free(law_name):
         X = x[:2] - centre[:, None]
         return R @ X - X
 
-    bcs = solid.SolidBoundaryConditions(dirichlet=(solid.PrescribedDisplacement(rotation),))
+    bcs = solid_boundaries.SolidBoundaryConditions(
+        dirichlet=(solid_boundaries.PrescribedDisplacement(rotation),)
+    )
     s = solid.SolidSolver(domain, {Region.FLAG: m}, bcs, NewmarkFamily.quasi_static(), solver=TIGHT)
     for k in (1, 2, 3):
         result = s.step(float(k), 1.0)
@@ -423,8 +427,8 @@ def test_manufactured_solution_converges_at_the_p2_rates():
         return -ufl.div(support_physics.first_piola(law, F))
 
     m = Material(density=1200.0, young_modulus=1.6e6, poisson_ratio=0.45)
-    bcs = solid.SolidBoundaryConditions(
-        dirichlet=(solid.PrescribedDisplacement(exact_np),), source=source
+    bcs = solid_boundaries.SolidBoundaryConditions(
+        dirichlet=(solid_boundaries.PrescribedDisplacement(exact_np),), source=source
     )
     errors = []
     for n in (4, 8, 16):
@@ -465,11 +469,11 @@ def _cantilever(
     scheme: NewmarkFamily,
     settings: SolverSettings = TIGHT,
     material: Material = FLAG,
-    support: solid.Support | None = None,
+    support: solid_boundaries.Support | None = None,
 ) -> solid.SolidSolver:
     domain = rectangle(*BEAM)
-    bcs = solid.SolidBoundaryConditions(
-        dirichlet=(solid.Clamp((Boundary.CLAMPED,)),), support=support
+    bcs = solid_boundaries.SolidBoundaryConditions(
+        dirichlet=(solid_boundaries.Clamp((Boundary.CLAMPED,)),), support=support
     )
     return solid.SolidSolver(domain, {Region.FLAG: material}, bcs, scheme, solver=settings)
 
@@ -643,7 +647,7 @@ def test_checkpoint_restore_repeats_a_step_and_rates_follow_newmark(damped):
         s = _cantilever(
             NewmarkFamily.newmark(),
             material=dataclasses.replace(FLAG, viscous_relaxation_time=0.01),
-            support=solid.Support(stiffness=1e4, damping=100.0),
+            support=solid_boundaries.Support(stiffness=1e4, damping=100.0),
         )
     else:
         s = _cantilever(NewmarkFamily.newmark())
@@ -920,7 +924,7 @@ def test_free_fall_is_integrated_exactly(scheme):
     Newmark-family scheme integrates the constant acceleration exactly, η = g t²/2."""
     domain = rectangle(0.35, 0.02, 8, 2)
     g = np.array([0.3, -2.0])
-    bcs = solid.SolidBoundaryConditions(dirichlet=(), body_force=tuple(g))
+    bcs = solid_boundaries.SolidBoundaryConditions(dirichlet=(), body_force=tuple(g))
     s = solid.SolidSolver(domain, {Region.FLAG: FLAG}, bcs, scheme, solver=TIGHT)
     s.initialize_acceleration()
     assert global_max(s.comm, owned(s.a_n).reshape(-1, 2) - g) < 1e-12  # measured 2e-15
@@ -940,7 +944,9 @@ def test_mixed_laws_agree_with_svk_in_the_linear_limit(stenosis):
     _, _, domain = stenosis
     svk = Material(young_modulus=1.6e6)
     wall = Material(young_modulus=4e6)
-    bcs = solid.SolidBoundaryConditions(dirichlet=(solid.Clamp(),), pressure=lambda t: 1e-3)
+    bcs = solid_boundaries.SolidBoundaryConditions(
+        dirichlet=(solid_boundaries.Clamp(),), pressure=lambda t: 1e-3
+    )
     peaks = []
     for cap in (svk, Material(law="neo_hookean", young_modulus=1.6e6)):
         s = solid.SolidSolver(
@@ -1003,7 +1009,7 @@ def test_damping_is_off_by_default_and_the_elastic_forms_are_unchanged():
     damped = solid.SolidSolver(
         rectangle(*BEAM),
         {Region.FLAG: dataclasses.replace(FLAG, viscous_relaxation_time=1e-3)},
-        solid.SolidBoundaryConditions(support=solid.Support(damping=1.0)),
+        solid_boundaries.SolidBoundaryConditions(support=solid_boundaries.Support(damping=1.0)),
         NewmarkFamily.newmark(),
     )
     assert damped.viscous is not None and damped.residual.support is not None
@@ -1066,7 +1072,9 @@ def test_kelvin_voigt_discrete_rate_is_objective_for_finite_rotation_steps():
         stretch = 1.0 + 0.01 * max(t - 3.0, 0.0)
         return stretch * (R @ X) - X
 
-    bcs = solid.SolidBoundaryConditions(dirichlet=(solid.PrescribedDisplacement(motion),))
+    bcs = solid_boundaries.SolidBoundaryConditions(
+        dirichlet=(solid_boundaries.PrescribedDisplacement(motion),)
+    )
     s = solid.SolidSolver(domain, {Region.FLAG: m}, bcs, NewmarkFamily.quasi_static(), solver=TIGHT)
     residual = dolfinx.fem.form(s.residual.form)
 
@@ -1106,7 +1114,9 @@ def test_kelvin_voigt_damps_a_mode_at_the_ratio_omega_tau_over_two():
     errors must also be those predicted, to 0.02 % (what is left is O((ω dt)⁴))."""
     tau = 0.015
     material = dataclasses.replace(FLAG, viscous_relaxation_time=tau)
-    bcs = solid.SolidBoundaryConditions(dirichlet=(solid.Clamp((Boundary.CLAMPED,)),))
+    bcs = solid_boundaries.SolidBoundaryConditions(
+        dirichlet=(solid_boundaries.Clamp((Boundary.CLAMPED,)),)
+    )
     s = solid.SolidSolver(
         rectangle(*BEAM),
         {Region.FLAG: material},
@@ -1158,7 +1168,9 @@ def test_kelvin_voigt_energy_leaves_only_through_the_viscous_work():
     the motion loses most of its energy."""
     tau = 0.01
     material = dataclasses.replace(FLAG, viscous_relaxation_time=tau)
-    bcs = solid.SolidBoundaryConditions(dirichlet=(solid.Clamp((Boundary.CLAMPED,)),))
+    bcs = solid_boundaries.SolidBoundaryConditions(
+        dirichlet=(solid_boundaries.Clamp((Boundary.CLAMPED,)),)
+    )
     s = solid.SolidSolver(
         rectangle(*BEAM), {Region.FLAG: material}, bcs, NewmarkFamily.newmark(), solver=TIGHT
     )
@@ -1216,7 +1228,9 @@ def test_tissue_support_is_a_mass_spring_damper():
     L, h = 0.35, 0.02
     k_s, c_s = 4000.0, 40.0
     domain = rectangle(L, h, 8, 2)  # the exterior: y = 0 and y = h
-    bcs = solid.SolidBoundaryConditions(dirichlet=(), support=solid.Support(k_s, c_s))
+    bcs = solid_boundaries.SolidBoundaryConditions(
+        dirichlet=(), support=solid_boundaries.Support(k_s, c_s)
+    )
     stiff = dataclasses.replace(FLAG, young_modulus=1.4e9)
     s = solid.SolidSolver(domain, {Region.FLAG: stiff}, bcs, NewmarkFamily.newmark(), solver=TIGHT)
     mass, A = FLAG.density * L * h, 2 * L
@@ -1293,7 +1307,7 @@ def test_tissue_support_acts_on_the_free_wall_only(stenosis, fsi_log):
     free, held = peaks["moving_wall", 0.0][1], peaks["moving_wall", 1e10][1]
     assert held < 0.5 * free
     flag = _flag_case("fsi1", "structure.support.stiffness=1e5")
-    assert solid.boundary_conditions(flag).support is None
+    assert solid_boundaries.boundary_conditions(flag).support is None
     assert "structure.support is ignored" in fsi_log.text
 
 

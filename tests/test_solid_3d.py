@@ -31,7 +31,7 @@ from fsi import config
 from fsi.config import Material, SolverSettings
 from fsi.geometry.tags import Boundary, Region
 from fsi.numerics.timestepping import NewmarkFamily
-from fsi.physics import materials, solid
+from fsi.physics import materials, solid, solid_boundaries
 from fsi.physics import mesh as fsi_mesh
 
 A_IN, B_OUT, LENGTH, CELL = 0.005, 0.008, 0.002, 0.0005
@@ -69,13 +69,13 @@ def wall_domain():
     return solid.structure_mesh(fsi_mesh.build(case, MPI.COMM_WORLD), (Region.WALL,))
 
 
-def lame_conditions(pressure) -> solid.SolidBoundaryConditions:
+def lame_conditions(pressure) -> solid_boundaries.SolidBoundaryConditions:
     """Roller ends, the planes y = 0 and z = 0 held, the inner pressure ``pressure(t)``."""
-    return solid.SolidBoundaryConditions(
+    return solid_boundaries.SolidBoundaryConditions(
         dirichlet=(
-            solid.Roller((Boundary.CLAMPED,), component=0),
-            solid.SymmetryPlane(1),
-            solid.SymmetryPlane(2),
+            solid_boundaries.Roller((Boundary.CLAMPED,), component=0),
+            solid_boundaries.SymmetryPlane(1),
+            solid_boundaries.SymmetryPlane(2),
         ),
         pressure=pressure,
     )

@@ -34,8 +34,8 @@ from mpi4py import MPI
 import pytest
 
 from fsi import cli
-from fsi.output import io
-from fsi.output.comparison import largest_differences
+from fsi.output import metrics_csv
+from fsi.performance.comparison import largest_differences
 
 CASE = "configs/stenosis_moving_carreau.yaml"
 PULSE = ["time.end=0.01"]  # 40 steps of 0.25 ms: the 5 ms pulse and the 5 ms after it
@@ -55,7 +55,7 @@ BOUND = 5e-4
 def pulse(out, overrides) -> list[dict]:
     args = ["run", CASE, "--out", str(out), "--set", "output.fields_every=1000"]
     assert cli.main([*args, *sum((["--set", s] for s in [*PULSE, *overrides]), [])]) == 0
-    return io.read_metrics(out / "metrics.csv")
+    return metrics_csv.read_metrics(out / "metrics.csv")
 
 
 PREVIOUS = [  # the settings before #11
@@ -90,7 +90,7 @@ def runs():
 
 
 def worst_difference(rows: list[dict], reference: list[dict]) -> dict[str, float]:
-    """Per headline column (fsi/output/comparison.py), max |rows − reference| over the steps /
+    """Per headline column (fsi/performance/comparison.py), max |rows − reference| over the steps /
     max |reference|."""
     assert len(rows) == len(reference) == 40
     return largest_differences(rows, reference)

@@ -17,7 +17,7 @@ from mpi4py import MPI
 import pytest
 from test_restart import assert_same_rows, assert_same_state, fsi_run
 
-from fsi.output import io
+from fsi.output import metrics_csv
 
 PULSE = "configs/axisymmetric/tube_pulse.yaml"
 TUBE_3D = [
@@ -65,7 +65,7 @@ def test_a_3d_tube_under_pressure_widens_as_lames_cylinder(runs):
     """ur_A (u_y at (L/2, R, 0)) within 2 % of Lamé's plane-strain u_r(a) (measured −0.80 %);
     uz_A ~ 0."""
     assert runs["codes"] == [0, 0, 0, 0]
-    row = io.read_metrics(runs["static"] / "metrics.csv")[-1]
+    row = metrics_csv.read_metrics(runs["static"] / "metrics.csv")[-1]
     p, a, b, E, nu = 100.0, 0.005, 0.006, 3.0e5, 0.3
     lame = p * a * (1 + nu) / E * ((1 - 2 * nu) * a * a / (b * b - a * a) + b * b / (b * b - a * a))
     assert row["ur_A"] == pytest.approx(lame, rel=2e-2), (row["ur_A"], lame)

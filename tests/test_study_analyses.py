@@ -1,16 +1,15 @@
-"""scripts/study_analyses.py: the estimates and criteria docs/study.md explains the differences
+"""fsi/study/analyses.py: the estimates and criteria docs/study.md explains the differences
 from the study with (the rigid-column velocity, the degree matching a velocity, when a wall
 is quasi-static, the compliance verdict), on synthetic summaries whose answers are known."""
 
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from scripts import study_analyses, study_runs  # noqa: E402
+from fsi.study import analyses as study_analyses
+from fsi.study import runs as study_runs
+from fsi.study import sensitivity, wall_analyses
 
 
 def summary(at: dict[float, dict], degree: float = 0.5, **maxima) -> dict:
@@ -76,7 +75,7 @@ def test_a_wall_is_quasi_static_where_it_moves_as_its_static_compliance_says():
             0.05: {"peak_displacement": 3.0e-6, "peak_pressure": 0.0},  # no pressure: no ratio
         }
     )
-    assert [study_analyses.quasi_static(s, c, t) for t in (0.01, 0.02, 0.05)] == [
+    assert [wall_analyses.quasi_static(s, c, t) for t in (0.01, 0.02, 0.05)] == [
         False,
         True,
         False,
@@ -84,9 +83,9 @@ def test_a_wall_is_quasi_static_where_it_moves_as_its_static_compliance_says():
     near, below = (
         summary({0.02: {"peak_displacement": d, "peak_pressure": 5.0}}) for d in (1.5e-6, 1.4e-6)
     )
-    assert study_analyses.quasi_static(near, c, 0.02)  # 0.30 µm/Pa
-    assert not study_analyses.quasi_static(below, c, 0.02)  # 0.28 µm/Pa
-    assert not study_analyses.quasi_static(None, c, 0.02)
+    assert wall_analyses.quasi_static(near, c, 0.02)  # 0.30 µm/Pa
+    assert not wall_analyses.quasi_static(below, c, 0.02)  # 0.28 µm/Pa
+    assert not wall_analyses.quasi_static(None, c, 0.02)
 
 
 def _compliance_text(ratio_per_degree: dict[float, float]) -> str:
@@ -99,7 +98,7 @@ def _compliance_text(ratio_per_degree: dict[float, float]) -> str:
             shape[f"plaque_shape/d={d},cap={cap}"] = summary(at, degree=d)
     main = {"fixed_newtonian_coarse": shape[f"plaque_shape/d={0.5},cap={1e-4}"]}
     static = {"fixed_wall": 4e-10, "moving_wall": 4.4e-7}
-    return study_analyses.compliance(shape, {}, main, paper, static)
+    return wall_analyses.compliance(shape, {}, main, paper, static)
 
 
 def test_the_compliance_verdict_is_the_factor_two_it_states():
@@ -114,17 +113,17 @@ def test_the_compliance_verdict_is_the_factor_two_it_states():
 
 def test_richardson_recovers_the_limit_and_order_of_a_power_law():
     """f(h) = 3 + 0.5 h² on h = 4, 2, 1: order 2, limit 3; a non-monotone sequence has none."""
-    order, limit = study_analyses.richardson(3 + 0.5 * 16, 3 + 0.5 * 4, 3 + 0.5)
+    order, limit = sensitivity.richardson(3 + 0.5 * 16, 3 + 0.5 * 4, 3 + 0.5)
     assert order == pytest.approx(2.0) and limit == pytest.approx(3.0)
-    assert study_analyses.richardson(1.0, 2.0, 1.5) is None
-    assert study_analyses.richardson(1.0, 1.0, 1.0) is None
+    assert sensitivity.richardson(1.0, 2.0, 1.5) is None
+    assert sensitivity.richardson(1.0, 1.0, 1.0) is None
 
 
 def test_the_plane_stress_reading_is_plane_strain_with_the_equivalent_moduli():
     """For St. Venant–Kirchhoff, Σ₃₃ = 0 eliminates E₃₃ exactly: the in-plane law is plane
     strain's with λ* = 2λμ/(λ + 2μ) and the same μ, i.e. ν' = ν/(1 + ν), E' = E(1 + 2ν)/(1 + ν)²."""
     from fsi.physics.materials import lame
-    from scripts import reproduce_study
+    from fsi.study import reproduce as reproduce_study
 
     sets = dict(s.split("=") for s in reproduce_study._plane_stress())
     for region, e in (("wall", 4.0e6), ("cap", 1.6e6), ("lipid", 1.6e6)):

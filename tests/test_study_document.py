@@ -1,26 +1,25 @@
-"""scripts/study_document.py: the verdicts on the study's findings and the tables of docs/study.md
+"""fsi/study/document.py: the verdicts on the study's findings and the tables of docs/study.md
 are comparisons of the runs' numbers (synthetic runs here, whose answers are known), made from
 the runs' summaries; docs/study_tables.csv holds the study's 120 printed values."""
 
 import csv
 import json
-import sys
 from pathlib import Path
 
 import pytest
 
 from fsi import config
-from fsi.output import report
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from scripts import study_document, study_runs  # noqa: E402
+from fsi.output import report_runs
+from fsi.study import document as study_document
+from fsi.study import findings as study_findings
+from fsi.study import runs as study_runs
 
 TIMES = [0.0025, 0.005, 0.01, 0.02, 0.05, 0.1, 0.8]
 
 
 def run(
     name: str, sss: float, displacement: float = 1e-6, recirculation: float = 6e-3, end: float = 0.8
-) -> report.Run:
+) -> report_runs.Run:
     """A run whose columns are constant in time (their maxima are the values given)."""
     rows = [
         {
@@ -38,7 +37,7 @@ def run(
         for i, t in enumerate(TIMES)
         if t <= end
     ]
-    return report.Run(Path(name), config.Case(), rows, {"steps": len(rows)})
+    return report_runs.Run(Path(name), config.Case(), rows, {"steps": len(rows)})
 
 
 def summaries(runs: dict) -> dict:
@@ -46,7 +45,7 @@ def summaries(runs: dict) -> dict:
 
 
 def verdicts(runs: dict) -> list[str]:
-    return [f.split(" — ")[1].split(" (")[0] for f in study_document.findings(summaries(runs))]
+    return [f.split(" — ")[1].split(" (")[0] for f in study_findings.findings(summaries(runs))]
 
 
 def test_the_study_s_findings_confirmed():
@@ -70,11 +69,11 @@ def test_the_study_s_findings_refuted():
 
 
 def test_the_findings_use_the_fine_mesh_once_its_four_runs_finished():
-    coarse = {f"{c}_coarse": run(f"{c}_coarse", 300.0) for c in study_document.CONFIGS}
-    fine = {f"{c}_fine": run(f"{c}_fine", 500.0) for c in study_document.CONFIGS}
-    assert "(fixed_newtonian_fine)" in study_document.findings(summaries({**coarse, **fine}))[0]
+    coarse = {f"{c}_coarse": run(f"{c}_coarse", 300.0) for c in study_runs.CONFIGS}
+    fine = {f"{c}_fine": run(f"{c}_fine", 500.0) for c in study_runs.CONFIGS}
+    assert "(fixed_newtonian_fine)" in study_findings.findings(summaries({**coarse, **fine}))[0]
     fine["fixed_carreau_fine"] = run("fixed_carreau_fine", 500.0, end=0.1)  # unfinished
-    assert "(fixed_newtonian_coarse)" in study_document.findings(summaries({**coarse, **fine}))[0]
+    assert "(fixed_newtonian_coarse)" in study_findings.findings(summaries({**coarse, **fine}))[0]
 
 
 def test_the_paper_tables_set_each_printed_value_beside_the_run_s(tmp_path):

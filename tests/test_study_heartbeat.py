@@ -11,14 +11,14 @@ import pytest
 
 from fsi import cli, config
 from fsi.numerics.timestepping import steps
-from fsi.output import io
+from fsi.output import metrics_csv
 
 CASES = ["moving_carreau", "moving_newtonian", "fixed_carreau", "fixed_newtonian"]
 
 
 def heartbeat(case: str, out) -> list[dict]:
     assert cli.main(["run", f"configs/stenosis_{case}.yaml", "--out", str(out)]) == 0
-    return io.read_metrics(out / "metrics.csv")
+    return metrics_csv.read_metrics(out / "metrics.csv")
 
 
 def check_heartbeat(case: str, rows: list[dict]) -> None:

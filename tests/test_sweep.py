@@ -13,8 +13,8 @@ from mpi4py import MPI
 import pytest
 
 from fsi import cli, config
-from fsi.output import io
-from fsi.run import sweep
+from fsi.output import metrics_csv
+from fsi.run import sweep, sweep_execution, sweep_results
 
 STENOSIS = "configs/stenosis_moving_newtonian.yaml"
 CHANNEL = "configs/channel_poiseuille.yaml"
@@ -82,7 +82,7 @@ def test_a_sweep_tables_its_runs_and_a_rerun_skips_them(shared_tmp, capsys):
     for row, degree in zip(table, ("0.4", "0.5"), strict=True):
         run = out / f"geometry.stenosis_degree={degree},geometry.cap_thickness=5.0e-4"
         summary = json.loads((run / "summary.json").read_text())
-        metrics = io.read_metrics(run / "metrics.csv")
+        metrics = metrics_csv.read_metrics(run / "metrics.csv")
         assert summary["end_time_s"] == pytest.approx(0.0005) and len(metrics) == 2
         expected = {
             "min_tawss": summary["min_tawss"],
@@ -130,7 +130,7 @@ def test_a_longer_time_end_resumes_each_run_from_its_checkpoint(shared_tmp, caps
     assert rank0_stderr(capsys).count("resumed from its checkpoint at t = 0.002 s") == 2
     for viscosity in ("0.0035", "0.004"):
         run = out / f"fluid.rheology.viscosity={viscosity}"
-        assert [r["step"] for r in io.read_metrics(run / "metrics.csv")] == [1, 2, 3]
+        assert [r["step"] for r in metrics_csv.read_metrics(run / "metrics.csv")] == [1, 2, 3]
         assert json.loads((run / "summary.json").read_text())["end_time_s"] == pytest.approx(0.003)
     table = read_table(out)
     assert [r["status"] for r in table] == ["done", "done"]
@@ -215,7 +215,7 @@ def test_a_stop_signal_stops_the_run_and_the_sweep_which_resumes(shared_tmp, cap
     )
     assert f"To resume it, run\n  {resume}" in err
     assert [r["status"] for r in read_table(out)] == ["stopped", "pending"]
-    last = int(max(r["step"] for r in io.read_metrics(first)))
+    last = int(max(r["step"] for r in metrics_csv.read_metrics(first)))
     assert last >= 2 and not (out / "fluid.rheology.viscosity=0.004").exists()
 
     # The command resumes the stopped run from its checkpoint (here with a nearer end).
@@ -224,7 +224,7 @@ def test_a_stop_signal_stops_the_run_and_the_sweep_which_resumes(shared_tmp, cap
     assert f"viscosity=0.0035: resumed from its checkpoint at t = {last * 0.001:.6g} s" in (
         rank0_stderr(capsys)
     )
-    assert [r["step"] for r in io.read_metrics(first)] == list(range(1, last + 3))
+    assert [r["step"] for r in metrics_csv.read_metrics(first)] == list(range(1, last + 3))
     assert [r["status"] for r in read_table(out)] == ["done", "done"]
 
 
@@ -239,7 +239,7 @@ def test_a_stop_between_runs_ends_the_sweep_before_the_next(shared_tmp, capsys):
         started.append(run.index)
         return 0, ""
 
-    status = sweep.execute(
+    status = sweep_execution.execute(
         runs, variations, out, run_one, lambda: signal.SIGTERM, ["fsi", "sweep", "..."]
     )
     assert status == 128 + signal.SIGTERM and started == []
@@ -342,13 +342,13 @@ def test_sweep_plots_name_the_quantities_and_their_units():
     """The x-axis names the varied quantity and its unit as the config declares it, the y-axis
     the headline's quantity (its unit is chosen from the values): not config keys."""
     case = config.load("configs/stenosis_moving_newtonian.yaml")
-    assert sweep.axis_label(case, "geometry.cap_thickness") == "cap thickness (m)"
-    assert sweep.axis_label(case, "geometry.stenosis_degree") == "stenosis degree"
-    assert sweep.axis_label(case, "fluid.inlet.amplitude") == "inlet amplitude (Pa)"
-    assert sweep.axis_label(case, "structure.cap.young_modulus") == "cap young modulus (Pa)"
-    assert sweep.axis_label(case, "fluid.rheology.viscosity") == "rheology viscosity (Pa s)"
-    assert sweep.axis_label(case, "mesh.level") == "mesh level"
-    labels = [h.label for h in sweep.HEADLINES]
+    assert sweep_results.axis_label(case, "geometry.cap_thickness") == "cap thickness (m)"
+    assert sweep_results.axis_label(case, "geometry.stenosis_degree") == "stenosis degree"
+    assert sweep_results.axis_label(case, "fluid.inlet.amplitude") == "inlet amplitude (Pa)"
+    assert sweep_results.axis_label(case, "structure.cap.young_modulus") == "cap young modulus (Pa)"
+    assert sweep_results.axis_label(case, "fluid.rheology.viscosity") == "rheology viscosity (Pa s)"
+    assert sweep_results.axis_label(case, "mesh.level") == "mesh level"
+    labels = [h.label for h in sweep_results.HEADLINES]
     assert len(set(labels)) == len(labels) and all("_" not in label for label in labels)
 
 
@@ -425,7 +425,7 @@ def test_a_sweep_never_deletes_results_without_overwrite_nor_through_a_link(shar
     changed = [*vary, "--set", "time.end=0.001", "--set", "fluid.density=1000"]
     assert sweep_main(CHANNEL, out, *changed, "--overwrite") == 0
     run = out / "fluid.rheology.viscosity=0.004"
-    assert [r["step"] for r in io.read_metrics(run / "metrics.csv")] == [1]
+    assert [r["step"] for r in metrics_csv.read_metrics(run / "metrics.csv")] == [1]
 
     elsewhere = shared_tmp / "elsewhere"
     if comm.rank == 0:
@@ -461,9 +461,9 @@ def test_a_sweep_plot_title_fits_its_figure():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    for h in sweep.HEADLINES:
+    for h in sweep_results.HEADLINES:
         figure, axes = plt.subplots(1, 1, figsize=(5.0, 3.8), squeeze=False)
-        sweep.suptitle(figure, h.meaning)
+        sweep_results.suptitle(figure, h.meaning)
         figure.tight_layout()
         figure.canvas.draw()
         box = figure._suptitle.get_window_extent(figure.canvas.get_renderer())

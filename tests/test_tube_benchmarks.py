@@ -1,7 +1,7 @@
 """The elastic-tube benchmarks through scripts/benchmark_tube.py (issue #28;
 docs/axisymmetric.md): the pressure pulse's point A and wave speed against the published values
 and the thick-wall estimate; Womersley flow in a deformable tube against the exact linear
-solution (scripts/womersley_tube_exact.py).
+solution (fsi/benchmarks/womersley_tube.py).
 
 The shipped pulse (0.25 mm cells, 25 µs steps, 400 steps) takes ~20 minutes serially and the
 shipped Womersley case (two periods of 100 steps) ~7: both are ``slow``. The default selection
@@ -12,15 +12,12 @@ docs/axisymmetric.md.
 
 import json
 import math
-import sys
 from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-import benchmark_tube  # noqa: E402
-
 from fsi import config  # noqa: E402
+from fsi.benchmarks import elastic_tube as benchmark_tube
 
 COARSER = [
     "--set",

@@ -6,7 +6,7 @@ from mpi4py import MPI
 import pytest
 
 from fsi import cli, config
-from fsi.output import io
+from fsi.output import metrics_csv
 from fsi.run import simulation
 
 FSI1 = "configs/turek_hron_fsi1.yaml"
@@ -22,7 +22,7 @@ def test_fsi1_steady_state_within_one_percent(shared_tmp):
     Featflow's level 2+0 has u_y −0.19 %, drag −0.15 %); the issue asks for 1 %."""
     out = shared_tmp / "fsi1"
     assert cli.main(["run", FSI1, "--out", str(out)]) == 0
-    (row,) = io.read_metrics(out / "metrics.csv")
+    (row,) = metrics_csv.read_metrics(out / "metrics.csv")
     for key, reference in FSI1_REFERENCE.items():
         assert row[key] == pytest.approx(reference, rel=0.01), key
     assert row["coupling_residual"] <= config.load(FSI1).coupling.tolerance
@@ -35,7 +35,7 @@ def test_fsi1_serial_and_parallel_agree(shared_tmp):
     case = config.load(FSI1)
     simulation.run(case, shared_tmp / "world", comm)
     simulation.run(case, shared_tmp / f"self{comm.rank}", MPI.COMM_SELF)
-    (world,) = io.read_metrics(shared_tmp / "world" / "metrics.csv")
-    (alone,) = io.read_metrics(shared_tmp / f"self{comm.rank}" / "metrics.csv")
+    (world,) = metrics_csv.read_metrics(shared_tmp / "world" / "metrics.csv")
+    (alone,) = metrics_csv.read_metrics(shared_tmp / f"self{comm.rank}" / "metrics.csv")
     for key in FSI1_REFERENCE:
         assert world[key] == pytest.approx(alone[key], rel=1e-5), key

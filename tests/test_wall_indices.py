@@ -1,5 +1,5 @@
-"""The hemodynamic indices TAWSS, OSI and RRT (fsi.output.metrics.WallIndices, accumulated in-run by
-fsi.output.wall_outputs.FluidOutputs; docs/hemodynamic-indices.md).
+"""The hemodynamic indices TAWSS, OSI and RRT (fsi.output.wall_indices.WallIndices, accumulated
+in-run by fsi.output.wall_outputs.FluidOutputs; docs/hemodynamic-indices.md).
 
 The accumulator against known answers on synthetic τ(t) (constant, sinusoidal over whole
 periods, with uniform and non-uniform steps); ``fsi run`` on the straight channel against the
@@ -26,7 +26,7 @@ from scipy.spatial import cKDTree
 from fsi import cli, config
 from fsi.geometry.tags import Boundary
 from fsi.numerics.timestepping import steps
-from fsi.output import io, metrics, wall_outputs
+from fsi.output import io, wall_indices, wall_outputs
 from fsi.run import errors, simulation, steppers
 
 CHANNEL = "configs/channel_poiseuille.yaml"
@@ -59,11 +59,11 @@ def column(rows: list[dict], key: str) -> np.ndarray:
 # The accumulator on synthetic τ(t)
 
 
-def accumulate(tau, dts, start: float = 0.0, interpolate: bool = True) -> metrics.WallIndices:
+def accumulate(tau, dts, start: float = 0.0, interpolate: bool = True) -> wall_indices.WallIndices:
     """WallIndices of samples τ(t) (a function of t giving one value per sample) over steps of
     the sizes ``dts`` from t = 0, from the value τ(0)."""
     t = 0.0
-    indices = metrics.WallIndices(len(tau(0.0)), start=start, interpolate=interpolate)
+    indices = wall_indices.WallIndices(len(tau(0.0)), start=start, interpolate=interpolate)
     indices.set_value(tau(0.0))
     for dt in dts:
         t += dt
@@ -83,7 +83,7 @@ def test_constant_shear_has_tawss_its_magnitude_osi_zero_and_rrt_its_inverse():
     assert indices.rrt[2] == np.inf
 
 
-def oscillating(n: int, kind: str, interpolate: bool = True) -> metrics.WallIndices:
+def oscillating(n: int, kind: str, interpolate: bool = True) -> wall_indices.WallIndices:
     """τ = (A sin(2πt/P), −A) over three whole periods in ``n`` steps, ``uniform`` or of
     ``random`` sizes in [0.5, 1.5] × the uniform one."""
     A, P = 3.0, 0.5
@@ -133,7 +133,7 @@ def test_the_indices_are_second_order_in_uneven_steps():
         assert 3.5 < coarse[0] / fine[0] < 4.5, trapezoid
     assert all(t[1] < r[1] / 5 for t, r in zip(trapezoid, rectangle)), (trapezoid, rectangle)
     # τ from 3 to −1 over 0.4 s, then back to 1 over 0.6 s (a sign change in each step).
-    indices = metrics.WallIndices(1)
+    indices = wall_indices.WallIndices(1)
     indices.set_value(np.array([3.0]))
     indices.add(0.4, np.array([-1.0]))
     indices.add(1.0, np.array([1.0]))
@@ -150,7 +150,7 @@ def test_the_window_starts_at_start_and_a_step_across_it_counts_its_part_after_i
         (True, 0.25 * (100 - 98 * 0.5 / 0.75 + 2) / 2 + 2.25),
         (False, 3.5),
     ):
-        indices = metrics.WallIndices(1, start=1.0, interpolate=interpolate)
+        indices = wall_indices.WallIndices(1, start=1.0, interpolate=interpolate)
         for t, tau in ((0.5, 100.0), (1.25, 2.0), (2.0, 4.0)):
             indices.add(t, np.array([tau]))
         assert indices.duration == pytest.approx(1.0, rel=1e-15)
@@ -158,7 +158,7 @@ def test_the_window_starts_at_start_and_a_step_across_it_counts_its_part_after_i
 
 
 def test_before_any_step_the_indices_are_undefined_and_steps_must_go_forward():
-    indices = metrics.WallIndices(2)
+    indices = wall_indices.WallIndices(2)
     assert np.isnan(indices.tawss).all() and np.isnan(indices.osi).all()
     assert np.isnan(indices.rrt).all()
     indices.add(0.1, np.array([1.0, 2.0]))
@@ -173,7 +173,7 @@ def test_state_continues_like_the_uninterrupted_accumulator():
     dts = [0.1, 0.2, 0.15, 0.3, 0.05]
     straight = accumulate(tau, dts)
     first = accumulate(tau, dts[:2])
-    second = metrics.WallIndices(2)
+    second = wall_indices.WallIndices(2)
     second.load_state(first.state())
     t = sum(dts[:2])
     second.set_value(tau(t))  # the restored solution's value (not in the state)

@@ -1,4 +1,4 @@
-"""scripts/womersley_tube_exact.py: Womersley flow in a deformable thick-walled tube, exact.
+"""fsi/benchmarks/womersley_tube.py: Womersley flow in a deformable thick-walled tube, exact.
 
 The fields satisfy their equations (finite differences of the complex profiles, ∂/∂z = −ik,
 ∂/∂t = iω), the conditions at the wall's two surfaces hold to round-off, the real fields are
@@ -8,16 +8,13 @@ agree with solids4foam's womersleyTube values as another developer found them.""
 import cmath
 import json
 import math
-import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy import special
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-import womersley_tube_exact as wte  # noqa: E402
+from fsi.benchmarks import womersley_tube as wte
 
 D1 = np.array([1 / 280, -4 / 105, 1 / 5, -4 / 5, 0, 4 / 5, -1 / 5, 4 / 105, -1 / 280])
 D2 = np.array([-1 / 560, 8 / 315, -1 / 5, 8 / 5, -205 / 72, 8 / 5, -1 / 5, 8 / 315, -1 / 560])

@@ -17,11 +17,11 @@ from fsi.config.case_file import (
     to_dict,
     to_yaml,
 )
-from fsi.config.coupling_section import Coupling, MeshMotion
+from fsi.config.coupling_section import Coupling, MeshMotionSettings
 from fsi.config.domain import (
     MESH_LEVELS,
     ChannelGeometry,
-    Geometry,
+    GeometrySettings,
     MeshSettings,
     StenosisGeometry,
     TubeGeometry,
@@ -74,7 +74,7 @@ from fsi.config.structure_section import (
     WallMaterial,
 )
 from fsi.config.time_section import MAX_CYCLES, AdaptiveStepping, Time, TimeSegment
-from fsi.config.validation import cautions, validate
+from fsi.config.validation import cannot_run, cautions, validate
 
 __all__ = [
     # the case and its files
@@ -85,6 +85,7 @@ __all__ = [
     "from_dict",
     "validate",
     "cautions",
+    "cannot_run",
     "to_dict",
     "to_yaml",
     "dump",
@@ -93,7 +94,7 @@ __all__ = [
     "heartbeat_period",
     "run_time",
     # geometry, mesh
-    "Geometry",
+    "GeometrySettings",
     "StenosisGeometry",
     "ChannelGeometry",
     "TubeGeometry",
@@ -144,7 +145,7 @@ __all__ = [
     "TimeSegment",
     "MAX_CYCLES",
     "Coupling",
-    "MeshMotion",
+    "MeshMotionSettings",
     "Output",
     "FluidSolverSettings",
     "SolverSettings",

@@ -319,7 +319,7 @@ def read_waveform(
             continue
         cells = [cell.strip() for cell in line.split(",")]
         first, header_allowed = header_allowed, False
-        values = [_number(cell) for cell in cells]
+        values = [_decimal_or_none(cell) for cell in cells]
         if first and all(value is None for value in values):
             _check_header_units(cells, quantity, f"{path}: line {number}", axisymmetric)
             continue  # the header
@@ -381,7 +381,7 @@ refused after, as not finite. Python's ``float`` also takes ``1_000`` (its digit
 which no spreadsheet writes: read as 1000 it would hide a typo, so it is not a number."""
 
 
-def _number(cell: str) -> float | None:
+def _decimal_or_none(cell: str) -> float | None:
     """The float ``cell`` spells (:data:`_DECIMAL`), or None."""
     if not _DECIMAL.fullmatch(cell):
         return None

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from fsi.config.coupling_section import Coupling, MeshMotion
-from fsi.config.domain import Geometry, MeshSettings, StenosisGeometry
+from fsi.config.coupling_section import Coupling, MeshMotionSettings
+from fsi.config.domain import GeometrySettings, MeshSettings, StenosisGeometry
 from fsi.config.fluid_section import Fluid
 from fsi.config.output_section import Output
 from fsi.config.structure_section import Structure
@@ -20,13 +20,13 @@ class Case:
     dataclass whose fields are that section's keys (docs/configuration.md)."""
 
     name: str = "case"
-    geometry: Geometry = field(default_factory=StenosisGeometry)
+    geometry: GeometrySettings = field(default_factory=StenosisGeometry)
     mesh: MeshSettings = field(default_factory=MeshSettings)
     fluid: Fluid = field(default_factory=Fluid)
     structure: Structure = field(default_factory=Structure)
     time: Time = field(default_factory=Time)
     coupling: Coupling = field(default_factory=Coupling)
-    mesh_motion: MeshMotion = field(default_factory=MeshMotion)
+    mesh_motion: MeshMotionSettings = field(default_factory=MeshMotionSettings)
     output: Output = field(default_factory=Output)
 
 

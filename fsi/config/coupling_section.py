@@ -1,5 +1,5 @@
 """The ``coupling`` section (:class:`Coupling`: the fluid–structure iterations of a step) and
-the ``mesh_motion`` section (:class:`MeshMotion`: the ALE extension done in each of them).
+the ``mesh_motion`` section (:class:`MeshMotionSettings`: the ALE extension done in each of them).
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ class Coupling:
 
 
 @dataclass(frozen=True)
-class MeshMotion:
+class MeshMotionSettings:
     """ALE extension of the interface displacement into the fluid (docs/model.md §5;
     fsi/physics/mesh_motion.py): ``harmonic`` −∇·(k ∇d) = 0, ``elastic`` −∇·(k σ(d)) = 0 with
     σ = 2 ε + λ' tr(ε) I, λ' = 2ν/(1 − 2ν) from ``poisson_ratio``, or ``biharmonic`` Δ²d = 0

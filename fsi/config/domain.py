@@ -89,15 +89,17 @@ class TurekHronGeometry:
     flag_thickness: float = positive(0.02, "m")
 
 
-Geometry = StenosisGeometry | ChannelGeometry | TubeGeometry | TurekHronGeometry
+GeometrySettings = StenosisGeometry | ChannelGeometry | TubeGeometry | TurekHronGeometry
+"""The ``geometry`` section: one of the kinds (``geometry.kind``). Named apart from the gmsh
+builders, the package ``fsi.geometry`` (the geometry/ folder)."""
 
 
-def is_axisymmetric(geometry: Geometry) -> bool:
+def is_axisymmetric(geometry: GeometrySettings) -> bool:
     """Whether ``geometry`` is the meridian half-plane of a body of revolution."""
     return bool(getattr(geometry, "axisymmetric", False))
 
 
-def dimension(geometry: Geometry) -> int:
+def dimension(geometry: GeometrySettings) -> int:
     """The geometry's (and its mesh's) dimension: 3 for a solid vessel, otherwise 2."""
     return int(getattr(geometry, "dimension", 2))
 

@@ -1,28 +1,15 @@
-"""The ``fluid.rheology`` section: blood's viscosity law μ(s) of the shear rate s (1/s), one
-frozen dataclass per law (``model`` picks one of :data:`Rheology`) with its parameters, their
-checks and ``mu(s)``; the law a run solves with (fsi.physics.rheology.from_config).
-
-``mu(s)`` takes a number or a numpy array (tables, tests, post-processing: a number or array
-in Pa s) or a UFL expression (the fluid's forms: a UFL expression). ufl is never imported here:
-an expression can only be UFL once ufl is loaded (:func:`_ufl_of`).
+"""The ``fluid.rheology`` section: which viscosity law μ(s) of the shear rate s (1/s) blood
+follows, one frozen dataclass per law (``model`` picks one of :data:`Rheology`) with its
+parameters and their checks. The laws themselves, μ(s), are fsi/physics/rheology.py's
+(:func:`fsi.physics.rheology.from_config`).
 """
 
 from __future__ import annotations
 
-import math
-import sys
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-import numpy as np
-
 from fsi.config.reader import positive
-
-
-def _ufl_of(s: Any) -> Any:
-    """The ufl module when ``s`` is a UFL expression, else None (ufl not loaded: not UFL)."""
-    ufl = sys.modules.get("ufl")
-    return ufl if ufl is not None and isinstance(s, ufl.core.expr.Expr) else None
 
 
 def _tag(name: str) -> Any:
@@ -37,35 +24,18 @@ class Newtonian:
     model: Literal["newtonian"] = _tag("newtonian")
     viscosity: float = positive(0.0035, "Pa s")
 
-    def mu(self, s):
-        """μ (Pa s): a UFL constant for a UFL ``s``, else an array shaped like ``s``."""
-        ufl = _ufl_of(s)
-        if ufl is not None:
-            return ufl.as_ufl(self.viscosity)
-        return self.viscosity * np.ones_like(np.asarray(s, dtype=float))
-
-    @property
-    def reference_viscosity(self) -> float:
-        """A viscosity scale (Pa s) for penalty parameters: the largest the law takes."""
-        return self.viscosity
-
 
 @dataclass(frozen=True)
 class PlateauLaw:
     """The laws whose viscosity goes from μ0 (``mu_0``) at rest to μ∞ (``mu_inf``) at high
     shear rates, changing around the shear rate 1/λ (``relaxation_time`` λ): Carreau,
-    Carreau–Yasuda and Cross, each with its own ``mu``. These defaults are the study's Carreau
-    law's (docs/model.md §2); the other two laws have their own."""
+    Carreau–Yasuda and Cross (their μ(s): fsi/physics/rheology.py). These defaults are the
+    study's Carreau law's (docs/model.md §2); the other two laws have their own."""
 
     model: str = field(kw_only=True)
     mu_0: float = positive(0.0456, "Pa s")
     mu_inf: float = positive(0.0032, "Pa s")
     relaxation_time: float = positive(10.03, "s")
-
-    @property
-    def reference_viscosity(self) -> float:
-        """A viscosity scale (Pa s) for penalty parameters: the largest the law takes."""
-        return max(self.mu_0, self.mu_inf)
 
 
 @dataclass(frozen=True)
@@ -75,11 +45,6 @@ class Carreau(PlateauLaw):
 
     model: Literal["carreau"] = _tag("carreau")
     power_index: float = positive(0.344)
-
-    def mu(self, s):
-        """μ(s) (Pa s) at the shear rate ``s`` (1/s): a number, an array or a UFL expression."""
-        n, lam = self.power_index, self.relaxation_time
-        return self.mu_inf + (self.mu_0 - self.mu_inf) * (1 + (lam * s) ** 2) ** ((n - 1) / 2)
 
 
 @dataclass(frozen=True)
@@ -94,11 +59,6 @@ class CarreauYasuda(PlateauLaw):
     power_index: float = positive(0.22)
     yasuda_exponent: float = positive(1.25)
 
-    def mu(self, s):
-        """μ(s) (Pa s) at the shear rate ``s`` (1/s): a number, an array or a UFL expression."""
-        n, lam, a = self.power_index, self.relaxation_time, self.yasuda_exponent
-        return self.mu_inf + (self.mu_0 - self.mu_inf) * (1 + (lam * s) ** a) ** ((n - 1) / a)
-
 
 @dataclass(frozen=True)
 class Cross(PlateauLaw):
@@ -110,11 +70,6 @@ class Cross(PlateauLaw):
     mu_inf: float = positive(0.0035, "Pa s")
     relaxation_time: float = positive(0.38, "s")
     exponent: float = positive(1.45)
-
-    def mu(self, s):
-        """μ(s) (Pa s) at the shear rate ``s`` (1/s): a number, an array or a UFL expression."""
-        lam, m = self.relaxation_time, self.exponent
-        return self.mu_inf + (self.mu_0 - self.mu_inf) / (1 + (lam * s) ** m)
 
 
 @dataclass(frozen=True)
@@ -129,16 +84,6 @@ class PowerLaw:
     consistency: float = positive(0.017, "Pa s^n")
     power_index: float = positive(0.708)
     shear_rate_floor: float = positive(0.0169, "1/s")
-
-    def mu(self, s):
-        """μ(s) (Pa s) at the shear rate ``s`` (1/s): a number, an array or a UFL expression."""
-        K, n, s0 = self.consistency, self.power_index, self.shear_rate_floor
-        return K * (s**2 + s0**2) ** ((n - 1) / 2)
-
-    @property
-    def reference_viscosity(self) -> float:
-        """A viscosity scale (Pa s) for penalty parameters: the largest the law takes."""
-        return float(self.mu(0.0)) if self.power_index <= 1 else self.consistency
 
 
 @dataclass(frozen=True)
@@ -157,28 +102,6 @@ class Casson:
     viscosity: float = positive(0.0035, "Pa s")
     yield_stress: float = positive(0.005, "Pa")
     regularization: float = positive(100.0, "s")
-
-    def mu(self, s):
-        """μ(s) (Pa s) at the shear rate ``s`` (1/s): a number, an array or a UFL expression."""
-        mu_c, tau_y, m = self.viscosity, self.yield_stress, self.regularization
-        ufl = _ufl_of(s)
-        if ufl is not None:
-            yield_term = ufl.sqrt(tau_y / s) * (1 - ufl.exp(-ufl.sqrt(m * s)))
-        else:
-            s = np.asarray(s, dtype=float)
-            root = np.sqrt(m * s)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                # (1 − e^(−r)) / r → 1 as r = √(m s) → 0
-                ratio = np.where(
-                    root > 1e-8, -np.expm1(-root) / np.where(root > 0, root, 1), 1 - root / 2
-                )
-            yield_term = math.sqrt(tau_y * m) * ratio
-        return (math.sqrt(mu_c) + yield_term) ** 2
-
-    @property
-    def reference_viscosity(self) -> float:
-        """A viscosity scale (Pa s) for penalty parameters: the largest the law takes."""
-        return float(self.mu(0.0))
 
 
 Rheology = Newtonian | Carreau | CarreauYasuda | Cross | PowerLaw | Casson

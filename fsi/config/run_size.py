@@ -14,6 +14,7 @@ from fsi.geometry import stenosis as stenosis_geometry
 from fsi.geometry import tube as tube_geometry
 from fsi.geometry import turek_hron as turek_hron_geometry
 from fsi.geometry import vessel_3d as vessel_3d_geometry
+from fsi.numerics.timestepping import SAME_TIME
 
 
 def format_count(n: float) -> str:
@@ -32,9 +33,9 @@ def count_steps(time) -> float:
     t, n = 0.0, 0
     for segment in time.schedule:
         stop = min(segment.until, time.end)
-        if stop - t > 1e-9 * segment.dt:
+        if stop - t > SAME_TIME * segment.dt:
             segment_steps = (stop - t) / segment.dt
-            n += math.ceil(segment_steps - 1e-9) if segment_steps < 2.0**52 else segment_steps
+            n += math.ceil(segment_steps - SAME_TIME) if segment_steps < 2.0**52 else segment_steps
             t = stop
         if time.end <= segment.until:
             break

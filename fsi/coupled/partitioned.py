@@ -18,7 +18,7 @@ from fsi.coupled import coupling
 from fsi.coupled.adapters import FluidInterface, SolidInterface
 from fsi.coupled.interface import InterfaceMap
 from fsi.geometry.tags import Boundary, Region
-from fsi.physics import fluid, fluid_boundaries, mesh, solid
+from fsi.physics import fluid, fluid_boundaries, fluid_case, mesh, solid, solid_boundaries
 from fsi.physics.mesh_motion import MeshMotion
 
 
@@ -68,7 +68,7 @@ def build_coupled(
     comm: MPI.Comm = MPI.COMM_WORLD,
     *,
     fluid_conditions: Sequence[fluid_boundaries.BoundaryCondition] | None = None,
-    solid_conditions: solid.SolidBoundaryConditions | None = None,
+    solid_conditions: solid_boundaries.SolidBoundaryConditions | None = None,
 ) -> CoupledProblem:
     """Build the coupled problem of ``case`` (structure.mode fixed_wall or moving_wall): one mesh
     of the fluid and the structure (the stenosis' wall + cap + lipid, or the Turek–Hron flag),
@@ -82,16 +82,8 @@ def build_coupled(
         raise ValueError("structure.mode 'rigid' has no structure to couple")
     whole = mesh.build(case, comm)
     fluid_mesh = mesh.restrict(whole, Region.FLUID)
-    boundaries = fluid_conditions or fluid_boundaries.boundary_conditions(
-        case.fluid, mesh.boundaries(case), moving_interface=True
-    )
-    fluid_solver = fluid.FluidSolver(
-        fluid_mesh.mesh,
-        fluid_mesh.facet_tags,
-        case.fluid,
-        boundaries,
-        scheme=case.time.scheme,
-        axisymmetric=config.is_axisymmetric(case.geometry),
+    fluid_solver = fluid_case.fluid_solver(
+        case, fluid_mesh, moving_interface=True, conditions=fluid_conditions
     )
     # Built before the mesh ever moves: both keep the reference coordinates X.
     motion = MeshMotion(fluid_mesh, case.mesh_motion, moving=(Boundary.INTERFACE,))

@@ -18,6 +18,13 @@ from mpi4py import MPI
 
 import numpy as np
 
+SAME_TIME = 1e-9
+"""Two times closer than this fraction of their scale (the step, the period, the end or the time
+itself) are the same time: a schedule's remainder shorter than ``SAME_TIME`` dt is merged into
+the step before it, a run whose last row is within ``SAME_TIME`` end has reached the end, and
+times read back from files (metrics.csv's 10 significant digits, XDMF's text) match. The one
+tolerance on times everywhere in fsi."""
+
 
 class Segment(Protocol):
     """A stretch of the schedule: steps of ``dt`` (s) until time ``until`` (s)."""
@@ -51,8 +58,8 @@ def steps(time: Schedule, t0: float = 0.0, index0: int = 0) -> Iterator[Step]:
     t, index = t0, index0
     for segment in time.schedule:
         stop = min(segment.until, time.end)
-        while stop - t > 1e-9 * segment.dt:
-            dt = segment.dt if stop - (t + segment.dt) > 1e-9 * segment.dt else stop - t
+        while stop - t > SAME_TIME * segment.dt:
+            dt = segment.dt if stop - (t + segment.dt) > SAME_TIME * segment.dt else stop - t
             t, index = (stop if dt == stop - t else t + dt), index + 1
             yield Step(index, t, dt)
         if time.end <= segment.until:
@@ -246,7 +253,7 @@ def fit_to_stop(t: float, dt: float, stop: float) -> float:
     ``dt`` (a remainder below 1e-9 dt is not left behind); half of it when it is less than
     2 dt (no sliver of a step just before ``stop``)."""
     left = stop - t
-    if left <= dt * (1 + 1e-9):
+    if left <= dt * (1 + SAME_TIME):
         return left
     if left < 2 * dt:
         return left / 2
@@ -278,10 +285,10 @@ class AdaptiveSteps:
     def _limit(self) -> tuple[float, float]:
         """The largest step allowed from ``t`` and the next time a step must end on."""
         for segment in self.time.schedule:
-            if segment.until - self.t > 1e-9 * segment.dt:
+            if segment.until - self.t > SAME_TIME * segment.dt:
                 break
         stop = min(segment.until, self.time.end)
-        later = [s for s in self.stops if s - self.t > 1e-9 * segment.dt]
+        later = [s for s in self.stops if s - self.t > SAME_TIME * segment.dt]
         return segment.dt, min([stop, *later])
 
     def _step(self, index: int, dt: float) -> Step:
@@ -291,7 +298,7 @@ class AdaptiveSteps:
 
     def next_step(self) -> Step | None:
         """The next step, or None at ``time.end``."""
-        if self.time.end - self.t <= 1e-9 * self.dt:
+        if self.time.end - self.t <= SAME_TIME * self.dt:
             return None
         return self._step(self.index + 1, self.dt)
 

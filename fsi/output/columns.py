@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 
 from fsi.geometry.tags import Region
+from fsi.numerics.timestepping import SAME_TIME
 from fsi.physics import solid
 
 COLUMNS = [
@@ -108,4 +109,4 @@ def heartbeat(t: float, period: float) -> int:
         The 1-based number k of the heartbeat (k − 1) T < t <= k T (a step ending on k T
         belongs to heartbeat k; times within 1e-9 T of k T count as on it); 1 for t <= T.
     """
-    return max(1, math.ceil(t / period - 1e-9))
+    return max(1, math.ceil(t / period - SAME_TIME))

@@ -18,6 +18,7 @@ from fsi import config
 from fsi.geometry.tags import Boundary
 from fsi.output import io, metrics
 from fsi.output.columns import FLOW_COLUMNS, PRESSURE_COLUMNS, WALL_COLUMNS, heartbeat
+from fsi.output.wall_indices import WallIndices
 from fsi.physics import fluid, mesh
 from fsi.physics.fluid_boundaries import walls
 
@@ -28,12 +29,12 @@ class FluidOutputs:
     """The fluid's derived output: viscosity, shear rate and wall shear stress fields (on every
     no-slip or moving wall), for channel-like lumens the WALL_COLUMNS of the metrics row and,
     where the fluid mesh has an inlet and an outlet, the FLOW_COLUMNS and PRESSURE_COLUMNS; and
-    the hemodynamic indices TAWSS, OSI and RRT at two Gauss points of every wall facet,
-    accumulated by :meth:`update` (fsi.output.metrics.WallIndices, docs/hemodynamic-indices.md) over
-    the run or, when the inlet repeats with a period T
-    (:func:`fsi.config.heartbeat_period`), over each heartbeat ((k − 1) T, k T] on its own:
-    the accumulators start afresh at every k T and the finished heartbeats' are kept
-    (:attr:`past`).
+    the hemodynamic indices TAWSS, OSI and RRT at two Gauss points of every wall facet (three
+    on a 3D wall's triangles), accumulated by :meth:`update`
+    (fsi.output.wall_indices.WallIndices, docs/hemodynamic-indices.md) over the run or, when
+    the inlet repeats with a period T (:func:`fsi.config.heartbeat_period`), over each heartbeat
+    ((k − 1) T, k T] on its own: the accumulators start afresh at every k T and the finished
+    heartbeats' are kept (:attr:`past`).
 
     The indices are state: :meth:`state` and :meth:`load_state` put them into the stepper's
     checkpoint (whose rows are keyed by the samples' reference coordinates, ``sampler.reference``;
@@ -90,7 +91,7 @@ class FluidOutputs:
         self.components = 3 if self.sampler.gdim == 3 else 1  # the 3D indices average vectors
         self.indices = self._new_indices(time=solver.time)
         self.period = config.heartbeat_period(case)
-        self.past: list[metrics.WallIndices] = []  # heartbeats 1, 2, ... before self.indices'
+        self.past: list[WallIndices] = []  # heartbeats 1, 2, ... before self.indices'
         self.sides = np.zeros(self.sampler.size, dtype=np.int64)
         if self.lumen and self.sampler.gdim == 2:
             normal_y = self.sampler.local().normal[:, 1]
@@ -98,8 +99,8 @@ class FluidOutputs:
             self.sides[normal_y < 0] = self.SIDES.index("upper")
         self.update()  # the fields of the initial state, the indices' value at the start
 
-    def _new_indices(self, start: float = 0.0, time: float = 0.0) -> metrics.WallIndices:
-        return metrics.WallIndices(
+    def _new_indices(self, start: float = 0.0, time: float = 0.0) -> WallIndices:
+        return WallIndices(
             self.sampler.size,
             start=start,
             time=time,
@@ -214,7 +215,7 @@ class FluidOutputs:
             result["cycles"] = [self._extremes(i) for i in (*self.past, self.indices)]
         return result
 
-    def _extremes(self, indices: metrics.WallIndices) -> dict:
+    def _extremes(self, indices: WallIndices) -> dict:
         """``min_tawss``, ``max_osi``, ``max_rrt`` of ``indices`` over every rank's samples."""
         extremes = {
             "min_tawss": (indices.tawss, MPI.MIN),
@@ -262,7 +263,7 @@ class FluidOutputs:
             points, walls, sides = (np.concatenate([w[i] for _, w in gathered]) for i in range(3))
             components = 3 if dimension == 3 else 1
             for k, window in enumerate(windows):
-                indices = metrics.WallIndices(len(walls), components=components)
+                indices = WallIndices(len(walls), components=components)
                 width = components + 1
                 integrals = np.concatenate([np.reshape(b[k], (-1, width)) for b, _ in gathered])
                 indices.load_state({"integrals": integrals, "window": window})

@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from fsi.numerics.timestepping import SAME_TIME
 from fsi.output.plot import PlotError, check_out, save_figure
 
 INDICES = {
@@ -100,15 +101,15 @@ def _partial_beat(run_dir: Path, cycle: int) -> tuple[float, float] | None:
     finished (its metrics.csv ends before k T: stopped, or still running), else None; None
     too when config.yaml or metrics.csv cannot tell."""
     from fsi import config
-    from fsi.output import io
+    from fsi.output import metrics_csv
 
     try:
         period = config.heartbeat_period(config.load(run_dir / "config.yaml", run_config=True))
-        rows = io.read_metrics(run_dir / "metrics.csv")
-    except (OSError, config.ConfigError, io.MetricsError):
+        rows = metrics_csv.read_metrics(run_dir / "metrics.csv")
+    except (OSError, config.ConfigError, metrics_csv.MetricsError):
         return None
     end = cycle * period
-    if not rows or not period > 0 or rows[-1]["t"] >= end * (1 - 1e-9):
+    if not rows or not period > 0 or rows[-1]["t"] >= end * (1 - SAME_TIME):
         return None
     return rows[-1]["t"], end
 

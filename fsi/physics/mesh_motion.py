@@ -151,12 +151,12 @@ class MeshMotion:
     def __init__(
         self,
         tagged: TaggedMesh,
-        settings: config.MeshMotion | None = None,
+        settings: config.MeshMotionSettings | None = None,
         moving: Sequence[Boundary] = (Boundary.INTERFACE,),
         fixed: Sequence[Boundary] | None = None,
         quadrature_degree: int = 1,
     ):
-        settings = settings or config.MeshMotion()
+        settings = settings or config.MeshMotionSettings()
         self.settings = settings
         self.mesh = mesh = tagged.mesh
         self.comm: MPI.Comm = mesh.comm

@@ -7,6 +7,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+EXIT_OK, EXIT_INTERNAL, EXIT_USAGE, EXIT_SOLVE_FAILED, EXIT_OUTPUT_FAILED = 0, 1, 2, 3, 4
+"""Done; an internal error (a bug: a traceback); the configuration, the command line, ``--out``
+or the checkpoint is wrong (nothing computed or written); a step failed (checkpointed); a file
+could not be written. A stop by a signal exits with 128 + its number."""
+
 
 class RunStopped(Exception):
     """The run stopped before the end of its schedule. :func:`fsi.run.simulation.march` sets

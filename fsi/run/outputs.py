@@ -16,8 +16,8 @@ from pathlib import Path
 from mpi4py import MPI
 
 from fsi import config
-from fsi.numerics.timestepping import Step
-from fsi.output import io, provenance
+from fsi.numerics.timestepping import SAME_TIME, Step
+from fsi.output import io, metrics_csv, provenance
 from fsi.output.columns import heartbeat
 from fsi.run import checkpoint
 from fsi.run.errors import OutputFailed
@@ -53,7 +53,7 @@ class RunOutputs:
         self.stepper, self.restart = stepper, restart
         self.period = config.heartbeat_period(case)
         self._log: logging.Handler | None = None
-        self.table: io.MetricsTable | None = None
+        self.table: metrics_csv.MetricsTable | None = None
         self.writers: list[tuple[io.FieldWriter, list]] = []
         try:
             self._open()
@@ -91,7 +91,9 @@ class RunOutputs:
         source = None if restart is None or continuing else restart.run_dir / "metrics.csv"
         self.table = io.collectively(
             comm,
-            lambda: io.MetricsTable(comm, metrics, columns, keep_until_step=first, source=source),
+            lambda: metrics_csv.MetricsTable(
+                comm, metrics, columns, keep_until_step=first, source=source
+            ),
             metrics,
         )
         if continuing and comm.rank == 0:
@@ -245,7 +247,7 @@ def cycle_table(rows: list[dict], period: float, indices: list[dict]) -> list[di
     for k in sorted(beats):
         values = {}
         for column, pick in HEADLINE.items():
-            found = [r[column] for r in beats[k] if _number(r.get(column))]
+            found = [r[column] for r in beats[k] if _is_finite_number(r.get(column))]
             if found:
                 values[column] = float(pick(found))
         if k <= len(indices):
@@ -262,7 +264,7 @@ def cycle_table(rows: list[dict], period: float, indices: list[dict]) -> list[di
                 "start_s": (k - 1) * period,
                 "end_s": end,
                 "steps": len(beats[k]),
-                "complete": end >= k * period * (1 - 1e-9),
+                "complete": end >= k * period * (1 - SAME_TIME),
                 "values": values,
                 "change": change,
                 "max_change": max(known) if known else None,
@@ -272,5 +274,5 @@ def cycle_table(rows: list[dict], period: float, indices: list[dict]) -> list[di
     return table
 
 
-def _number(value) -> bool:
+def _is_finite_number(value) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)

@@ -19,9 +19,9 @@ from mpi4py import MPI
 from fsi import config
 from fsi.config import boundary_data
 from fsi.numerics import newton
-from fsi.numerics.timestepping import AdaptiveSteps, Step, StepSizeControl, steps
+from fsi.numerics.timestepping import SAME_TIME, AdaptiveSteps, Step, StepSizeControl, steps
 from fsi.output import io
-from fsi.run import checkpoint, time_errors
+from fsi.run import checkpoint, checkpoint_checks, time_errors
 from fsi.run.errors import Interrupted, OutputFailed, RunStopped, StepFailed
 from fsi.run.outputs import RunOutputs
 from fsi.run.state_arrays import Layout
@@ -37,19 +37,6 @@ class RunResult:
     steps: int
     wall_time_s: float
     summary: dict
-
-
-def unsupported(case: config.Case) -> str | None:
-    """Why this case cannot run (checked before any computation), or None."""
-    mode = case.structure.mode
-    if mode != "rigid" and case.structure.interface_load == "fluid":
-        if case.structure.degree != 2:
-            return (
-                f"structure.degree: the coupling pairs the fluid's P2 velocity nodes with "
-                f"the structure's interface nodes, so structure.mode '{mode}' needs "
-                f"structure.degree 2, got {case.structure.degree}"
-            )
-    return None
 
 
 def run(
@@ -255,7 +242,7 @@ def _adaptive_steps(
             error = None if row[time_errors.COLUMN] == "" else row[time_errors.COLUMN]
             if control.accepts(error):
                 break
-            if step.dt <= control.min_dt * (1 + 1e-9):
+            if step.dt <= control.min_dt * (1 + SAME_TIME):
                 scales = saved.case.time.adaptive
                 raise StepFailed(
                     f"step {step.index} to t = {step.t:g} s: its local time error "
@@ -406,7 +393,9 @@ class _Checkpoints:
                 comm,
                 good.state,
                 self.layouts,
-                checkpoint.metadata(self.case, comm, good.step, good.t, good.dt, good.next_dt),
+                checkpoint_checks.metadata(
+                    self.case, comm, good.step, good.t, good.dt, good.next_dt
+                ),
             )
         except checkpoint.CheckpointError as e:  # raised on every rank: said once
             if comm.rank == 0:

@@ -3,7 +3,7 @@
 :func:`submit` writes ``DIR/sweep.json`` (the sweep's definition), each run folder's
 ``submitted.yaml`` (its resolved configuration) and ``DIR/sweep.sbatch`` (task *i* runs
 ``fsi sweep ... --task i`` under ``srun``: :func:`run_task`, the resume rules of
-:func:`fsi.run.sweep.advance`) and submits it with ``sbatch``; :func:`collect` writes the
+:func:`fsi.run.sweep_execution.advance`) and submits it with ``sbatch``; :func:`collect` writes the
 table of the finished runs (``fsi sweep DIR --collect``), with why each other run is not done.
 """
 
@@ -24,7 +24,7 @@ from mpi4py import MPI
 
 from fsi import config
 from fsi.output import io
-from fsi.run import sweep
+from fsi.run import errors, sweep, sweep_execution, sweep_results
 
 log = logging.getLogger("fsi")
 
@@ -349,11 +349,14 @@ def collect(
     comm: MPI.Comm,
     listing: bool = True,
 ) -> list[str]:
-    """Write the table and the plots of the finished runs (:func:`fsi.run.sweep.write_results`)
-    and (``listing``) log every run that is not done with why; returns the statuses.
+    """Write the table and the plots of the finished runs
+    (:func:`fsi.run.sweep_results.write_results`) and (``listing``) log every run that is not done
+    with why; returns the statuses.
     Collective; raises :class:`fsi.output.io.OutputError`."""
     found = comm.bcast(statuses(definition, runs) if comm.rank == 0 else None, root=0)
-    written, found = sweep.write_results(runs, variations, found, Path(definition.out), comm)
+    written, found = sweep_results.write_results(
+        runs, variations, found, Path(definition.out), comm
+    )
     for run, status in zip(runs, found, strict=True):
         if listing and status != "done":
             log.info("sweep %d/%d: %s: %s", run.index, len(runs), run.label, status)
@@ -422,18 +425,18 @@ def submit_or_collect(
         else:
             found = collect(definition, runs, variations, comm, listing=collect_only)
     except io.OutputError as e:
-        return sweep.EXIT_OUTPUT_FAILED, f"cannot write the sweep's table: {e}", None
+        return errors.EXIT_OUTPUT_FAILED, f"cannot write the sweep's table: {e}", None
     if collect_only:
         failed = any(s.startswith("failed") for s in found)
-        return (sweep.EXIT_SOLVE_FAILED if failed else sweep.EXIT_OK), "", None
-    outcome: tuple[int, str, str | None] = (sweep.EXIT_OK, "", None)
+        return (errors.EXIT_SOLVE_FAILED if failed else errors.EXIT_OK), "", None
+    outcome: tuple[int, str, str | None] = (errors.EXIT_OK, "", None)
     if comm.rank == 0:
         try:
-            outcome = (sweep.EXIT_OK, "", submit(definition, runs, found, dry_run))
+            outcome = (errors.EXIT_OK, "", submit(definition, runs, found, dry_run))
         except SlurmError as e:
-            outcome = (sweep.EXIT_USAGE, str(e), None)
+            outcome = (errors.EXIT_USAGE, str(e), None)
         except OSError as e:
-            outcome = (sweep.EXIT_OUTPUT_FAILED, f"--out: {e.filename}: {e.strerror or e}", None)
+            outcome = (errors.EXIT_OUTPUT_FAILED, f"--out: {e.filename}: {e.strerror or e}", None)
     return comm.bcast(outcome, root=0)
 
 
@@ -443,16 +446,16 @@ def _ranges(indices: Sequence[int]) -> str:
 
 
 def run_task(
-    runs: Sequence[sweep.SweepRun], index: int, run_one: sweep.RunOne, comm: MPI.Comm
+    runs: Sequence[sweep.SweepRun], index: int, run_one: sweep_execution.RunOne, comm: MPI.Comm
 ) -> tuple[int, str, None]:
     """One array task: run number ``index`` skipped, resumed or started as a local sweep would
-    (:func:`fsi.run.sweep.advance`), or refused when its case no longer resolves to the
+    (:func:`fsi.run.sweep_execution.advance`), or refused when its case no longer resolves to the
     submitted configuration; its outcome written to its folder's :data:`OUTCOME`. Returns
     the exit status (0 done, 3 failed, 128 + the signal that stopped it, 2 no such run, 4 the
     outcome not written), the error message and no job id. Collective."""
     if not 1 <= index <= len(runs):
         return (
-            sweep.EXIT_USAGE,
+            errors.EXIT_USAGE,
             f"--task {index}: expected a run number from 1 to {len(runs)}",
             None,
         )
@@ -471,7 +474,7 @@ def run_task(
             0,
         )
     else:
-        status, stopped_by = sweep.advance(run, len(runs), run_one, comm)
+        status, stopped_by = sweep_execution.advance(run, len(runs), run_one, comm)
     outcome = run.folder / OUTCOME
     try:
         io.on_rank0(
@@ -483,7 +486,7 @@ def run_task(
             outcome,
         )
     except io.OutputError as e:
-        return sweep.EXIT_OUTPUT_FAILED, f"cannot write the task's outcome: {e}", None
+        return errors.EXIT_OUTPUT_FAILED, f"cannot write the task's outcome: {e}", None
     if stopped_by:
         return 128 + stopped_by, "", None
-    return (sweep.EXIT_SOLVE_FAILED if status.startswith("failed") else sweep.EXIT_OK), "", None
+    return (errors.EXIT_SOLVE_FAILED if status.startswith("failed") else errors.EXIT_OK), "", None

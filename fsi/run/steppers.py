@@ -28,8 +28,8 @@ from fsi.numerics.timestepping import Step
 from fsi.output import metrics
 from fsi.output.columns import COLUMNS, COUPLED_COLUMNS, stress_columns, stress_row
 from fsi.output.wall_outputs import FluidOutputs
-from fsi.physics import fluid, mesh, solid
-from fsi.physics.fluid_boundaries import boundary_conditions, inlet_pressure
+from fsi.physics import fluid_case, mesh, solid
+from fsi.physics.fluid_boundaries import inlet_pressure
 from fsi.physics.mesh_motion import MeshQualityError
 from fsi.run import state_arrays, time_errors
 from fsi.run.errors import StepFailed
@@ -139,12 +139,6 @@ class _Checkpointed:
 # Rigid structure: the fluid alone
 
 
-def fluid_boundaries(case: config.Case) -> tuple:
-    """Rigid structure: the configured inlet and outlet, no-slip on every wall
-    (fsi.physics.fluid_boundaries.boundary_conditions)."""
-    return boundary_conditions(case.fluid, mesh.boundaries(case), moving_interface=False)
-
-
 class RigidStepper(_Checkpointed):
     """The fluid alone on the fixed fluid mesh (Turek–Hron cases add drag and lift)."""
 
@@ -152,14 +146,7 @@ class RigidStepper(_Checkpointed):
         self.whole = mesh.build(case, comm)
         self.part = mesh.restrict(self.whole, Region.FLUID)
         self.cells = mesh.summary(self.whole, case)["cells"]
-        self.solver = fluid.FluidSolver(
-            self.part.mesh,
-            self.part.facet_tags,
-            case.fluid,
-            fluid_boundaries(case),
-            scheme=case.time.scheme,
-            axisymmetric=config.is_axisymmetric(case.geometry),
-        )
+        self.solver = fluid_case.fluid_solver(case, self.part)
         self.obstacle = [
             b for b in (Boundary.OBSTACLE, Boundary.INTERFACE) if b in mesh.boundaries(case)
         ]

@@ -3,7 +3,7 @@
 maxima the findings compare, where the largest stresses and pressure sit), written to and read
 back from docs/study_runs/, and the study's printed Tables 1–3
 (docs/reference/boujena2014_tables.csv) set beside them (:func:`comparison_rows`,
-docs/study_tables.csv). scripts/study_document.py and scripts/study_analyses.py build on it.
+docs/study_tables.csv). fsi/study/document.py and fsi/study/analyses.py build on it.
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from fsi.output import report
+from fsi.output import report, report_runs
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PAPER = ROOT / "docs" / "reference" / "boujena2014_tables.csv"
 """The study's Tables 1–3 as printed (120 values, SI units)."""
 
@@ -84,17 +84,17 @@ MAXIMA = {
 """The maxima over the run that the findings compare: name → the row's value (None: not there)."""
 
 
-def load(folder: Path, runs) -> dict[str, report.Run]:
+def load(folder: Path, runs) -> dict[str, report_runs.Run]:
     """The runs there are (finished or not), by name."""
     loaded = {}
     for run in runs:
         path = folder / run.name
         if (path / "metrics.csv").is_file():
-            loaded[run.name] = report.load_run(path)
+            loaded[run.name] = report_runs.load_run(path)
     return loaded
 
 
-def summarise(run: report.Run) -> dict:
+def summarise(run: report_runs.Run) -> dict:
     """The run's provenance and case (the settings the analyses vary), its three peaks and
     flow rate at :data:`TIMES`, the :data:`MAXIMA` (value, time) and, with field files, where
     its largest |σ₁₂| is."""
@@ -150,18 +150,18 @@ PRESSURE_TIME = 0.01
 """s: where the peak pressure sits after the pulse is kept in the summary at this time."""
 
 
-def pressure_peak_at(run: report.Run, t: float) -> list[float]:
+def pressure_peak_at(run: report_runs.Run, t: float) -> list[float]:
     """Where the fluid's largest pressure is at time ``t``: its node's coordinates (m) as the
-    field file's drawing puts them (:func:`fsi.output.plot.read_field`'s default)."""
-    from fsi.output import plot
+    field file's drawing puts them (:func:`fsi.output.field_files.read_field`'s default)."""
+    from fsi.output import field_files
 
-    snapshot = plot.read_field(run.path, "pressure", t)
+    snapshot = field_files.read_field(run.path, "pressure", t)
     k = int(np.argmax(snapshot.values))
     return [float(v) for v in snapshot.coordinates[k]]
 
 
 def make_summaries(
-    runs: dict[str, report.Run], folder: Path, names: Sequence[str]
+    runs: dict[str, report_runs.Run], folder: Path, names: Sequence[str]
 ) -> dict[str, dict]:
     """Each named run's summary: made from its run folder (and written to ``folder``) if it is
     loaded, else read from ``folder`` (the committed one) if there."""
@@ -265,14 +265,14 @@ def difference(row: dict) -> float | None:
     return (row["fsi"] - row["paper"]) / abs(row["paper"])
 
 
-def largest_at(run: report.Run, field: str, t: float) -> tuple[float, float, str]:
+def largest_at(run: report_runs.Run, field: str, t: float) -> tuple[float, float, str]:
     """Where the cell field's largest |value| is at time t: the cell's centroid (reference
     coordinates, m) and its region."""
     from fsi.geometry.tags import Region
-    from fsi.output import plot
+    from fsi.output import field_files
 
-    values = plot.read_field(run.path, field, t, warp=0.0)
-    regions = plot.read_field(run.path, "region", t, warp=0.0)
+    values = field_files.read_field(run.path, field, t, warp=0.0)
+    regions = field_files.read_field(run.path, "region", t, warp=0.0)
     k = int(np.argmax(np.abs(values.values)))
     centroid = values.coordinates[values.triangles[k]].mean(axis=0)
     return centroid[0], centroid[1], Region(int(round(regions.values[k]))).label

@@ -1,7 +1,6 @@
-"""Pieces shared by the benchmark scripts: an exclusive-time profiler of solver methods (with
-PETSc's LU events), the hooks that attach it to a coupled or rigid-wall stepper, and small
-helpers. Imported by the benchmark scripts (this folder is on the path of a script run from
-it)."""
+"""Pieces shared by the speed benchmarks of fsi/performance/: an exclusive-time profiler of solver
+methods (with PETSc's LU events), the hooks that attach it to a coupled or rigid-wall stepper,
+and small helpers."""
 
 from __future__ import annotations
 

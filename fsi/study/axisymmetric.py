@@ -1,0 +1,166 @@
+"""The study's four cases in the plane and the axisymmetric model, side by side
+(docs/axisymmetric.md, "The study, axisymmetric").
+
+Runs (unless ``--reuse`` finds them finished) ``fsi run`` of configs/stenosis_CASE.yaml and
+configs/axisymmetric/stenosis_CASE.yaml for the four cases, on one rank and the coarse mesh unless
+told, into ``--out``, then prints, per case and model: the wall's displacement per Pa of peak
+pressure at rest (0.8 s), the cap's largest principal stress (when and where), the largest wall
+shear stress of the pulse (t ≤ 10 ms), the longest recirculation zone and the cost (cells,
+the steps' wall time, steps, coupling iterations per step); and the structure's displacement
+per Pa under a uniform static lumen pressure in each model beside the thin tube's R²/(E h) and
+Lamé's thick cylinder.
+The last line of its standard output is one JSON object of all of it.
+
+Usage::
+
+    .venv/bin/python scripts/compare_axisymmetric.py --out results/axisymmetric_study
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+from fsi import config
+from fsi.output import report_runs
+from fsi.study.runs import CONFIGS, LABELS, summarise
+from fsi.study.wall_analyses import uniform_pressure_compliance
+from fsi.study.wall_compliance import estimates
+
+ROOT = Path(__file__).resolve().parents[2]
+
+MODELS = {"plane": ROOT / "configs", "axisymmetric": ROOT / "configs" / "axisymmetric"}
+"""Model → the folder of its four study configs."""
+
+AT_REST = 0.8
+"""s: the report time at which both walls are at rest under the late pressure."""
+
+
+def config_file(model: str, name: str) -> Path:
+    return MODELS[model] / f"stenosis_{name}.yaml"
+
+
+def run(model: str, name: str, out: Path, settings: list[str], ranks: int, reuse: bool) -> Path:
+    """The run folder of one case in one model, made by ``fsi run`` unless ``reuse`` finds it
+    finished (its summary.json, which ``fsi run`` writes at the end)."""
+    folder = out / f"{model}_{name}"
+    if reuse and (folder / "summary.json").is_file():
+        return folder
+    command = [sys.executable, "-m", "fsi", "run", str(config_file(model, name))]
+    command += ["--out", str(folder), "--overwrite"]
+    for setting in settings:
+        command += ["--set", setting]
+    if ranks > 1:
+        command = ["mpirun", "-n", str(ranks), *command]
+    print("$", " ".join(command), flush=True)
+    subprocess.run(command, cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+    return folder
+
+
+def row(folder: Path) -> dict:
+    """What the comparison takes from one run."""
+    loaded = report_runs.load_run(folder)
+    summary = summarise(loaded)
+    maxima, rest = summary["maxima"], summary["at"][f"{AT_REST:g}"]
+    cap, when = maxima["max_principal_cap"]
+    at_cap = next(r for r in loaded.rows if r["t"] == when)
+    return {
+        "peak_velocity": maxima["peak_velocity"][0],
+        "peak_displacement": maxima["peak_displacement"][0],
+        "displacement_per_pa_at_rest": rest["peak_displacement"] / rest["peak_pressure"],
+        "cap_principal": cap,
+        "cap_principal_t": when,
+        "cap_principal_at": [at_cap["max_principal_cap_x"], at_cap["max_principal_cap_y"]],
+        "pulse_wss": maxima["pulse_wss"][0],
+        "recirculation_length": maxima["recirculation_length"][0],
+        "cells": loaded.summary["cells"],
+        "wall_time_s": summary["wall_time_s"],
+        "steps": summary["steps"],
+        "coupling_iterations": summary["mean_coupling_iterations"],
+        "finished": summary["finished"],
+    }
+
+
+def _where(r: dict) -> str:
+    x, y = r["cap_principal_at"]
+    return f"({1e3 * x:.2f}, {1e3 * y:.2f})"
+
+
+def _structure(cells: dict) -> int:
+    return cells["total"] - cells["fluid"]
+
+
+TABLES = {
+    "The blood": [
+        ("largest velocity (m/s)", lambda r: f"{r['peak_velocity']:.4g}"),
+        ("largest \\|WSS\\|, t ≤ 10 ms (Pa)", lambda r: f"{r['pulse_wss']:.4g}"),
+        ("longest recirculation (mm)", lambda r: f"{1e3 * r['recirculation_length']:.3g}"),
+    ],
+    "The structure": [
+        ("largest \\|η\\| (µm)", lambda r: f"{1e6 * r['peak_displacement']:.4g}"),
+        ("\\|η\\|/p at 0.8 s (µm/kPa)", lambda r: f"{1e9 * r['displacement_per_pa_at_rest']:.4g}"),
+        ("cap's largest σ₁ (kPa)", lambda r: f"{1e-3 * r['cap_principal']:.4g}"),
+        ("at t (ms)", lambda r: f"{1e3 * r['cap_principal_t']:.4g}"),
+        ("at (z, r) or (x, y) (mm)", _where),
+    ],
+    "The cost": [
+        ("cells: fluid, structure", lambda r: f"{r['cells']['fluid']}, {_structure(r['cells'])}"),
+        ("wall time (s)", lambda r: f"{r['wall_time_s']:.4g}"),
+        ("steps", lambda r: f"{r['steps']}"),
+        ("coupling iterations per step", lambda r: f"{r['coupling_iterations']:.3g}"),
+    ],
+}
+"""Title → its columns (markdown tables): header and the cell made from a :func:`row`."""
+
+
+def static() -> dict[str, float]:
+    """The moving wall's peak |η| per Pa under a uniform static lumen pressure in each model and,
+    for the tube both stand for (the axisymmetric config's radius), the thin tube's R²/(E h) and
+    Lamé's thick cylinder (m/Pa)."""
+    tube = config.load(config_file("axisymmetric", "moving_newtonian"))
+    return {
+        **{
+            model: uniform_pressure_compliance(
+                config_file(model, "moving_newtonian"), "moving_wall"
+            )
+            for model in MODELS
+        },
+        **estimates(tube, tube.geometry.height),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", type=Path, required=True, help="folder of the eight runs")
+    parser.add_argument("--ranks", type=int, default=1)
+    parser.add_argument("--set", dest="settings", action="append", default=[], metavar="KEY=VALUE")
+    parser.add_argument("--reuse", action="store_true", help="keep finished runs in --out")
+    args = parser.parse_args(argv)
+    rows = {
+        model: {
+            name: row(run(model, name, args.out, args.settings, args.ranks, args.reuse))
+            for name in CONFIGS
+        }
+        for model in MODELS
+    }
+    statics = static()
+
+    for title, columns in TABLES.items():
+        print(f"\n{title}\n")
+        print("| case | model | " + " | ".join(header for header, _ in columns) + " |")
+        print("|---|---|" + "---|" * len(columns))
+        for name in CONFIGS:
+            for model in MODELS:
+                cells = [cell(rows[model][name]) for _, cell in columns]
+                print(f"| {LABELS[name]} | {model} | " + " | ".join(cells) + " |")
+    print("\nUniform static pressure, the moving wall's peak |η| per kPa:")
+    for model in MODELS:
+        ratio = statics[model] / statics["thin_tube"]
+        print(f"  {model}: {1e9 * statics[model]:.4g} µm/kPa (×{ratio:.3g} of the thin tube)")
+    tube = f"thin {1e9 * statics['thin_tube']:.4g}, Lamé {1e9 * statics['lame']:.4g} µm/kPa"
+    print(f"  the tube both stand for: {tube}")
+    print(json.dumps({"runs": rows, "static": statics}))
+    return 0

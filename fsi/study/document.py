@@ -1,0 +1,411 @@
+"""docs/study.md, docs/study_tables.csv, docs/study_runs/*.json and docs/figures/study_*.png from
+the run folders of scripts/reproduce_study.py (the figures: fsi/study/figures.py).
+
+Each run folder is first reduced to a summary (fsi/study/runs.py): its provenance (git
+commit, ranks, command), the three peaks at the study's report times and the maxima the
+findings rest on. The summaries are committed (docs/study_runs/), and the tables, the CSV and
+the findings are made from them alone, so a reader can check every number without rerunning;
+only the figures read the run folders (metrics.csv and the field files). A run that is missing
+or unfinished shows as '–' (and is listed), so the document can be written at any stage; a
+summary already in docs/study_runs/ stands in for a run folder that is not there. The sections
+that explain the differences from the study are fsi/study/analyses.py's.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+from fsi.study import analyses as study_analyses
+from fsi.study import sensitivity
+from fsi.study.figures import field_figures, figure_convergence, figure_sss
+from fsi.study.findings import findings
+from fsi.study.runs import (
+    CONFIGS,
+    LABELS,
+    PAPER_QUANTITY,
+    QUANTITIES,
+    TIMES,
+    at,
+    change,
+    comparison_rows,
+    difference,
+    finished,
+    fmt,
+    load,
+    make_summaries,
+    paper_values,
+    write_comparison_csv,
+)
+
+PREVIOUS_FINE = {
+    "peak_velocity": {
+        "fixed_newtonian": (0.2726, 0.2544, 0.2178, 0.1962, 0.03444),
+        "fixed_carreau": (0.2727, 0.2542, 0.2175, 0.1941, 0.02921),
+        "moving_newtonian": (0.2807, 0.2565, 0.2168, 0.195, 0.03409),
+        "moving_carreau": (0.2809, 0.2564, 0.2166, 0.193, 0.02886),
+    },
+    "peak_pressure": {
+        "fixed_newtonian": (4.843, 4.365, 3.811, 2.58, 0.1594),
+        "fixed_carreau": (4.861, 4.378, 3.804, 2.56, 0.1426),
+        "moving_newtonian": (0.09128, 54.84, 0.01144, 2.604, 0.1554),
+        "moving_carreau": (0.09902, 54.8, 0.01727, 2.587, 0.1405),
+    },
+    "peak_displacement": {
+        "fixed_newtonian": (0.05032, 0.04221, 0.03272, 0.02116, 0.001457),
+        "fixed_carreau": (0.04996, 0.04198, 0.03251, 0.02115, 0.001539),
+        "moving_newtonian": (79.67, 44.71, 7.28, 2.22, 0.04298),
+        "moving_carreau": (79.81, 44.68, 7.286, 2.22, 0.04146),
+    },
+}
+"""The fine-mesh peaks at :data:`TIMES` (µm for the displacement) before the physiological-flow
+settings, as docs/study.md printed them at git 3d90d70: the Galerkin fluid (no SUPG), the inlet
+in the do-nothing form with its velocity held normal, the outlet's backflow term in the ``full``
+form. The only numbers of the document not read from the runs: history, for
+:func:`changes_table`."""
+
+
+# --------------------------------------------------------------------------------------------
+# The study's tables beside ours
+
+
+def _by_key(rows: Sequence[dict], quantity: str) -> dict[tuple, dict]:
+    """The comparison rows of ``quantity`` by (wall, fluid, t, mesh)."""
+    return {
+        (r["wall"], r["fluid"], r["t_s"], r["mesh"]): r for r in rows if r["quantity"] == quantity
+    }
+
+
+def paper_table(rows: Sequence[dict], quantity: str, scale: float) -> str:
+    """The study's values beside ours, per configuration and report time: paper | fsi |
+    difference on the coarse and the fine mesh."""
+    key = _by_key(rows, quantity)
+    lines = [
+        "| configuration | t (s) | paper coarse | fsi coarse | difference | paper fine | fsi fine"
+        " | difference |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for c in CONFIGS:
+        wall, fluid = c.split("_")
+        for t in TIMES:
+            cells = []
+            for mesh in ("coarse", "fine"):
+                r = key[(wall, fluid, t, mesh)]
+                d = difference(r)
+                cells += [
+                    fmt(scale * r["paper"]),
+                    fmt(None if r["fsi"] is None else scale * r["fsi"]),
+                    "–" if d is None else f"{100 * d:+.0f} %",
+                ]
+            lines.append(f"| {LABELS[c]} | {t:g} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def paper_mesh_changes(rows: Sequence[dict], quantity: str, limit: float = 0.1) -> str:
+    """Where the study's own coarse → fine change of a printed value exceeds ``limit``: there
+    its two meshes differ as much as a difference from it means, with ours beside."""
+    key = _by_key(rows, quantity)
+    found = []
+    for c in CONFIGS:
+        wall, fluid = c.split("_")
+        for t in TIMES:
+            coarse, fine = key[(wall, fluid, t, "coarse")], key[(wall, fluid, t, "fine")]
+            if abs(fine["paper"] / coarse["paper"] - 1) > limit:
+                ours = (
+                    ""
+                    if coarse["fsi"] is None or fine["fsi"] is None
+                    else f", fsi {change(coarse['fsi'], fine['fsi'])}"
+                )
+                found.append(
+                    f"{LABELS[c]} at {t:g} s (study {change(coarse['paper'], fine['paper'])}{ours})"
+                )
+    if not found:
+        return ""
+    return (
+        f"The study's own values change by more than {100 * limit:g} % from its coarse to its "
+        "fine mesh at: " + "; ".join(found) + ". There a difference from either of its meshes "
+        "is within its own discretisation error."
+    )
+
+
+def agreement(rows: Sequence[dict], quantity: str | None = None, limit: float = 0.1) -> str:
+    """How many of the printed values ours is within ``limit`` of: "k of n values" (and how
+    many have no run)."""
+    chosen = [r for r in rows if quantity is None or r["quantity"] == quantity]
+    compared = [d for d in map(difference, chosen) if d is not None]
+    close = sum(abs(d) <= limit for d in compared)
+    return f"{close} of {len(chosen)} values" + (
+        "" if len(compared) == len(chosen) else f" ({len(chosen) - len(compared)} without a run)"
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Tables
+
+
+def changes_table(summaries: dict, column: str, scale: float) -> str:
+    """The fine runs' peaks of ``column`` beside :data:`PREVIOUS_FINE`'s: before → now (change)."""
+    lines = [
+        "| t (s) | " + " | ".join(LABELS[c] for c in CONFIGS) + " |",
+        "|---" * (1 + len(CONFIGS)) + "|",
+    ]
+    for k, t in enumerate(TIMES):
+        cells = []
+        for c in CONFIGS:
+            before = PREVIOUS_FINE[column][c][k]
+            now = at(summaries.get(f"{c}_fine"), t, column)
+            now = None if now is None else scale * now
+            cells.append(f"{fmt(before)} → {fmt(now)} ({change(before, now)})")
+        lines.append(f"| {t:g} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def printed_table(summaries: dict) -> str:
+    lines = [
+        "| t (s) | "
+        + " | ".join(f"{LABELS[c]}: |u| (m/s), p (Pa), |η| (µm)" for c in CONFIGS)
+        + " |",
+        "|---" * (1 + len(CONFIGS)) + "|",
+    ]
+    for t in TIMES:
+        cells = []
+        for c in CONFIGS:
+            s = summaries.get(f"{c}_coarse_printed")
+            u, p, d = (at(s, t, k) for k in ("peak_velocity", "peak_pressure", "peak_displacement"))
+            cells.append(f"{fmt(u)}, {fmt(p)}, {fmt(None if d is None else 1e6 * d)}")
+        lines.append(f"| {t:g} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def effort_table(summaries: dict, order: Sequence[str]) -> str:
+    lines = [
+        "| run | git | steps | simulated (s) | ranks | coupling its/step | wall time (s) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name in order:
+        s = summaries.get(name)
+        if s is None:
+            lines.append(f"| {name} | not run | | | | | |")
+            continue
+        state = "" if s["finished"] else " (unfinished)"
+        lines.append(
+            f"| {name} | {(s['git'] or '–')[:7]} | {s['steps']}{state} | {fmt(s['end_time_s'])}"
+            f" | {s['ranks'] or '–'} | {fmt(s['mean_coupling_iterations'], 3)}"
+            f" | {s['wall_time_s']:.0f} |"
+        )
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------------------------
+
+
+def same_answers(summaries: dict, extra: dict) -> str:
+    """Evidence that the runs made at different commits and rank counts give the same answers:
+    the coarse fixed-wall Newtonian case as a study run and as the degree analysis's 0.5 run."""
+    a = summaries.get("fixed_newtonian_coarse")
+    b = extra.get("degree", {}).get("degree/degree=0.5")
+    if a is None or b is None or a["git"] == b["git"]:
+        return ""
+    worst = max(
+        abs(at(b, t, c) / at(a, t, c) - 1)
+        for t in TIMES
+        if t <= 0.1
+        for c, *_ in QUANTITIES
+        if at(a, t, c) and at(b, t, c) is not None
+    )
+    return (
+        f" (the commits differ in the scripts, the documents and fsi options these runs leave "
+        f"at their defaults: the coarse fixed-wall Newtonian case run at {a['git'][:7]} on "
+        f"{a['ranks']} ranks and at {b['git'][:7]} on {b['ranks']} has "
+        + (
+            "the same peaks at 10–100 ms to the last digit)"
+            if worst == 0
+            else f"its peaks at 10–100 ms within {worst:.0e} of each other)"
+        )
+    )
+
+
+def _shown(folder: Path) -> str:
+    """``folder`` relative to the checkout when it is inside it."""
+    root = Path(__file__).resolve().parents[2]
+    try:  # absolute(), not resolve(): results/study may be a link to runs kept elsewhere
+        return str(folder.absolute().relative_to(root))
+    except ValueError:
+        return str(folder)
+
+
+def write(folder: Path, study_runs, docs: Path, analyses: dict | None = None) -> Path:
+    """docs/study.md (and its CSV, summaries and figures) from the study's runs and the
+    ``analyses`` (scripts/reproduce_study.py's ANALYSES) in ``folder``."""
+    figures = docs / "figures"
+    figures.mkdir(parents=True, exist_ok=True)
+    runs = load(folder, study_runs)
+    names = [r.name for r in study_runs]
+    summaries = make_summaries(runs, docs / "study_runs", names)
+    extra = study_analyses.summaries(folder, analyses or {}, docs / "study_runs")
+    paper = paper_values()
+    missing = [n for n in names if not finished(summaries.get(n))]
+    rows = comparison_rows(summaries, paper)
+    table_csv = write_comparison_csv(rows, docs / "study_tables.csv")
+    parts = _opening(folder, summaries, extra, missing)
+    parts += _tables(rows, table_csv, summaries, extra, paper, docs)
+    parts += _convergence_and_changes(summaries, extra, figures)
+    parts += _figures(runs, summaries, figures)
+    parts += _findings(summaries, paper, extra)
+    parts.append(
+        "## Wall time on this machine (2 cores)\n\n"
+        "Sum of the steps' wall times (metrics.csv), without start-up (mesh, "
+        "compilation), as measured: the 2 cores were at times shared with other jobs "
+        "(tests, the other runs' start-up), which can slow a run several-fold, so "
+        "these are upper bounds; #11's benchmarks time unloaded runs.\n\n"
+        + effort_table(summaries, names)
+        + "\n"
+    )
+    path = docs / "study.md"
+    path.write_text("\n".join(parts))
+    return path
+
+
+def _opening(folder: Path, summaries: dict, extra: dict, missing: list[str]) -> list[str]:
+    """The document's title, where its numbers come from, and what is not finished yet."""
+    everything = [*summaries.values(), *(s for runs in extra.values() for s in runs.values())]
+    commits = sorted({s["git"][:7] for s in everything if s.get("git")})
+    parts = [
+        "# The study reproduced\n",
+        "Generated by `scripts/reproduce_study.py` from the runs in "
+        f"`{_shown(folder)}/`, through their summaries in `docs/study_runs/` (every number "
+        "below is read from them, but the earlier settings' in the section on what changed). "
+        "The four configurations of docs/model.md §4 on the coarse and the fine mesh, the whole "
+        "heartbeat (0.8 s), with the shipped configs' resolved schedule (0.25 ms steps to "
+        "50 ms, 1 ms to 0.1 s, 5 ms to 0.8 s: docs/wall-damping.md), on 2 MPI ranks; and the "
+        "study's printed schedule (5 ms to 0.4 s, 10 ms to 0.8 s) on the coarse mesh. "
+        f"Made with fsi at git {', '.join(commits) or '–'}{same_answers(summaries, extra)}.\n",
+    ]
+    if missing:
+        parts.append("**Not finished yet** (shown as '–'): " + ", ".join(missing) + ".\n")
+    return parts
+
+
+def _tables(
+    rows, table_csv: Path, summaries: dict, extra: dict, paper: dict, docs: Path
+) -> list[str]:
+    """Tables 1–3 beside the study's, each with the sections that explain the differences."""
+    parts = []
+    parts.append(
+        "## Tables 1–3 beside the study's\n\n"
+        f"The study's printed values (docs/reference/boujena2014_tables.csv) and ours, also "
+        f"in [`{table_csv.name}`]({table_csv.name}) (SI units); difference = (fsi − paper) / "
+        f"paper. fsi is within 10 % of the paper for {agreement(rows)}.\n"
+    )
+    explain = study_analyses.explanations(extra, summaries, paper, docs / "study_runs")
+    for (_, title, unit, scale), quantity in zip(QUANTITIES, PAPER_QUANTITY):
+        parts.append(
+            f"### {title} ({unit})\n\n{paper_table(rows, quantity, scale)}\n\n"
+            f"fsi is within 10 % of the paper for {agreement(rows, quantity)}.\n"
+        )
+        meshes = paper_mesh_changes(rows, quantity)
+        parts += [f"{meshes}\n"] if meshes else []
+        parts += [f"{section}\n" for section in explain[quantity]]
+    return parts
+
+
+def _convergence_and_changes(summaries: dict, extra: dict, figures: Path) -> list[str]:
+    """The mesh and step convergence, what the physiological-flow settings changed and the
+    study's printed schedule."""
+    parts = []
+    parts.append("## Mesh and step convergence\n")
+    conv = figure_convergence(summaries, figures / "study_mesh_convergence.png")
+    parts.append(
+        "Mesh convergence: the coarse → fine change of each peak at the report times, as a "
+        "percentage of the coarse run's largest value of that peak over the heartbeat.\n\n"
+        f"![mesh convergence](figures/{conv.name})\n"
+    )
+    parts.append(
+        "Of the stress maxima:\n\n"
+        + sensitivity.convergence(extra.get("convergence", {}), summaries)
+        + "\n"
+    )
+    parts.append(
+        "## What the physiological-flow settings changed (fine mesh)\n\n"
+        "The study configs now run SUPG, the study's own inlet (σ n = −h n, the velocity "
+        "free to turn, β = 0.1 on the tangential velocity of inflow) and the outlet's "
+        "tangential backflow term (docs/boundary-conditions.md). Before (docs/study.md at "
+        "git 3d90d70; the only numbers here not read from the runs): the Galerkin fluid, the "
+        "inlet in the do-nothing form with its velocity held normal, the outlet's `full` "
+        "backflow term. Before → now (change):\n"
+    )
+    for column, title, unit, scale in QUANTITIES:
+        parts.append(
+            f"{title.split(': ')[1]} ({unit}):\n\n{changes_table(summaries, column, scale)}\n"
+        )
+    parts.append(
+        "The inlet makes the whole change. Each setting reverted alone on the coarse fixed-wall "
+        "Newtonian heartbeat (`fsi run configs/stenosis_fixed_newtonian.yaml --set ...`, "
+        "1 rank): the old inlet (`fluid.inlet_open_boundary=same fluid.normal_flow=true "
+        "fluid.inflow_stabilization=0`) gives back the old numbers (peak pressure at 0.1 s "
+        "2.578 Pa, before 2.576; peak velocity at 0.8 s 0.03445 m/s, before 0.03448); without "
+        "SUPG the peaks move by < 1 % (pressure at 0.1 s 1.826 Pa against 1.809); the outlet's "
+        "old `full` form by < 0.4 % (0.07953 Pa against 0.07923 at 0.8 s). During the pulse "
+        "(t ≤ 20 ms) the peak velocity and displacement are within 0.3 % of before and the "
+        "fixed wall's peak pressure within 5 %; the moving wall's peak pressure at 10 and "
+        "50 ms is below 0.3 Pa (the wall has taken up the pulse) and moves by +100 % and more "
+        "on that small base. Afterwards the stress inlet holds the total normal stress, not the "
+        "pressure: with h = 0 the inlet's pressure is 2μ ∂u_n/∂n, slightly below zero as the "
+        "flow decelerates (mean −0.03 to −0.05 Pa at 0.05–0.1 s, where the normal-flow inlet "
+        "held +0.0003 to +0.004 Pa), and its zero shear stress lets the velocity turn: the "
+        "flow slows faster after the pulse (peak velocity at 0.8 s −20 %), the peak pressure "
+        "from 0.1 s on is 24–50 % lower, and so are the late displacements (0.8 s: −14 % to "
+        "−25 %, but the moving Newtonian wall's +6 %). That is the condition the study "
+        "states.\n"
+    )
+    parts.append(
+        "## The study's printed schedule (coarse mesh)\n\n"
+        "Its first step, 5 ms, is the whole inlet pulse, which is back to 0 at t = "
+        "5 ms: the fluid's backward-Euler/BDF step sees P(5 ms) = 0 and the runs stay "
+        "at rest (docs/model.md §4).\n\n" + printed_table(summaries) + "\n"
+    )
+    return parts
+
+
+def _figures(runs: dict, summaries: dict, figures: Path) -> list[str]:
+    """The study's Figure 6 and Figures 7–9, drawn into ``figures``."""
+    parts = []
+    fig6 = figure_sss(runs, figures / "study_figure6_sss.png")
+    parts.append(
+        "## Figure 6: the maximum structural shear stress over time\n\n"
+        f"![Figure 6](figures/{fig6.name})\n\nThe plaque's (cap and lipid pool's) largest "
+        "|σ₁₂|, as the study plots it: left the pulse and the wall's first response on a "
+        "linear time axis, right the whole beat on a log one; log stress, the fixed-wall "
+        "curves (blue) being ~50× below the moving-wall ones (red). Newtonian wide and light, "
+        "Carreau narrow and dark on top, coarse solid, fine dashed: the two rheologies lie on "
+        "each other, so the lower row gives their ratio. The whole structure's maximum (the "
+        "moving wall's clamped corner, singular) is left out: see the findings.\n"
+    )
+    fields = field_figures(runs, summaries, figures)
+    if fields:
+        parts.append("## Figures 7–9: fields\n")
+        for caption, path in fields:
+            parts.append(f"{caption}\n\n![{path.stem}](figures/{path.name})\n")
+    return parts
+
+
+def _findings(summaries: dict, paper: dict, extra: dict) -> list[str]:
+    """The study's findings, checked, and the recirculation zone with the outlet further
+    downstream."""
+    parts = []
+    parts.append(
+        "## The study's findings, checked\n\n"
+        "All on one mesh, as they compare configurations: the fine one once its four "
+        "runs have finished, else the coarse one (the run is named beside its "
+        "numbers).\n\n"
+        + "\n".join(f"- {f}" for f in findings(summaries, paper, extra.get("convergence")))
+        + "\n\nThe recirculation zone with the outlet further downstream (the last finding): "
+        "the fixed wall with the segment 1 and 2 cm longer downstream (`geometry.length`, "
+        "`geometry.stenosis_centre: 0.01`), its inlet pulse scaled by the blood column's "
+        "effective length so that the pulse's impulse moves the longer column as fast (a "
+        "pressure pulse into a longer column drives a slower flow; item 4 has the estimate); "
+        "the moving wall lengthened as it is becomes another wall (clamped further apart it is "
+        "far softer: its largest |η|), so it is not compared (`--only analyses --analysis "
+        "downstream`):\n\n" + sensitivity.downstream(extra.get("downstream", {}), summaries) + "\n"
+    )
+    return parts

@@ -1,0 +1,290 @@
+"""The figures of docs/study.md (docs/figures/study_*.png), read from the run folders: the
+study's Figure 6 (SSS over time, :func:`figure_sss`), Figures 7–8 (the fields,
+:func:`field_figures`), Figure 9 (the wall shear stress along the walls,
+:func:`figure_wall_shear`) and the mesh convergence of the maxima (:func:`figure_convergence`).
+fsi/study/document.py writes them beside the text.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from fsi.output import field_files, plot, report, report_runs
+from fsi.study.runs import (
+    CONFIGS,
+    LABELS,
+    QUANTITIES,
+    TIMES,
+    at,
+    finished,
+    peak,
+    plaque_max,
+)
+
+# --------------------------------------------------------------------------------------------
+# Figures
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+PULSE_END = 0.02
+"""s: Figure 6's left column, the pulse and the wall's first response."""
+
+
+def figure_sss(runs: dict, path: Path) -> Path:
+    """Figure 6: the plaque's largest |σ₁₂| (cap and lipid, as the study plots it) over the
+    pulse (linear time, left) and the whole beat (log time, right), log stress (the fixed-wall
+    values are ~50× below the moving-wall ones); below, the Carreau/Newtonian ratio of each
+    wall and mesh, which is what separates curves that lie on each other above. Newtonian
+    wide and light, Carreau narrow and dark on top of it; coarse solid, fine dashed."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(
+        2, 2, figsize=(12, 7), sharex="col", height_ratios=(2, 1), layout="constrained"
+    )
+    colours = {"fixed": "C0", "moving": "C3"}
+    styles = {"coarse": "-", "fine": "--"}
+
+    for col, end in enumerate((PULSE_END, None)):
+        top, bottom = axes[0, col], axes[1, col]
+        _sss_curves(top, runs, end, colours, styles)
+        _sss_ratios(bottom, runs, end, colours, styles)
+        top.set_yscale("log")
+        top.grid(True, which="both", alpha=0.3)
+        bottom.axhline(1.0, color="k", lw=0.6)
+        bottom.grid(True, alpha=0.3)
+        bottom.set_xlabel("t (s)" if end is None else "t (ms)")
+        if end is None:
+            top.set_xscale("log")
+            top.set_title("the whole beat (log time)")
+        else:
+            top.set_xlim(0, 1e3 * end)
+            top.set_title(f"the pulse and the wall's first response (0–{1e3 * end:g} ms)")
+    axes[0, 0].set_ylabel("plaque's max |σ₁₂| (Pa)")
+    axes[1, 0].set_ylabel("Carreau / Newtonian")
+    axes[0, 1].legend(fontsize=7, ncol=2)
+    axes[1, 1].legend(fontsize=7)
+    plot.save_figure(fig, path, dpi=130)
+    return path
+
+
+def _plaque_series(run, end=None):
+    """(t, the plaque's max |σ₁₂|), t in ms up to ``end`` (s), else in s."""
+    pts = [(r["t"], plaque_max(r)) for r in run.rows if plaque_max(r)]
+    return [(t if end is None else 1e3 * t, v) for t, v in pts if end is None or t <= end]
+
+
+def _sss_curves(top, runs: dict, end: float | None, colours: dict, styles: dict) -> None:
+    """Figure 6's upper panel: each run's plaque max |σ₁₂| up to ``end`` (None: the whole beat)."""
+    for c in CONFIGS:
+        wall, fluid = c.split("_")
+        for level, style in styles.items():
+            run = runs.get(f"{c}_{level}")
+            if run is None:
+                continue
+            pts = _plaque_series(run, end)
+            if not pts:
+                continue
+            wide = fluid == "newtonian"
+            top.plot(
+                *zip(*pts),
+                style,
+                color=colours[wall],
+                lw=3.5 if wide else 1.1,
+                alpha=0.35 if wide else 1.0,
+                label=f"{LABELS[c]}, {level}",
+            )
+
+
+def _sss_ratios(bottom, runs: dict, end: float | None, colours: dict, styles: dict) -> None:
+    """Figure 6's lower panel: the Carreau/Newtonian ratio of each wall and mesh."""
+    for wall in colours:
+        for level, style in styles.items():
+            n, c = runs.get(f"{wall}_newtonian_{level}"), runs.get(f"{wall}_carreau_{level}")
+            if n is None or c is None:
+                continue
+            carreau = dict(_plaque_series(c, end))
+            pts = [(t, carreau[t] / v) for t, v in _plaque_series(n, end) if t in carreau]
+            if pts:
+                bottom.plot(
+                    *zip(*pts),
+                    style,
+                    color=colours[wall],
+                    lw=1.1,
+                    label=f"{wall} wall, {level}",
+                )
+
+
+def figure_convergence(summaries: dict, path: Path) -> Path:
+    """The coarse → fine change of the three peaks at the report times, per configuration, as a
+    fraction of the coarse run's largest value of that peak over the heartbeat: a moving wall's
+    peak pressure of 0.2 Pa at 10 ms (the ring's trough; 50 Pa at 20 ms) is no base for a
+    percentage."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), layout="constrained")
+    for ax, (column, title, _, _) in zip(axes, QUANTITIES):
+        for k, c in enumerate(CONFIGS):
+            pts = []
+            largest = peak(summaries.get(f"{c}_coarse"), column)
+            for t in TIMES:
+                coarse = at(summaries.get(f"{c}_coarse"), t, column)
+                fine = at(summaries.get(f"{c}_fine"), t, column)
+                if largest and coarse is not None and fine is not None:
+                    pts.append((t, 100 * (fine - coarse) / largest[0]))
+            if pts:
+                ax.plot(*zip(*pts), "o-", color=f"C{k}", label=LABELS[c])
+        ax.axhline(0, color="k", lw=0.6)
+        ax.set_xscale("log")
+        ax.set_xlabel("t (s)")
+        ax.set_title(title.split(": ")[1])
+        ax.grid(True, alpha=0.3)
+    axes[0].set_ylabel("fine − coarse (% of the run's largest)")
+    axes[-1].legend(fontsize=7)
+    plot.save_figure(fig, path, dpi=130)
+    return path
+
+
+RECIRCULATION_TIME = 0.1
+"""Figure 9's time: the recirculation zone is developed (its lengths are in the findings)."""
+
+
+def best(runs: dict, summaries: dict, c: str) -> report_runs.Run | None:
+    """The fine run folder of configuration ``c`` if that run finished, else the coarse one."""
+    fine = f"{c}_fine"
+    return runs.get(fine) if finished(summaries.get(fine)) else runs.get(f"{c}_coarse")
+
+
+FIGURE_OF_WALL = {"moving": 7, "fixed": 8}
+"""The study's Figure 7 shows the moving wall, Figure 8 the fixed wall."""
+
+
+def warp_for(displacement: float) -> float:
+    """The power of ten that draws the largest ``displacement`` (m) as 0.5–5 mm: visible, and
+    short of folding the 1 mm wall or the 3.5 mm plaque."""
+    return 10.0 ** max(0, math.ceil(math.log10(0.5e-3 / max(displacement, 1e-30))))
+
+
+def field_figures(runs: dict, summaries: dict, figures: Path) -> list[tuple[str, Path]]:
+    """Figures 7–9 from the field files (fsi/output/field_files.py): σ₁₂ on the deformed structure
+    of each configuration at the time of the plaque's largest |σ₁₂|, the colours spanning the
+    plaque's range (a larger value elsewhere, the moving wall's singular clamped corner, shows
+    saturated and is marked); the velocity's streamlines of the Carreau runs (the study's
+    Figure 9 is Carreau) at t = RECIRCULATION_TIME, and the wall shear stress along the
+    diseased wall."""
+    out = []
+    for c in sorted(CONFIGS, key=lambda c: FIGURE_OF_WALL[c.split("_")[0]]):
+        run = best(runs, summaries, c)
+        if run is None:
+            continue
+        figure = _stress_figure(c, run, summaries[run.path.name], figures)
+        if figure is not None:
+            out.append(figure)
+    for c in ("fixed_carreau", "moving_carreau"):
+        run = best(runs, summaries, c)
+        if run is None or run.rows[-1]["t"] < RECIRCULATION_TIME:
+            continue
+        path = figures / f"study_streamlines_{c}.png"
+        plot.field_snapshot(run.path, "velocity", RECIRCULATION_TIME, path, streamlines=True)
+        out.append(
+            (
+                f"Figure 9: velocity and streamlines, {LABELS[c]} ({run.path.name}), "
+                f"t = {RECIRCULATION_TIME:g} s (Carreau, as the study's Figure 9; the Newtonian "
+                "runs' recirculation lengths are in the findings)",
+                path,
+            )
+        )
+    wss = figure_wall_shear(runs, summaries, figures / "study_figure9_wss.png")
+    if wss is not None:
+        out.append(
+            (
+                f"Figure 9: wall shear stress along the diseased (lower) wall at t = "
+                f"{RECIRCULATION_TIME:g} s; negative where the flow next to the wall "
+                "reverses (the recirculation zone)",
+                wss,
+            )
+        )
+    return out
+
+
+def _stress_figure(c: str, run, s: dict, figures: Path) -> tuple[str, Path] | None:
+    """Figure 7 or 8 of configuration ``c``: σ₁₂ on the deformed structure of ``run`` (summary
+    ``s``) at the time of the plaque's largest |σ₁₂|, drawn into ``figures``; its caption and
+    path, or None without a plaque maximum."""
+    wall = c.split("_")[0]
+    plaque, whole, where = peak(s, "plaque_sss"), peak(s, "max_sss"), s.get("largest_sss_at")
+    if plaque is None:
+        return None
+    marks, marked = [], ""
+    if where is not None and where["region"] == "wall" and whole[0] > plaque[0]:
+        marks.append((where["x"], where["y"], "clamped corner (singular)"))
+        marked = (
+            f"; the cross marks the clamped corner where the whole structure's largest "
+            f"|σ₁₂|, {whole[0]:.4g} Pa at t = {whole[1]:.4g} s, sits (a singularity of the "
+            "boundary conditions, see the findings)"
+        )
+    path = figures / f"study_sss_{c}.png"
+    warp = warp_for(report.value_at(run.rows, plaque[1], "peak_displacement") or 0.0)
+    plot.field_snapshot(run.path, "sss", plaque[1], path, warp=warp, limit=plaque[0], marks=marks)
+    return (
+        f"Figure {FIGURE_OF_WALL[wall]}: σ₁₂ on the structure, {LABELS[c]} "
+        f"({run.path.name}), displacement ×{warp:g}, at t = {plaque[1]:.4g} s, "
+        f"when the plaque's |σ₁₂| is largest ({plaque[0]:.4g} Pa); the colours span "
+        f"±{plaque[0]:.4g} Pa{marked}",
+        path,
+    )
+
+
+def boundary_nodes(triangles: np.ndarray) -> np.ndarray:
+    """The nodes on the boundary of a triangulation: those of edges that belong to one
+    triangle only."""
+    edges = np.sort(
+        np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1
+    )
+    unique, count = np.unique(edges, axis=0, return_counts=True)
+    return np.unique(unique[count == 1])
+
+
+def figure_wall_shear(runs: dict, summaries: dict, path: Path) -> Path | None:
+    """The signed wall shear stress along the lower wall (the plaque's side) against x, one
+    line per configuration, at t = RECIRCULATION_TIME."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(8, 3.6), layout="constrained")
+    drawn = False
+    for k, c in enumerate(CONFIGS):
+        run = best(runs, summaries, c)
+        if run is None or run.rows[-1]["t"] < RECIRCULATION_TIME:
+            continue
+        snap = field_files.read_field(run.path, "wall_shear_stress", RECIRCULATION_TIME)
+        x, y = snap.coordinates[:, 0], snap.coordinates[:, 1]
+        nodes = boundary_nodes(snap.triangles)
+        lower = nodes[
+            (y[nodes] < 0.5 * (y.min() + y.max())) & (x[nodes] > x.min()) & (x[nodes] < x.max())
+        ]  # not the inlet's and outlet's corners
+        order = np.argsort(x[lower])
+        ax.plot(
+            1e3 * x[lower][order],
+            snap.values[lower][order],
+            color=f"C{k}",
+            lw=1.2,
+            label=f"{LABELS[c]} ({run.path.name})",
+        )
+        drawn = True
+    if not drawn:
+        plt.close(fig)
+        return None
+    ax.axhline(0, color="k", lw=0.6)
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("wall shear stress (Pa)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+    plot.save_figure(fig, path, dpi=130)
+    return path

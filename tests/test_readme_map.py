@@ -1,0 +1,64 @@
+"""README's map of the code (its "Map of the code" block) against the tree: every folder of
+fsi/ and every module of fsi/'s top level has an entry, and each folder's entry names exactly
+its modules (``name (what it holds)`` items separated by ``·`` or ``─►``; the text in
+parentheses is description)."""
+
+import re
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+FOLDERS = {"fsi.geometry": ROOT / "geometry"}
+"""Map keys that are not paths: the geometry/ folder is installed as fsi.geometry."""
+
+
+def map_entries(readme: str) -> dict[str, str]:
+    """The map's entries: key (``fsi/config/``, ``fsi/cli.py``, ``fsi.geometry``) → its text."""
+    block = readme.split("## Map of the code", 1)[1].split("\n\n    ", 1)[1]
+    entries: dict[str, str] = {}
+    key = None
+    for line in ("    " + block).splitlines():
+        if not line.startswith("    "):
+            break
+        if not line.startswith("     "):  # a new entry: its key, then its text
+            key, _, text = line.strip().partition(" ")
+            entries[key] = text
+        else:
+            entries[key] += " " + line.strip()
+    return entries
+
+
+def named_modules(text: str) -> set[str]:
+    """The names an entry lists: its items with the parenthesised descriptions left out."""
+    while re.search(r"\([^()]*\)", text):
+        text = re.sub(r"\([^()]*\)", "", text)
+    return {item.strip() for item in re.split(r"·|─►", text) if item.strip()}
+
+
+def modules(folder: Path) -> set[str]:
+    return {p.stem for p in folder.glob("*.py") if p.stem not in ("__init__", "__main__")}
+
+
+def test_every_folder_and_top_level_module_has_an_entry():
+    entries = map_entries((ROOT / "README.md").read_text())
+    folders = {f"fsi/{p.name}/" for p in (ROOT / "fsi").iterdir() if (p / "__init__.py").exists()}
+    top = {f"fsi/{name}.py" for name in modules(ROOT / "fsi")}
+    assert set(entries) == folders | top | set(FOLDERS)
+
+
+def test_each_entry_names_exactly_its_modules():
+    entries = map_entries((ROOT / "README.md").read_text())
+    for key, text in entries.items():
+        if key.endswith(".py"):
+            assert (ROOT / key).is_file(), key
+            assert named_modules(text) == set(), key
+            continue
+        folder = FOLDERS.get(key, ROOT / key)
+        named, present = named_modules(text), modules(folder)
+        assert named == present, f"{key}: missing {present - named}, not there {named - present}"
+
+
+def test_a_missing_module_is_found():
+    """The check can fail: an entry without one of its folder's modules."""
+    entries = map_entries((ROOT / "README.md").read_text())
+    text = entries["fsi/numerics/"].replace("newton", "")
+    assert named_modules(text) != modules(ROOT / "fsi" / "numerics")
