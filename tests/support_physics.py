@@ -202,3 +202,25 @@ def meridian_section(
     facets, first = np.unique(facets, return_index=True)
     facet_tags = dolfinx.mesh.meshtags(msh, tdim - 1, facets.astype(np.int32), values[first])
     return TaggedMesh(msh, cell_tags, facet_tags)
+
+
+def womersley_pipe(
+    r: np.ndarray, radius: float, gradient: float, period: float, rho: float, mu: float
+) -> tuple[np.ndarray, complex]:
+    """Womersley's periodic pipe flow under the pressure gradient G cos(ωt) (``gradient`` G =
+    the pressure drop's amplitude over the pipe's length, Pa/m; ω = 2π/``period``):
+    u_axial(r, t) = Re(û(r) e^{iωt}), Q(t) = Re(Q̂ e^{iωt}) with
+
+        û = A (1 − I₀(β r)/I₀(β R)),   Q̂ = A π R² (1 − 2 I₁(β R)/(β R I₀(β R))),
+
+    A = G/(i ω ρ), β² = i ω ρ/μ (I₀, I₁ the modified Bessel functions; the solution of
+    i ω ρ û = G + μ (û'' + û'/r) with û(R) = 0 and û'(0) = 0)."""
+    import scipy.special
+
+    omega = 2 * np.pi / period
+    beta = np.sqrt(1j * omega * rho / mu)
+    a = gradient / (1j * omega * rho)
+    i0 = scipy.special.iv(0, beta * radius)
+    u = a * (1 - scipy.special.iv(0, beta * r) / i0)
+    q = a * np.pi * radius**2 * (1 - 2 * scipy.special.iv(1, beta * radius) / (beta * radius * i0))
+    return u, q

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import scipy.integrate
 import scipy.special
+import support_physics
 from test_open_boundaries import (
     WOMERSLEY_PERIOD,
     WOMERSLEY_PRESSURE,
@@ -113,20 +114,9 @@ def test_the_axis_holds_only_the_radial_velocity():
 
 
 def pipe_womersley(r: np.ndarray, rho: float, mu: float) -> tuple[np.ndarray, complex]:
-    """Womersley's periodic pipe flow under the pressure drop P cos(ωt) over L:
-    u_z(r, t) = Re(û(r) e^{iωt}), Q(t) = Re(Q̂ e^{iωt}) with
-
-        û = A (1 − I₀(β r)/I₀(β R)),   Q̂ = A π R² (1 − 2 I₁(β R)/(β R I₀(β R))),
-
-    A = P/(L i ω ρ), β² = i ω ρ/μ (I₀, I₁ the modified Bessel functions; the solution of
-    i ω ρ û = P/L + μ (û'' + û'/r) with û(R) = 0 and û'(0) = 0)."""
-    omega = 2 * np.pi / WOMERSLEY_PERIOD
-    beta = np.sqrt(1j * omega * rho / mu)
-    a = WOMERSLEY_PRESSURE / L / (1j * omega * rho)
-    i0 = scipy.special.iv(0, beta * R)
-    u = a * (1 - scipy.special.iv(0, beta * r) / i0)
-    q = a * np.pi * R**2 * (1 - 2 * scipy.special.iv(1, beta * R) / (beta * R * i0))
-    return u, q
+    """Womersley's pipe flow under the pressure drop P cos(ωt) over L
+    (:func:`support_physics.womersley_pipe`)."""
+    return support_physics.womersley_pipe(r, R, WOMERSLEY_PRESSURE / L, WOMERSLEY_PERIOD, rho, mu)
 
 
 def womersley_errors(size: float) -> tuple[float, float]:

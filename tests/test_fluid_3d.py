@@ -13,7 +13,7 @@ from mpi4py import MPI
 
 import numpy as np
 import pytest
-import scipy.special
+import support_physics
 
 from fsi import config
 from fsi.geometry.tags import Boundary, Region
@@ -134,16 +134,9 @@ PERIOD, AMPLITUDE, SLICE = 0.2, 10.0, 0.002  # s; Pa over the pipe's length; its
 
 
 def pipe_womersley(r: np.ndarray) -> tuple[np.ndarray, complex]:
-    """Womersley's pipe flow under the pressure drop P cos(ωt) over L: u_x = Re(û(r) e^{iωt}),
-    Q = Re(Q̂ e^{iωt}) with û = A (1 − I₀(β r)/I₀(β R)), Q̂ = A π R² (1 − 2 I₁(β R)/(β R I₀(β R))),
-    A = P/(L i ω ρ), β² = i ω ρ/μ."""
-    omega = 2 * np.pi / PERIOD
-    beta = np.sqrt(1j * omega * RHO / MU)
-    a = AMPLITUDE / SLICE / (1j * omega * RHO)
-    i0 = scipy.special.iv(0, beta * R)
-    u = a * (1 - scipy.special.iv(0, beta * r) / i0)
-    q = a * np.pi * R**2 * (1 - 2 * scipy.special.iv(1, beta * R) / (beta * R * i0))
-    return u, q
+    """Womersley's pipe flow under the pressure drop P cos(ωt) over the slice
+    (:func:`support_physics.womersley_pipe`)."""
+    return support_physics.womersley_pipe(r, R, AMPLITUDE / SLICE, PERIOD, RHO, MU)
 
 
 def test_womersley_flow_rate_within_two_percent():
