@@ -239,7 +239,7 @@ def _add_plot_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--slice",
         metavar="AXIS=VALUE",
-        help="of a 3D run's field: its section by the plane AXIS = VALUE (m), e.g. y=0 (the "
+        help="of a 3D run's field: its section by the plane AXIS = VALUE (m), e.g. z=0 (the "
         "meridian plane through the plaque's middle), x=0.01 (a cross-section)",
     )
     _add_out(p, "the picture: FILE.png, FILE.pdf or FILE.svg", metavar="FILE")

@@ -146,7 +146,7 @@ def draw(
     check_out(path)
     if snapshot.triangles.shape[1] != 3:
         raise PlotError(
-            f"{snapshot.file}: a 3D field: draw a plane section of it (--slice y=0 through the "
+            f"{snapshot.file}: a 3D field: draw a plane section of it (--slice z=0 through the "
             "axis, --slice x=VALUE across it)"
         )
     values, prefix = _component(snapshot, component)

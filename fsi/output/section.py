@@ -1,5 +1,5 @@
 """Plane sections of a 3D field for ``fsi plot --slice`` (docs/3d.md): the tetrahedra of a
-:class:`~fsi.output.field_files.Snapshot` cut by a plane normal to a coordinate axis (``y=0``, the
+:class:`~fsi.output.field_files.Snapshot` cut by a plane normal to a coordinate axis (``z=0``, the
 meridian plane through the plaque's middle; ``x=0.01``, a cross-section), as a 2D snapshot of
 triangles in that plane that :func:`fsi.output.plot.draw` draws as it draws a 2D run.
 
