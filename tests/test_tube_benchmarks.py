@@ -31,11 +31,11 @@ COARSER = [
 ]
 
 
-def pulse(out: Path, options: list[str], capsys) -> dict:
+def pulse(out: Path, options: list[str], capsys, case: str = "pulse") -> dict:
     """Run the pulse benchmark into ``out``; the JSON object of its last line (on every rank)."""
     from mpi4py import MPI
 
-    assert benchmark_tube.main(["--case", "pulse", "--out", str(out), *options]) == 0
+    assert benchmark_tube.main(["--case", case, "--out", str(out), *options]) == 0
     text = capsys.readouterr().out
     line = text.strip().splitlines()[-1] if MPI.COMM_WORLD.rank == 0 else None
     return json.loads(MPI.COMM_WORLD.bcast(line))
@@ -67,6 +67,24 @@ def check(values: dict, out: Path) -> None:
 def test_the_pressure_pulse_on_a_coarser_mesh(shared_tmp, capsys):
     out = shared_tmp / "pulse_coarser"
     check(pulse(out, COARSER, capsys), out)
+
+
+def test_the_3d_pulse_benchmark_reports_its_values_and_its_size(shared_tmp, capsys):
+    """``--case pulse3d`` (configs/3d/tube_pulse.yaml) on 2 mm tetrahedra for 2 steps: its last
+    line is the JSON object of point A's values and the run's size and cost (the shipped case's
+    published values need its 400 steps: docs/3d.md says what is measured)."""
+    from mpi4py import MPI
+
+    short = ["mesh.size=2.0e-3", "mesh.local_size=2.0e-3", "time.end=1.0e-4"]
+    short.append("time.schedule=[{until: 1.0e-4, dt: 5.0e-5}]")
+    values = pulse(
+        shared_tmp / "pulse3d", sum((["--set", s] for s in short), []), capsys, "pulse3d"
+    )
+    keys = {"ur_max_A", "t_ur_max_A", "uz_min_A", "wave_speed", "cells", "dofs_fluid"}
+    assert keys | {"dofs_solid", "seconds_per_step", "ranks"} == set(values)
+    assert values["ranks"] == MPI.COMM_WORLD.size and values["cells"] > 5000
+    assert values["dofs_fluid"] > 10000 and values["dofs_solid"] > 10000
+    assert values["t_ur_max_A"] == pytest.approx(1e-4) and values["seconds_per_step"] > 0
 
 
 @pytest.mark.slow

@@ -11,7 +11,12 @@ the command line's own code path (:func:`fsi.cli.main`) into ``--out`` (or, with
 - ``uz_min_A`` (m): the smallest (most negative) axial displacement there;
 - ``wave_speed`` (m/s): the pressure front's speed along the axis, the least-squares slope of
   z against the time the axis pressure first reaches half the inlet's peak at the stations
-  z = 1, 1.5, … 4 cm (linear in time between stored fields and along the axis between nodes).
+  z = 1, 1.5, … 4 cm (linear in time between stored fields and along the axis between nodes);
+- and the run's size and cost from its summary.json: ``cells``, ``dofs_fluid``,
+  ``dofs_solid``, ``seconds_per_step``, ``ranks``.
+
+``--case pulse3d``: the same pulse in the tube meshed whole as tetrahedra
+(``configs/3d/tube_pulse.yaml``, docs/3d.md; point A on +y, the axis the x axis).
 
 ``--case womersley``: Womersley flow in a deformable tube
 (``configs/axisymmetric/tube_womersley.yaml``), run here rather than by ``fsi run``: the exact
@@ -62,6 +67,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 CONFIGS = {
     "pulse": ROOT / "configs" / "axisymmetric" / "tube_pulse.yaml",
+    "pulse3d": ROOT / "configs" / "3d" / "tube_pulse.yaml",
     "womersley": ROOT / "configs" / "axisymmetric" / "tube_womersley.yaml",
 }
 
@@ -118,10 +124,11 @@ def peak_time(t: np.ndarray, values: np.ndarray) -> tuple[float, float]:
 
 
 def axis_pressure(run: Path, t: float) -> tuple[np.ndarray, np.ndarray]:
-    """z (sorted) and p of the pressure nodes on the axis (y = 0) at the stored time ``t``."""
+    """z (sorted) and p of the pressure nodes on the axis (y = 0; y = z = 0 in 3D) at the
+    stored time ``t``."""
     snapshot = field_files.read_field(run, "pressure", t, warp=0.0)
     xy, p = snapshot.reference, snapshot.values
-    on_axis = np.abs(xy[:, 1]) < 1e-12
+    on_axis = np.all(np.abs(xy[:, 1:]) < 1e-12, axis=1)
     z, values = xy[on_axis, 0], p[on_axis]
     order = np.argsort(z)
     return z[order], values[order]
@@ -423,7 +430,19 @@ def main(argv: list[str] | None = None) -> int:
         text = report(values, case, run, seconds)
         (run / "benchmark.txt").write_text(text + "\n")
         print(text)
-        print(
-            json.dumps({k: values[k] for k in ("ur_max_A", "t_ur_max_A", "uz_min_A", "wave_speed")})
-        )
+        keys = ("ur_max_A", "t_ur_max_A", "uz_min_A", "wave_speed")
+        print(json.dumps({**{k: values[k] for k in keys}, **run_size(run)}))
     return 0
+
+
+def run_size(run: Path) -> dict:
+    """``cells``, ``dofs_fluid``, ``dofs_solid``, ``seconds_per_step`` and ``ranks`` of the run
+    in ``run`` (its summary.json)."""
+    summary = json.loads((run / "summary.json").read_text())
+    return {
+        "cells": summary["cells"]["total"],
+        "dofs_fluid": summary["fluid_dofs"],
+        "dofs_solid": summary["solid_dofs"],
+        "seconds_per_step": summary["mean_step_time_s"],
+        "ranks": summary["ranks"],
+    }
