@@ -202,8 +202,9 @@ class WallSampler:
             [sigma[i, j] for i in range(gdim) for j in range(gdim)] + [x[i] for i in range(gdim)]
         )
         self._expression = dolfinx.fem.Expression(values_at, _facet_points(tdim))
-        direction = np.zeros(gdim) + np.pad(direction, (0, max(gdim - len(direction), 0)))[:gdim]
-        self._direction = direction / np.linalg.norm(direction)
+        e = np.zeros(gdim)  # the default (1, 0) is e_x in 3D too
+        e[: len(direction)] = direction
+        self._direction = e / np.linalg.norm(e)
         self.walls = np.repeat(values[owned].astype(np.int64), per)
         self.reference = self.local().x.copy()
 
