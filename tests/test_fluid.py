@@ -20,7 +20,14 @@ from fsi.config import reader
 from fsi.geometry.tags import Boundary, Region
 from fsi.numerics import newton
 from fsi.output import metrics
-from fsi.physics import fluid, fluid_boundaries, fluid_residual, mesh, rheology
+from fsi.physics import (
+    fluid,
+    fluid_boundaries,
+    fluid_boundary_terms,
+    fluid_residual,
+    mesh,
+    rheology,
+)
 
 WALL, INLET, OUTLET = Boundary.RIGID_WALL, Boundary.INLET, Boundary.OUTLET
 
@@ -147,7 +154,7 @@ def test_one_function_builds_every_modes_boundary_conditions():
 
 
 def test_every_boundary_kind_has_its_function_and_others_are_refused():
-    assert set(fluid_residual.FluidResidual.BOUNDARY_KINDS) == {
+    assert set(fluid_boundary_terms.BoundaryTerms.BOUNDARY_KINDS) == {
         fluid_boundaries.NoSlip,
         fluid_boundaries.Velocity,
         fluid_boundaries.Inflow,

@@ -1,5 +1,5 @@
 """Resistance and three-element Windkessel (RCR) outlets (fsi/physics/outlets.py,
-fsi/physics/fluid_residual.py, LumpedOutlet).
+fsi/physics/fluid_boundary_terms.py, LumpedOutlet).
 
 The models alone against their ODE (exact solution, order of the time scheme); the fluid with a
 resistance outlet in a steady rigid channel (P = P_ref + R Q at the solution, for R up to 10⁹

@@ -9,12 +9,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 MODULE_LINES, CLASS_LINES, FUNCTION_LINES = 600, 300, 60
 
-OVER = {
-    "fsi/physics/fluid_residual.py": "being changed for 3D (issue #48 leaves it alone)",
-    "fsi/physics/fluid_residual.py:FluidResidual": "being changed for 3D",
-    "fsi/physics/fluid.py:FluidSolver": "being changed for 3D",
-    "fsi/physics/fluid.py:FluidSolver.__init__": "being changed for 3D",
-}
+OVER: dict[str, str] = {}
 """Known excesses: ``path`` (a module), ``path:Class``, ``path:Class.method`` or
 ``path:function``."""
 

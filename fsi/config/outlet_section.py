@@ -20,7 +20,7 @@ along the boundary (a tangential regularization: a plug-like reversal keeps the 
 traction), ``tangential_velocity`` (the inlet's default) the tangential velocity only (a normal
 inflow of any profile keeps it), ``full`` the whole velocity (Esmaily Moghadam et al. 2011:
 lowers the pressure of any inflow by β ρ (u·n)²/2). The terms are in
-fsi/physics/fluid_residual.py (``FluidResidual._backflow``)."""
+fsi/physics/fluid_boundary_terms.py (``BoundaryTerms._backflow``)."""
 
 
 @dataclass(frozen=True)
@@ -38,7 +38,7 @@ class TractionFreeOutlet:
 class ResistanceOutlet:
     """σ n = −P n with P = P_ref + R Q: ``resistance`` R (Pa s/m², per unit depth),
     ``reference_pressure`` P_ref (Pa). Q is the step's own (implicit:
-    fsi.physics.fluid_residual.LumpedOutlet; the model: fsi.physics.outlets.Resistance)."""
+    fsi.physics.fluid_boundary_terms.LumpedOutlet; the model: fsi.physics.outlets.Resistance)."""
 
     kind: Literal["resistance"] = field(default="resistance", kw_only=True)
     resistance: float = non_negative(0.0, "Pa s/m^2")

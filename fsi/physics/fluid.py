@@ -33,7 +33,13 @@ from fsi.numerics.timestepping import BdfHistory, bdf_weights
 from fsi.physics import rheology
 from fsi.physics.coordinates import Coordinates
 from fsi.physics.fluid_boundaries import BoundaryCondition, Velocity, as_tags, facets_of
-from fsi.physics.fluid_residual import BodyForce, FluidResidual, LumpedOutlet
+from fsi.physics.fluid_boundary_terms import (
+    BoundaryTerms,
+    LumpedOutlet,
+    outlet_values,
+    restore_outlet_states,
+)
+from fsi.physics.fluid_residual import BodyForce, FluidFields, FluidResidual
 from fsi.physics.mesh_motion import AleMesh
 
 log = logging.getLogger(__name__)
@@ -210,11 +216,54 @@ class FluidSolver:
         self.comm: MPI.Comm = mesh.comm
         self.law = rheology.from_config(fluid.rheology)
         self.boundaries = tuple(boundaries)
-        gdim = mesh.geometry.dim
-        fdim = mesh.topology.dim - 1
-        mesh.topology.create_connectivity(fdim, mesh.topology.dim)
+        mesh.topology.create_connectivity(mesh.topology.dim - 1, mesh.topology.dim)
+        self._create_functions(VELOCITY_DEGREE[fluid.element])
+        self.ale = AleMesh(mesh)
+        self.coordinates = Coordinates(mesh, axisymmetric)
 
-        degree = VELOCITY_DEGREE[fluid.element]
+        self.time = 0.0
+        self.dt_previous: float | None = None
+        self._dt: float | None = None
+        self.accepted_steps = 0
+        self._mesh_velocity_given = False
+
+        # What the forms read: the functions above, the mesh velocity and the constants t (the
+        # time of the step being solved, for g(x, n, t) and f(x, t)), ρ and the time weights.
+        self.fields = FluidFields(
+            self.W,
+            self.V,
+            self.U,
+            self.u_n,
+            self.u_nm1,
+            self.ale.w,
+            self.boundary_velocity,
+            **FluidFields.constants(mesh, fluid.density),
+        )
+        # F = the interior terms + what each boundary condition adds, in this order.
+        interior = FluidResidual(
+            self.fields, facet_tags, fluid, self.law, self.coordinates, scheme, body_force
+        )
+        boundary = BoundaryTerms(
+            self.fields, interior.symbols, facet_tags, fluid, scheme, self.boundaries
+        )
+        self.residual_form: ufl.Form = interior.form
+        for term in boundary.terms:
+            self.residual_form += term
+        self._bcs, self._updates, self.lumped = boundary.bcs, boundary.updates, boundary.lumped
+        self.step_coefficients = interior.step_coefficients  # SUPG's τ, held per solve
+        self.problem = _FluidProblem(self.residual_form, self.U, self._bcs, self.lumped)
+        self.newton = Newton(self.comm, self.problem, self.config.solver, "fluid_")
+        # −R of the last step's solution, kept from before advance() (the residual needs the
+        # step's time history), and whether the step has been accepted since.
+        self._step_reaction: np.ndarray | None = None
+        self._advanced = False
+
+    # ---- set-up
+
+    def _create_functions(self, degree: int) -> None:
+        """The spaces (W = V × Q, Pk/P1), the unknown U, its outputs u and p, the time history
+        u^n, u^{n−1} and the boundary velocity."""
+        mesh, gdim = self.mesh, self.mesh.geometry.dim
         self.W = compat.mixed_space(mesh, [("Lagrange", degree, (gdim,)), ("Lagrange", 1, ())])
         self.V = compat.function_space(mesh, "Lagrange", degree, (gdim,))
         self.Q = compat.function_space(mesh, "Lagrange", 1)
@@ -228,53 +277,6 @@ class FluidSolver:
         # u^n, u^{n−1}: the history writes the arrays of the Functions the residual uses.
         self.velocity_history = BdfHistory(self.u.x.array, self.u_n.x.array, self.u_nm1.x.array)
         self.boundary_velocity = dolfinx.fem.Function(self.V, name="boundary_velocity")
-        self.ale = AleMesh(mesh)
-        self.coordinates = Coordinates(mesh, axisymmetric)
-
-        self.time = 0.0
-        self.dt_previous: float | None = None
-        self._dt: float | None = None
-        self.accepted_steps = 0
-        self._mesh_velocity_given = False
-
-        def constant(value: float) -> dolfinx.fem.Constant:
-            return dolfinx.fem.Constant(mesh, PETSc.ScalarType(value))
-
-        self.t = constant(0.0)  # the time of the step being solved, for g(x, n, t) and f(x, t)
-        self.bdf_weights = [constant(0.0) for _ in range(3)]
-        self.extrapolation_weights = [constant(1.0), constant(0.0)]
-        self.rho = constant(fluid.density)
-
-        self._check_tags()
-        residual = FluidResidual(self, body_force)
-        self.residual_form: ufl.Form = residual.form
-        self._bcs, self._updates, self.lumped = residual.bcs, residual.updates, residual.lumped
-        self.step_coefficients = residual.step_coefficients  # SUPG's τ, held per solve
-        self.problem = _FluidProblem(residual.form, self.U, self._bcs, self.lumped)
-        self.newton = Newton(self.comm, self.problem, self.config.solver, "fluid_")
-        # −R of the last step's solution, kept from before advance() (the residual needs the
-        # step's time history), and whether the step has been accepted since.
-        self._step_reaction: np.ndarray | None = None
-        self._advanced = False
-
-    # ---- set-up
-
-    def _check_tags(self) -> None:
-        present = set(np.unique(self.facet_tags.values).tolist())
-        present = set().union(*self.comm.allgather(present))
-        seen: dict[int, str] = {}
-        for bc in self.boundaries:
-            for tag in bc.tags:
-                if tag in seen:
-                    raise ValueError(
-                        f"boundary tag {tag} has two conditions: {seen[tag]} and"
-                        f" {type(bc).__name__}"
-                    )
-                if tag not in present:
-                    raise ValueError(
-                        f"boundary tag {tag} ({type(bc).__name__}) is not on the fluid mesh"
-                    )
-                seen[tag] = type(bc).__name__
 
     # ---- the coupler's interface
 
@@ -323,11 +325,11 @@ class FluidSolver:
         weights = self.time_weights(dt)
         self._dt = dt
         self._step_reaction, self._advanced = None, False
-        for c, a in zip(self.bdf_weights, weights):
+        for c, a in zip(self.fields.bdf_weights, weights):
             c.value = a
-        for c, e in zip(self.extrapolation_weights, self.extrapolation(dt)):
+        for c, e in zip(self.fields.extrapolation_weights, self.extrapolation(dt)):
             c.value = e
-        self.t.value = t
+        self.fields.t.value = t
         for update in self._updates:
             update(t)
         for outlet in self.lumped:
@@ -359,7 +361,7 @@ class FluidSolver:
         self.velocity_history.advance()  # u is U's velocity after every step/restore
         self.ale.advance()
         self.dt_previous = self._dt
-        self.time = float(self.t.value)
+        self.time = float(self.fields.t.value)
         self.accepted_steps += 1
         self._mesh_velocity_given = False
         self._advanced = True  # the step's reaction, if taken, stays what _reaction returns
@@ -398,7 +400,7 @@ class FluidSolver:
         ``u``, ``p`` and the time history are the state's)."""
         guess = self.U.x.array.copy() if warm_start else None
         s = state
-        self._restore_outlets(s.outlet_state)  # first: it checks the state's size
+        restore_outlet_states(self.lumped, s.outlet_state)  # first: it checks the size
         self.time, self.dt_previous, self.accepted_steps = s.time, s.dt_previous, s.accepted_steps
         self.U.x.array[:] = s.U
         self.velocity_history.restore(s.u_n, s.u_nm1)
@@ -409,28 +411,10 @@ class FluidSolver:
         if guess is not None:  # U is only Newton's initial guess: u^n, u^{n−1} are separate
             self.U.x.array[:] = guess
 
-    def _restore_outlets(self, state: np.ndarray) -> None:
-        sizes = [len(outlet.state) for outlet in self.lumped]
-        if len(state) != sum(sizes):
-            raise ValueError(
-                f"an outlet state of {len(state)} values for lumped outlets of {sum(sizes)}"
-            )
-        start = 0
-        for outlet, size in zip(self.lumped, sizes, strict=True):
-            outlet.state = np.array(state[start : start + size], dtype=float)
-            start += size
-
     def outlet_values(self) -> dict[str, float]:
-        """The lumped outlets' pressures (Pa) for the metrics: ``outlet_pressure`` P, the
-        pressure the outlet imposes at the last step's flow rate, and for a Windkessel
-        ``windkessel_pressure`` P_c after the last accepted step (names suffixed ``_<tag>``
-        when there are several lumped outlets); empty without one."""
-        several = len(self.lumped) > 1
-        return {
-            name + (f"_{outlet.tags[0]}" if several else ""): value
-            for outlet in self.lumped
-            for name, value in outlet.values().items()
-        }
+        """The lumped outlets' pressures (Pa) for the metrics (:func:`~fsi.physics.
+        fluid_boundary_terms.outlet_values`); empty without one."""
+        return outlet_values(self.lumped)
 
     def _sync_outputs(self) -> None:
         _copy_from_mixed(self.u, self.U, self._V_to_W)
