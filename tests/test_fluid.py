@@ -24,7 +24,6 @@ from fsi.physics import (
     fluid,
     fluid_boundaries,
     fluid_boundary_terms,
-    fluid_residual,
     mesh,
     rheology,
 )

@@ -5,8 +5,8 @@ One small frozen class per kind (:class:`NoSlip`, :class:`Velocity`, :class:`Inf
 :class:`PrescribedVelocity`, :class:`PrescribedTraction`), a case's set of them
 (:func:`boundary_conditions`, :func:`walls`), the inlet's pressure P(t)
 (:func:`inlet_pressure`), the Turek–Hron inflow ramp and the parabolic inflow profile on a
-straight inlet. :class:`fsi.physics.fluid_boundary_terms.BoundaryTerms` turns each condition into its
-Dirichlet conditions and boundary terms (docs/model.md, Fluid).
+straight inlet. :class:`fsi.physics.fluid_boundary_terms.BoundaryTerms` turns each condition
+into its Dirichlet conditions and boundary terms (docs/model.md, Fluid).
 """
 
 from __future__ import annotations
