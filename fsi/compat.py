@@ -99,8 +99,8 @@ def petsc_vector(u):
 
 
 # --------------------------------------------------------------------------------------------
-# Mixed spaces, expressions and the geometry dofmap (added for fsi.physics.fluid and
-# fsi.output.metrics)
+# Mixed spaces and their subspaces' dofs (in place of 0.5.2's collapse()), expressions and the
+# geometry dofmap (added for fsi.physics.fluid and fsi.output.metrics)
 
 
 def mixed_space(mesh, parts):
@@ -122,6 +122,27 @@ def mixed_space(mesh, parts):
     cell = mesh.topology.cell_name()
     elements = [basix.ufl.element(f, cell, d, shape=s if s else None) for f, d, s in parts]
     return dolfinx.fem.functionspace(mesh, basix.ufl.mixed_element(elements))
+
+
+def subspace_map(W, i: int, V) -> np.ndarray:
+    """The local dof of ``W`` behind each local (unrolled) dof of ``V``, a standalone space with
+    the element of ``W.sub(i)`` (what ``W.sub(i).collapse()`` gives), from the cell dofmaps.
+
+    A blocked sub-element lists its dofs node by node (x0, y0, x1, y1, ...), as V unrolls its
+    blocks. −1 marks a ghost dof on no local cell (dolfinx 0.5.2's submeshes have such orphan
+    ghosts in parallel, where its ``collapse()`` corrupts the heap, hence this map). Copy owned
+    values and scatter forward.
+    """
+    V_cells = cell_dofs(V)
+    W_cells = cell_dofs(W.sub(i)).reshape(len(V_cells), -1)
+    bs = V.dofmap.index_map_bs
+    unrolled = (V_cells[:, :, None] * bs + np.arange(bs)).reshape(len(V_cells), -1)
+    index_map = V.dofmap.index_map
+    V_to_W = np.full((index_map.size_local + index_map.num_ghosts) * bs, -1, dtype=np.int32)
+    V_to_W[unrolled.ravel()] = W_cells.ravel()
+    if (V_to_W[: index_map.size_local * bs] < 0).any():
+        raise RuntimeError("an owned dof of the subspace lies on no local cell")
+    return V_to_W
 
 
 def eval_expression(expression, mesh, cells: np.ndarray) -> np.ndarray:

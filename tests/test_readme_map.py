@@ -62,3 +62,28 @@ def test_a_missing_module_is_found():
     entries = map_entries((ROOT / "README.md").read_text())
     text = entries["fsi/numerics/"].replace("newton", "")
     assert named_modules(text) != modules(ROOT / "fsi" / "numerics")
+
+
+FIGURE = re.compile(
+    r"\d[\d,]*(?:\.\d+)?"
+    r"(?:×| ?%| triangles| steps| s\b| min\b| ms\b| mm\b| MPa| kPa| Pa\b| m/s| µm)"
+)
+"""A figure in README's prose: a number with a unit, a ratio or a count of cells or steps."""
+
+
+def figures(readme: str) -> list[str]:
+    """The figures README states in its prose (not in code blocks, inline code or the map)."""
+    prose = re.sub(r"```.*?```", "", readme, flags=re.S)
+    prose = re.sub(r"`[^`]*`", "", prose)
+    prose = "\n".join(line for line in prose.splitlines() if not line.startswith("    "))
+    return FIGURE.findall(re.sub(r"\s+", " ", prose))
+
+
+def test_every_figure_in_the_readme_is_in_the_docs():
+    """README states no number that docs/ does not (its figures are read from the docs: a
+    change of a measurement is made in the docs first)."""
+    docs = re.sub(r"\s+", " ", "\n".join(p.read_text() for p in (ROOT / "docs").glob("*.md")))
+    stated = figures((ROOT / "README.md").read_text())
+    assert {"3.6×", "3,204 triangles", "390 steps"} <= set(stated)  # the check reads them
+    assert [f for f in stated if f not in docs] == []
+    assert figures("runs in `12 s`, then 7.5 % of 17 steps\n\n    1.5×") == ["7.5 %", "17 steps"]

@@ -152,27 +152,6 @@ class _FluidProblem(dolfinx.fem.petsc.NonlinearProblem):
 # The solver
 
 
-def _subspace_map(W, i: int, V) -> np.ndarray:
-    """The local dof of ``W`` behind each local (unrolled) dof of ``V``, a standalone space with
-    the element of ``W.sub(i)`` (what ``W.sub(i).collapse()`` gives), from the cell dofmaps.
-
-    A blocked sub-element lists its dofs node by node (x0, y0, x1, y1, ...), as V unrolls its
-    blocks. −1 marks a ghost dof on no local cell (dolfinx 0.5.2's submeshes have such orphan
-    ghosts in parallel, where its ``collapse()`` corrupts the heap, hence this map). Copy owned
-    values and scatter forward.
-    """
-    V_cells = compat.cell_dofs(V)
-    W_cells = compat.cell_dofs(W.sub(i)).reshape(len(V_cells), -1)
-    bs = V.dofmap.index_map_bs
-    unrolled = (V_cells[:, :, None] * bs + np.arange(bs)).reshape(len(V_cells), -1)
-    index_map = V.dofmap.index_map
-    V_to_W = np.full((index_map.size_local + index_map.num_ghosts) * bs, -1, dtype=np.int32)
-    V_to_W[unrolled.ravel()] = W_cells.ravel()
-    if (V_to_W[: index_map.size_local * bs] < 0).any():
-        raise RuntimeError("an owned dof of the subspace lies on no local cell")
-    return V_to_W
-
-
 def _copy_from_mixed(
     target: dolfinx.fem.Function, U: dolfinx.fem.Function, target_to_U: np.ndarray
 ) -> None:
@@ -267,8 +246,8 @@ class FluidSolver:
         self.W = compat.mixed_space(mesh, [("Lagrange", degree, (gdim,)), ("Lagrange", 1, ())])
         self.V = compat.function_space(mesh, "Lagrange", degree, (gdim,))
         self.Q = compat.function_space(mesh, "Lagrange", 1)
-        self._V_to_W = _subspace_map(self.W, 0, self.V)
-        self._Q_to_W = _subspace_map(self.W, 1, self.Q)
+        self._V_to_W = compat.subspace_map(self.W, 0, self.V)
+        self._Q_to_W = compat.subspace_map(self.W, 1, self.Q)
         self.U = dolfinx.fem.Function(self.W, name="fluid")
         self.u = dolfinx.fem.Function(self.V, name="velocity")
         self.p = dolfinx.fem.Function(self.Q, name="pressure")
