@@ -159,24 +159,36 @@ def build_tube(p, size: float) -> None:
     gmsh.option.setNumber("Mesh.MeshSizeMin", 0.0)
 
 
-def build_stenosis(p, size: float, local_size: float, grading: float = GRADING) -> None:
+def build_stenosis(
+    p,
+    size: float,
+    local_size: float,
+    grading: float = GRADING,
+    lumen_size: float | None = None,
+) -> None:
     """Add the 3D stenosed artery to the current gmsh model (OpenCASCADE kernel) with physical
     groups, and its size field: ``local_size`` in the box around the plaque (its axial extent,
     its angular span and ``R − A <= r <= R``), growing by ``grading`` (size per metre) with
-    the distance from it up to ``size``. Meshing is left to the caller."""
+    the distance from it up to ``size``; with ``lumen_size``, also that size in the lumen's core
+    over the plaque's axial extent (``r <= R − A``: the throat), graded likewise, the smaller of
+    the two sizes wherever both apply. Meshing is left to the caller."""
     import gmsh
 
     builder = _Builder(p, gmsh.model.occ)
     builder.add_sections(plaque=True)
     builder.revolve_pieces()
     builder.tag()
-    _plaque_size_field(p, size, local_size, grading)
+    _plaque_size_field(p, size, local_size, grading, lumen_size)
 
 
-def _plaque_size_field(p, size: float, local_size: float, grading: float) -> None:
+def _plaque_size_field(
+    p, size: float, local_size: float, grading: float, lumen_size: float | None
+) -> None:
     """The background size field: a MathEval field of the distance to the plaque's box (its
     axial, radial and angular excess, each ``(a + |a|) / 2``), thresholded from
-    ``local_size`` at 0 to ``size`` at ``(size − local_size) / grading``."""
+    ``local_size`` at 0 to ``size`` at ``(size − local_size) / grading``; with ``lumen_size``
+    the minimum of that and the same threshold of the distance to the throat's cylinder over
+    the plaque's length (axial excess and ``r − (R − A)``'s) from ``lumen_size``."""
     import gmsh
 
     field = gmsh.model.mesh.field
@@ -195,20 +207,34 @@ def _plaque_size_field(p, size: float, local_size: float, grading: float) -> Non
         # ratio defined on the axis and below 1.
         angle = f"Acos(y / ({r} + 1e-15))"
         terms.append(f"{R!r} * " + excess(f"{angle} - {half_angle!r}"))
-    distance = field.add("MathEval")
-    field.setString(distance, "F", "Sqrt(" + " + ".join(f"({t})^2" for t in terms) + ")")
-    threshold = field.add("Threshold")
-    field.setNumber(threshold, "InField", distance)
-    field.setNumber(threshold, "SizeMin", local_size)
-    field.setNumber(threshold, "SizeMax", size)
-    field.setNumber(threshold, "DistMin", 0.0)
-    field.setNumber(threshold, "DistMax", (size - local_size) / grading)
-    field.setAsBackgroundMesh(threshold)
+    background = plaque = _graded(terms, local_size, size, grading)
+    if lumen_size is not None:
+        lumen = _graded([terms[0], excess(f"{r} - {R - A!r}")], lumen_size, size, grading)
+        background = field.add("Min")
+        field.setNumbers(background, "FieldsList", [plaque, lumen])
+    field.setAsBackgroundMesh(background)
     # The field alone sets the sizes: none from the points, none extended from the boundary
     # (which would carry a curve's coarse size into the plaque's box).
     gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
     gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
     gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+
+
+def _graded(terms: list[str], near: float, size: float, grading: float) -> int:
+    """A Threshold field of the distance ``Sqrt(Σ term²)`` (MathEval): ``near`` at 0, growing
+    by ``grading`` (size per metre) up to ``size``. Its tag."""
+    import gmsh
+
+    field = gmsh.model.mesh.field
+    distance = field.add("MathEval")
+    field.setString(distance, "F", "Sqrt(" + " + ".join(f"({t})^2" for t in terms) + ")")
+    threshold = field.add("Threshold")
+    field.setNumber(threshold, "InField", distance)
+    field.setNumber(threshold, "SizeMin", near)
+    field.setNumber(threshold, "SizeMax", size)
+    field.setNumber(threshold, "DistMin", 0.0)
+    field.setNumber(threshold, "DistMax", (size - near) / grading)
+    return threshold
 
 
 class _Builder:

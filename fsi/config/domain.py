@@ -120,6 +120,11 @@ class MeshSettings:
     level: Literal["coarse", "medium", "fine", "finest"] = "coarse"
     size: float = positive(6.0e-4, "m")
     local_size: float = positive(2.2e-4, "m")
+    # A 3D stenosis' lumen core over the plaque's length (the throat, r <= R - A): its size
+    # (m), graded to `size` as the plaque's box is; null: graded from the plaque's box alone.
+    lumen_size: float | None = checked(
+        None, lambda v: v is None or v > 0, "a positive number, or null", "m"
+    )
     max_cells: int = at_least(1_000_000, 1)
 
     @property

@@ -44,6 +44,7 @@ def validate(case: Case) -> None:
         raise ConfigError(
             "", "mesh.local_size", f"at most mesh.size = {case.mesh.size} m", case.mesh.local_size
         )
+    _validate_lumen_size(case)
     _validate_schedule(case)
     _validate_solvers(case)
     _validate_element(case)
@@ -51,6 +52,20 @@ def validate(case: Case) -> None:
     check_petsc_options(case.structure.solver.petsc_options, "structure.solver.petsc_options")
     check_petsc_options(case.mesh_motion.petsc_options, "mesh_motion.petsc_options")
     _validate_inlet(case)  # last: it walks the schedule, now known to be of bounded length
+
+
+def _validate_lumen_size(case: Case) -> None:
+    """``mesh.lumen_size``: at most ``mesh.size``, and only where there is a 3D stenosis' lumen."""
+    lumen = case.mesh.lumen_size
+    if lumen is None:
+        return
+    g = case.geometry
+    if g.kind != "stenosis" or getattr(g, "dimension", 2) != 3:
+        raise ConfigError(
+            "", "mesh.lumen_size", "null except for a 3D stenosis (geometry.dimension: 3)", lumen
+        )
+    if lumen > case.mesh.size:
+        raise ConfigError("", "mesh.lumen_size", f"at most mesh.size = {case.mesh.size} m", lumen)
 
 
 def cannot_run(case: Case) -> str | None:

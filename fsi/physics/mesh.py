@@ -149,7 +149,10 @@ def _build_model(case: Case) -> None:
         scale = 0.5**m.refinements
         if isinstance(g, StenosisGeometry):
             grading = vessel_3d.GRADING * scale
-            vessel_3d.build_stenosis(g, m.size * scale, m.local_size * scale, grading)
+            lumen = None if m.lumen_size is None else m.lumen_size * scale
+            vessel_3d.build_stenosis(
+                g, m.size * scale, m.local_size * scale, grading, lumen_size=lumen
+            )
         else:
             vessel_3d.build_tube(g, size=m.size * scale)
     elif isinstance(g, StenosisGeometry):
