@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -56,7 +57,9 @@ def run(model: str, name: str, out: Path, settings: list[str], ranks: int, reuse
     if ranks > 1:
         command = ["mpirun", "-n", str(ranks), *command]
     print("$", " ".join(command), flush=True)
-    subprocess.run(command, cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+    # Python's copy of the environment: the one this process's MPI_Init (mpi4py, imported with
+    # fsi) has since changed would make the child's mpirun take itself for a singleton's child.
+    subprocess.run(command, cwd=ROOT, check=True, stdout=subprocess.DEVNULL, env=dict(os.environ))
     return folder
 
 
