@@ -4,13 +4,14 @@ axisymmetric").
 The same vessel and plaque in both models: configs/axisymmetric/stenosis_moving_carreau.yaml,
 and configs/3d/stenosis_eccentric_moving_carreau.yaml with ``geometry.plaque_angle: 360`` (the
 axisymmetric plaque revolved) and ``mesh.lumen_size`` (the throat's core refined), both under
-the study's pulse to ``--end``, with a rigid (``structure.mode: rigid``) and a moving wall. Each
+the study's pulse to ``--end``, with a rigid (``structure.mode: rigid``) and a moving wall, the
+axisymmetric model on its ``fine`` mesh (the reference: its coarse mesh is within 0.7 % of it). Each
 run is made by ``fsi run`` into ``--out`` (unless ``--reuse`` finds it finished), on ``--ranks``
 ranks; from each:
 
-- ``peak_velocity`` (m/s), ``peak_pressure`` (Pa) and ``flow_rate`` (m³/s, the inlet's): the
-  largest over the run's steps (metrics.csv); the pressure drop across the vessel is the inlet's
-  prescribed traction in both, so the flow rate it drives is what is compared;
+- ``peak_velocity`` (m/s) and ``flow_rate`` (m³/s, the inlet's): the largest over the run's
+  steps (metrics.csv); the pressure drop across the vessel is the inlet's prescribed traction in
+  both (the outlet's is 0), so the flow rate it drives is what is compared;
 - with the moving wall, ``cap_principal`` (Pa): the cap's largest principal Cauchy stress over the
   run, and ``throat_displacement`` (m): the largest radial displacement of the lumen at the
   plaque's apex (point A: (L/2, R − A) in the meridian plane, (L/2, R − A, 0) in 3D; the
@@ -48,11 +49,10 @@ CONFIGS = {
 TOLERANCE = 0.03
 """The issue's bound on |3D − axisymmetric| / axisymmetric for every quantity."""
 
-FLUID = ("peak_velocity", "peak_pressure", "flow_rate")
+FLUID = ("peak_velocity", "flow_rate")
 STRUCTURE = ("cap_principal", "throat_displacement")
 UNITS = {
     "peak_velocity": ("m/s", 1.0),
-    "peak_pressure": ("Pa", 1.0),
     "flow_rate": ("mm³/s", 1e9),
     "cap_principal": ("kPa", 1e-3),
     "throat_displacement": ("µm", 1e6),
@@ -64,7 +64,7 @@ def settings(model: str, mode: str, end: float, lumen_size: float) -> list[str]:
     common = [f"structure.mode={mode}", f"time.end={end!r}"]
     if model == "3d":
         return ["geometry.plaque_angle=360", f"mesh.lumen_size={lumen_size!r}", *common]
-    return common
+    return ["mesh.level=fine", *common]
 
 
 def run(model: str, mode: str, out: Path, overrides: list[str], ranks: int, reuse: bool) -> Path:
@@ -103,7 +103,6 @@ def values(folder: Path, moving: bool) -> dict[str, float]:
     rows = metrics_csv.read_metrics(folder / "metrics.csv")
     result = {
         "peak_velocity": max(r["peak_velocity"] for r in rows),
-        "peak_pressure": max(r["peak_pressure"] for r in rows),
         "flow_rate": max(r["inlet_flow_rate"] for r in rows),
     }
     if moving:
