@@ -235,7 +235,9 @@ class Newton:
 
     ``criterion``: dolfinx's convergence test, ``residual`` (|F(x_k)|) or ``incremental``
     (|δx_k|), against ``atol`` or ``rtol`` times the first one. ``near_nullspace``: set on the
-    Jacobian (:mod:`fsi.numerics.nullspace`; used by GAMG, ignored by LU).
+    Jacobian (:mod:`fsi.numerics.nullspace`; used by GAMG, ignored by LU). ``fields``: the
+    unknowns' split, name → the owned rows' global indices, given to a ``pc_type: fieldsplit``
+    preconditioner (its options name them: ``fieldsplit_<name>_pc_type``; ignored by others).
     """
 
     def __init__(
@@ -246,10 +248,11 @@ class Newton:
         prefix: str,
         criterion: Literal["residual", "incremental"] = "residual",
         near_nullspace: PETSc.NullSpace | None = None,
+        fields: dict[str, PETSc.IS] | None = None,
     ):
         self.comm, self.prefix, self.problem = comm, prefix, problem
         self.settings, self.criterion = settings, criterion
-        self.near_nullspace = near_nullspace
+        self.near_nullspace, self.fields = near_nullspace, fields or {}
         self.options = dict(settings.petsc_options)
         self.solver = self._new_solver()
         # Residual and Jacobian through one object: Jacobian (and LU) reuse, counters.
@@ -271,6 +274,9 @@ class Newton:
             solver.A.setNearNullSpace(self.near_nullspace)
         with petsc_options(self.prefix, self.options):
             ksp.setFromOptions()
+        pc = ksp.getPC()
+        if self.fields and pc.getType() == PETSc.PC.Type.FIELDSPLIT:
+            pc.setFieldSplitIS(*self.fields.items())
         return solver
 
     def _renew(self) -> dolfinx.nls.petsc.NewtonSolver:

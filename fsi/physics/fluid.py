@@ -152,6 +152,17 @@ class _FluidProblem(dolfinx.fem.petsc.NonlinearProblem):
 # The solver
 
 
+def _owned_rows(W, to_W: np.ndarray) -> PETSc.IS:
+    """The global indices of the owned dofs of ``W`` that ``to_W`` (a subspace's map into W,
+    :func:`fsi.compat.subspace_map`) reaches: the rows of one field of the fluid's matrix, for a
+    fieldsplit preconditioner (docs/3d.md, solver presets)."""
+    index_map = W.dofmap.index_map
+    local = np.unique(to_W[to_W >= 0])
+    local = local[local < index_map.size_local * W.dofmap.index_map_bs]
+    start = index_map.local_range[0] * W.dofmap.index_map_bs
+    return PETSc.IS().createGeneral((local + start).astype(PETSc.IntType), comm=W.mesh.comm)
+
+
 def _copy_from_mixed(
     target: dolfinx.fem.Function, U: dolfinx.fem.Function, target_to_U: np.ndarray
 ) -> None:
@@ -231,7 +242,8 @@ class FluidSolver:
         self._bcs, self._updates, self.lumped = boundary.bcs, boundary.updates, boundary.lumped
         self.step_coefficients = interior.step_coefficients  # SUPG's τ, held per solve
         self.problem = _FluidProblem(self.residual_form, self.U, self._bcs, self.lumped)
-        self.newton = Newton(self.comm, self.problem, self.config.solver, "fluid_")
+        split = {"u": _owned_rows(self.W, self._V_to_W), "p": _owned_rows(self.W, self._Q_to_W)}
+        self.newton = Newton(self.comm, self.problem, self.config.solver, "fluid_", fields=split)
         # −R of the last step's solution, kept from before advance() (the residual needs the
         # step's time history), and whether the step has been accepted since.
         self._step_reaction: np.ndarray | None = None
