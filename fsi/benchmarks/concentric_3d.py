@@ -23,7 +23,8 @@ issue's 3 % (:data:`TOLERANCE`), and as the last line of its standard output one
 Usage::
 
     .venv/bin/python scripts/benchmark_concentric.py --out results/concentric --ranks 2
-        [--end 0.01] [--lumen-size 2.5e-4] [--modes rigid moving_wall] [--reuse]
+        [--end 0.01] [--lumen-size 2.5e-4] [--local-size 2.5e-4] [--modes rigid moving_wall]
+        [--reuse]
 """
 
 from __future__ import annotations
@@ -59,11 +60,17 @@ UNITS = {
 }
 
 
-def settings(model: str, mode: str, end: float, lumen_size: float) -> list[str]:
-    """The ``--set`` overrides of one run."""
+def settings(
+    model: str, mode: str, end: float, lumen_size: float, local_size: float | None = None
+) -> list[str]:
+    """The ``--set`` overrides of one run (``local_size``: the 3D plaque box's, if not the
+    config's)."""
     common = [f"structure.mode={mode}", f"time.end={end!r}"]
     if model == "3d":
-        return ["geometry.plaque_angle=360", f"mesh.lumen_size={lumen_size!r}", *common]
+        sizes = [f"mesh.lumen_size={lumen_size!r}"]
+        if local_size is not None:
+            sizes.append(f"mesh.local_size={local_size!r}")
+        return ["geometry.plaque_angle=360", *sizes, *common]
     return ["mesh.level=fine", *common]
 
 
@@ -144,6 +151,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--ranks", type=int, default=1)
     parser.add_argument("--end", type=float, default=0.01, help="s (default: the pulse's 10 ms)")
     parser.add_argument("--lumen-size", type=float, default=2.5e-4, help="m, the 3D throat's")
+    parser.add_argument("--local-size", type=float, help="m, the 3D plaque box's (the config's)")
     parser.add_argument("--modes", nargs="+", default=["rigid", "moving_wall"])
     parser.add_argument("--reuse", action="store_true", help="keep finished runs in --out")
     args = parser.parse_args(argv)
@@ -155,7 +163,7 @@ def main(argv: list[str] | None = None) -> int:
                     model,
                     mode,
                     args.out,
-                    settings(model, mode, args.end, args.lumen_size),
+                    settings(model, mode, args.end, args.lumen_size, args.local_size),
                     args.ranks,
                     args.reuse,
                 ),
