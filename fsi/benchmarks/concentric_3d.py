@@ -31,9 +31,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +38,7 @@ import numpy as np
 from fsi import config
 from fsi.geometry import stenosis
 from fsi.output import field_files, metrics_csv
+from fsi.run import child_runs
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIGS = {
@@ -75,19 +73,8 @@ def settings(
 
 
 def run(model: str, mode: str, out: Path, overrides: list[str], ranks: int, reuse: bool) -> Path:
-    """The folder of one run, made by ``fsi run`` unless ``reuse`` finds it finished."""
-    folder = out / f"{model}_{mode}"
-    if reuse and (folder / "summary.json").is_file():
-        return folder
-    command = [sys.executable, "-m", "fsi", "run", str(CONFIGS[model]), "--out", str(folder)]
-    command += ["--overwrite", *(a for o in overrides for a in ("--set", o))]
-    if ranks > 1:
-        command = ["mpirun", "-n", str(ranks), *command]
-    print("$", " ".join(command), flush=True)
-    # Python's copy of the environment: the one this process's MPI_Init (mpi4py, imported with
-    # fsi) has since changed would make the child's mpirun take itself for a singleton's child.
-    subprocess.run(command, cwd=ROOT, check=True, stdout=subprocess.DEVNULL, env=dict(os.environ))
-    return folder
+    """The folder of one run (:func:`fsi.run.child_runs.run`)."""
+    return child_runs.run(CONFIGS[model], out / f"{model}_{mode}", overrides, ranks, reuse)
 
 
 def throat_displacement(folder: Path) -> float:

@@ -20,13 +20,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 from fsi import config
 from fsi.output import report_runs
+from fsi.run import child_runs
 from fsi.study.runs import CONFIGS, LABELS, summarise
 from fsi.study.wall_analyses import uniform_pressure_compliance
 from fsi.study.wall_compliance import estimates
@@ -45,22 +43,8 @@ def config_file(model: str, name: str) -> Path:
 
 
 def run(model: str, name: str, out: Path, settings: list[str], ranks: int, reuse: bool) -> Path:
-    """The run folder of one case in one model, made by ``fsi run`` unless ``reuse`` finds it
-    finished (its summary.json, which ``fsi run`` writes at the end)."""
-    folder = out / f"{model}_{name}"
-    if reuse and (folder / "summary.json").is_file():
-        return folder
-    command = [sys.executable, "-m", "fsi", "run", str(config_file(model, name))]
-    command += ["--out", str(folder), "--overwrite"]
-    for setting in settings:
-        command += ["--set", setting]
-    if ranks > 1:
-        command = ["mpirun", "-n", str(ranks), *command]
-    print("$", " ".join(command), flush=True)
-    # Python's copy of the environment: the one this process's MPI_Init (mpi4py, imported with
-    # fsi) has since changed would make the child's mpirun take itself for a singleton's child.
-    subprocess.run(command, cwd=ROOT, check=True, stdout=subprocess.DEVNULL, env=dict(os.environ))
-    return folder
+    """The run folder of one case in one model (:func:`fsi.run.child_runs.run`)."""
+    return child_runs.run(config_file(model, name), out / f"{model}_{name}", settings, ranks, reuse)
 
 
 def row(folder: Path) -> dict:

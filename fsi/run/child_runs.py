@@ -1,0 +1,46 @@
+"""``fsi run`` in a child process, as the studies and benchmarks that compare whole runs make them
+(fsi/study/axisymmetric.py, fsi/benchmarks/concentric_3d.py, fsi/performance/accuracy.py): the
+command, on one rank or under ``mpirun``, in an environment its ``mpirun`` accepts, and a finished
+run kept when asked to reuse it."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def command(config: Path, out: Path, overrides: Sequence[str], ranks: int = 1) -> list[str]:
+    """``fsi run CONFIG --out OUT --overwrite --set ...`` with this Python, under ``mpirun -n
+    RANKS`` when ``ranks`` > 1."""
+    line = [sys.executable, "-m", "fsi", "run", str(config), "--out", str(out), "--overwrite"]
+    line += [a for o in overrides for a in ("--set", o)]
+    return ["mpirun", "-n", str(ranks), *line] if ranks > 1 else line
+
+
+def environment() -> dict[str, str]:
+    """Python's copy of the environment (the one this process's MPI_Init, run when mpi4py is
+    imported with fsi, has since changed would make a child's ``mpirun`` take itself for a
+    singleton's child), with Open MPI's permission to run as root when this is root."""
+    env = dict(os.environ)
+    if os.geteuid() == 0:
+        env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    return env
+
+
+def run(
+    config: Path, out: Path, overrides: Sequence[str], ranks: int = 1, reuse: bool = False
+) -> Path:
+    """The run folder ``out`` of ``config`` with ``overrides``, made by ``fsi run`` (its standard
+    output discarded, its messages on standard error) unless ``reuse`` finds it finished (its
+    summary.json, which ``fsi run`` writes at the end). Raises CalledProcessError if it fails."""
+    if reuse and (out / "summary.json").is_file():
+        return out
+    line = command(config, out, overrides, ranks)
+    print("$", " ".join(line), flush=True)
+    subprocess.run(line, cwd=ROOT, check=True, stdout=subprocess.DEVNULL, env=environment())
+    return out
