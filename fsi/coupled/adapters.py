@@ -84,6 +84,8 @@ class _Adapter:
 class FluidInterface(_Adapter):
     """The fluid with its mesh motion: interface displacement (m) → the fluid's nodal forces on
     the structure (N/m), both solid interface vectors (:meth:`move_mesh`, step, :meth:`forces`).
+    Every solve moves the mesh to its input (``coupling.geometry: implicit``; ``explicit``:
+    :class:`ExplicitGeometryInterface`).
 
     Args:
         fluid_solver: the fluid, on the moving mesh.
@@ -93,20 +95,6 @@ class FluidInterface(_Adapter):
         warm_start: start each solve from the last iterate.
         forcing: the Newton forcing of a step's later solves, never looser than where its first
             stopped (:class:`fsi.numerics.newton.Forcing`; 0: every solve to the fluid's tolerance).
-        geometry: ``implicit``: every solve moves the mesh to its input (:meth:`move_mesh`);
-            ``explicit``: a step's first solve does, its later ones keep that mesh
-            (:meth:`hold_mesh`), and the accepted step moves it to the last input.
-
-    Geometry ``explicit`` (the geometry-convective explicit scheme of Badia, Quaini & Quarteroni
-    2008 and Crosetto et al. 2011): the fluid domain of a step is the extension of its first
-    input, the predictor's extrapolation, and stays so through the step's coupling iterations:
-    the fluid's matrix is the same in all of them, and with a linear (``extrapolated``) fluid and
-    ``jacobian_reuse: step`` it is factorised once per step. The wall's velocity still follows
-    each iterate x_k, u_Γ = a0 x_k + a1 d^n + a2 d^{n−1} (the BDF derivative of the interface
-    displacement, as with ``implicit``): the pressure stays implicitly coupled to the wall. It
-    differs from the mesh's own velocity w on Γ by a0 (x_k − x_0), so (u − w)·n ≠ 0 there by the
-    predictor's error. Once the step is accepted the mesh moves to the extension of the last
-    input, so the displacement history d^n, d^{n−1} is the same as with ``implicit``.
 
     Raises (collectively) :class:`fsi.physics.mesh_motion.MeshQualityError` when the extension
     would collapse a cell, and :class:`fsi.numerics.newton.SolveFailed` when the fluid step fails.
@@ -121,24 +109,14 @@ class FluidInterface(_Adapter):
         interface: tuple[Boundary, ...] = (Boundary.INTERFACE,),
         warm_start: bool = True,
         forcing: float = 0.0,
-        geometry: str = "implicit",
     ):
-        if geometry not in ("implicit", "explicit"):
-            raise ValueError(f"geometry must be 'implicit' or 'explicit', got {geometry!r}")
         super().__init__(fluid_solver, warm_start)
         self.motion, self.to_fluid, self.to_solid = motion, to_fluid, to_solid
         self.interface = tuple(int(b) for b in interface)
-        self.forcing, self.geometry = forcing, geometry
+        self.forcing = forcing
         self.first_residual = math.nan  # |F| where the step's first solve stopped
         self.eta = dolfinx.fem.Function(fluid_solver.V, name="interface_displacement")
         self.mesh_quality = 1.0  # min J/J_ref of the last mesh motion
-        # Explicit geometry: the interface data g of the step's first solve (P1, the motion's
-        # layout; its extension stays in motion.d until the step is accepted) and the wall
-        # velocity set from it.
-        self._held_g = np.zeros_like(motion.g.x.array)
-        self._wall_velocity = dolfinx.fem.Function(fluid_solver.ale.space)
-        if len(self._held_g) != len(self._wall_velocity.x.array):
-            raise RuntimeError("the mesh motion's and the fluid mesh's P1 spaces differ")
 
     def _set_interface(self, x: np.ndarray) -> None:
         """η_Γ ← x (on the fluid's P2 interface nodes), and its vertex values as the mesh
@@ -170,6 +148,56 @@ class FluidInterface(_Adapter):
         self._set_interface(x)
         self._extend()
         fluid.set_boundary_velocity(fluid.mesh_velocity(self.dt))
+
+    def forces(self) -> np.ndarray:
+        """The fluid's nodal forces on the structure as a solid interface vector (n, gdim), N/m."""
+        values = self.solver.nodal_forces(self.interface)
+        return self.to_solid.transfer(values[self.to_solid.src_dofs])
+
+    def _solve(self, interface_input: np.ndarray) -> SolveResult:
+        self._place_mesh(interface_input)
+        forcing = None
+        if self.forcing and self.solves > 1:
+            forcing = Forcing(self.forcing, ceiling=self.first_residual)
+        result = self.solver.step(self.t, self.dt, forcing=forcing)
+        if self.solves == 1:
+            self.first_residual = result.residual
+        return result
+
+    def _output(self) -> np.ndarray:
+        return self.forces()
+
+    def _place_mesh(self, interface_input: np.ndarray) -> None:
+        """The mesh of a solve: moved to its input (:meth:`move_mesh`)."""
+        self.move_mesh(interface_input)
+
+
+class ExplicitGeometryInterface(FluidInterface):
+    """:class:`FluidInterface` with ``coupling.geometry: explicit`` (the geometry-convective
+    explicit scheme of Badia, Quaini & Quarteroni 2008 and Crosetto et al. 2011): a step's first
+    solve moves the mesh to its input, the predictor's extrapolation, and its later ones keep
+    that mesh (:meth:`hold_mesh`), so the fluid's matrix is the same in all of them, and with a
+    linear (``extrapolated``) fluid and ``jacobian_reuse: step`` it is factorised once per step.
+    The wall's velocity still follows each iterate x_k, u_Γ = a0 x_k + a1 d^n + a2 d^{n−1} (the
+    BDF derivative of the interface displacement, as with ``implicit``): the pressure stays
+    implicitly coupled to the wall. It differs from the mesh's own velocity w on Γ by
+    a0 (x_k − x_0), so (u − w)·n ≠ 0 there by the predictor's error. Once the step is accepted
+    the mesh moves to the extension of the last input (:meth:`advance`), so the displacement
+    history d^n, d^{n−1} is the same as with ``implicit``."""
+
+    def __init__(self, fluid_solver: FluidSolver, motion: MeshMotion, *args, **kwargs):
+        super().__init__(fluid_solver, motion, *args, **kwargs)
+        # The interface data g of the step's first solve (P1, the motion's layout; its
+        # extension stays in motion.d until the step is accepted) and the wall velocity set
+        # from it.
+        self._held_g = np.zeros_like(motion.g.x.array)
+        self._wall_velocity = dolfinx.fem.Function(fluid_solver.ale.space)
+        if len(self._held_g) != len(self._wall_velocity.x.array):
+            raise RuntimeError("the mesh motion's and the fluid mesh's P1 spaces differ")
+
+    def move_mesh(self, x: np.ndarray) -> None:
+        """:meth:`FluidInterface.move_mesh`, keeping the interface data g it moved to."""
+        super().move_mesh(x)
         self._held_g[:] = self.motion.g.x.array
 
     def hold_mesh(self, x: np.ndarray) -> None:
@@ -186,32 +214,18 @@ class FluidInterface(_Adapter):
         self._wall_velocity.x.array[:] = w.x.array + a0 * (self.motion.g.x.array - self._held_g)
         fluid.set_boundary_velocity(self._wall_velocity)
 
-    def forces(self) -> np.ndarray:
-        """The fluid's nodal forces on the structure as a solid interface vector (n, gdim), N/m."""
-        values = self.solver.nodal_forces(self.interface)
-        return self.to_solid.transfer(values[self.to_solid.src_dofs])
-
-    def _solve(self, interface_input: np.ndarray) -> SolveResult:
-        if self.geometry == "explicit" and self.solves > 1:
+    def _place_mesh(self, interface_input: np.ndarray) -> None:
+        """The step's first solve moves the mesh, its later ones hold it."""
+        if self.solves > 1:
             self.hold_mesh(interface_input)
         else:
             self.move_mesh(interface_input)
-        forcing = None
-        if self.forcing and self.solves > 1:
-            forcing = Forcing(self.forcing, ceiling=self.first_residual)
-        result = self.solver.step(self.t, self.dt, forcing=forcing)
-        if self.solves == 1:
-            self.first_residual = result.residual
-        return result
-
-    def _output(self) -> np.ndarray:
-        return self.forces()
 
     def advance(self) -> None:
-        """Accept the last solve; with explicit geometry the mesh first moves to the extension of
-        the last input (whose vertex values :meth:`hold_mesh` left in g), where ``implicit``
-        left it (the next step's d^n)."""
-        if self.geometry == "explicit" and self.solves > 1:
+        """Accept the last solve; after a held mesh it first moves to the extension of the last
+        input (whose vertex values :meth:`hold_mesh` left in g), where ``implicit`` left it (the
+        next step's d^n)."""
+        if self.solves > 1:
             self._extend()
         super().advance()
 

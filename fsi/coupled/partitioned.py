@@ -15,7 +15,7 @@ import numpy as np
 
 from fsi import config
 from fsi.coupled import coupling
-from fsi.coupled.adapters import FluidInterface, SolidInterface
+from fsi.coupled.adapters import ExplicitGeometryInterface, FluidInterface, SolidInterface
 from fsi.coupled.interface import InterfaceMap
 from fsi.geometry.tags import Boundary, Region
 from fsi.physics import fluid, fluid_boundaries, fluid_case, mesh, solid, solid_boundaries
@@ -100,13 +100,10 @@ def build_coupled(
         and np.array_equal(to_solid.dst_dofs, solid_solver.interface_dofs)
     ):
         raise RuntimeError("the solid's interface vector and the interface maps disagree")
-    fluid_side = FluidInterface(
-        fluid_solver,
-        motion,
-        to_fluid,
-        to_solid,
-        forcing=case.coupling.fluid_forcing,
-        geometry=case.coupling.geometry,
+    explicit = case.coupling.geometry == "explicit"
+    interface = ExplicitGeometryInterface if explicit else FluidInterface
+    fluid_side = interface(
+        fluid_solver, motion, to_fluid, to_solid, forcing=case.coupling.fluid_forcing
     )
     solid_side = SolidInterface(solid_solver)
     predictor = coupling.predictor_from_config(case.coupling)
