@@ -25,7 +25,7 @@ class Coupling:
     ``geometry``: ``implicit`` moves the fluid mesh in every coupling iteration; ``explicit``
     only in a step's first, to the predicted interface displacement, and keeps that mesh (and
     its velocity) through the step's later iterations, where only the wall's velocity follows
-    the iterate (fsi/coupled/adapters.py, :class:`FluidInterface`).
+    the iterate (fsi/coupled/adapters.py, :class:`ExplicitGeometryInterface`).
     """
 
     acceleration: Literal["constant", "aitken", "iqn-ils"] = "aitken"
