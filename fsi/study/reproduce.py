@@ -192,6 +192,18 @@ ANALYSES = {
         )
         for case in ("stenosis_fixed_newtonian", "stenosis_moving_newtonian")
     ],
+    # 7. The one most-plausible reading (docs/study.md, PLAUSIBLE in fsi/study/plausible.py):
+    #    plane stress, everything else as shipped, all four configurations.
+    "plausible": [
+        StudyRun(
+            case,
+            level,
+            sets=_plane_stress(),
+            label=f"plausible/{case.removeprefix('stenosis_')}_{level}",
+        )
+        for level in ("coarse", "fine")
+        for case in CASES
+    ],
     # 2. The moving wall's damping: which relaxation time makes the wall quasi-static by 10 ms.
     "damping": [
         StudyRun(
@@ -236,7 +248,7 @@ ANALYSES = {
             ),
             label=f"inlet/{case.removeprefix('stenosis_')}_normal_flow",
         )
-        for case in ("stenosis_fixed_newtonian", "stenosis_moving_newtonian")
+        for case in CASES
     ],
     # 3. The time scheme and the study's 5 ms steps after the resolved pulse.
     "steps": [
