@@ -157,27 +157,39 @@ def test_what_p10_does_not_depend_on_states_the_largest_change_and_how_pressure_
     assert study_analyses.pressure_at_10ms({}, main, paper) == ""
 
 
-def test_the_element_section_sets_both_elements_beside_the_study_on_both_meshes():
-    """The ``element`` analysis's table (the study's rows from its Tables 1 and 2, then fsi's
-    P2–P1 and P1–P1 on each mesh) and the changes its text states: P1–P1 against P2–P1 and
-    against the study's value, each from the synthetic runs; nothing without all four runs."""
+def test_the_element_section_locates_each_peak_and_concludes_from_the_plaque_s_own():
+    """The ``element`` analysis: the study's rows from its Tables 1 and 2, fsi's P2–P1 and
+    P1–P1 on each mesh with where each peak pressure sits (a P1–P1 coarse peak at the
+    outlet's corner is marked †, as issue #47 found), the plaque's own maxima, and a
+    conclusion that follows them; nothing without all four runs."""
     paper = study_runs.paper_values()
     times = (0.01, 0.02, 0.05, 0.1)
 
-    def run(p: float, u: float = 0.27) -> dict:  # p(t) = p / (100 t)
-        return summary({t: {"peak_pressure": p / (100 * t), "peak_velocity": u} for t in times})
+    def run(p: float, plaque: float | None = None, corner: bool = False) -> dict:
+        s = summary({t: {"peak_pressure": p / (100 * t), "peak_velocity": 0.27} for t in times})
+        flank = {"value": plaque or p, "x": 0.00582, "y": 0.00023, "place": None}
+        peak = {"value": p, "x": 0.02, "y": 0.007, "place": "outlet_corner"} if corner else flank
+        s["where"] = {"0.01": {"peak_pressure": peak, "plaque_pressure": flank}}
+        s["name"] = "x"
+        return s
 
-    element = {"element/p2p1_coarse": run(4.0), "element/p1p1_coarse": run(6.0, 0.28),
-               "element/p2p1_fine": run(4.0), "element/p1p1_fine": run(4.4)}  # fmt: skip
+    element = {"element/p2p1_coarse": run(4.0), "element/p1p1_coarse": run(6.0, 4.2, True),
+               "element/p2p1_fine": run(4.0), "element/p1p1_fine": run(4.1)}  # fmt: skip
     main = {"fixed_newtonian_coarse": run(4.1)}
     text = study_analyses.pressure_and_element(element, main, paper)
-    assert "| study, coarse | 6.181 | 4.912 | 2.871 | 1.665 | 0.234 |" in text
-    assert "| fsi P1–P1, coarse | 6 | 3 | 1.2 | 0.6 | 0.28 |" in text
-    assert "p(10 ms) = 4 Pa against the deforming one's 4.1" in text
-    assert f"from 4 to 6 Pa ({100 * (6 / 6.181 - 1):+.1f} % from the study's coarse" in text
-    assert "it gives 4.4 Pa, +10.0 % from P2–P1's" in text
-    later = (f"{100 * (v / s - 1):+.0f} %" for v, s in ((3, 4.912), (1.2, 2.871), (0.6, 1.665)))
-    assert f"P1–P1 on the coarse mesh is {', '.join(later)} off the study" in text
-    assert f"P1–P1 is {100 * (4.4 / 6.579 - 1):+.0f} % from the study's fine value" in text
+    assert "| study, coarse | 6.181 | 4.912 | 2.871 | 1.665 | not printed | 0.234 |" in text
+    assert "| fsi P1–P1, coarse | 6 † | 3 | 1.2 | 0.6 | (20.00, 7.00) † the outlet's corner" in text
+    assert (
+        "| fsi P1–P1, coarse | 4.2 | – | – | – | (5.82, 0.23), the plaque's upstream flank |"
+        in text
+    )
+    assert "sits at a boundary in: P1–P1 coarse (the outlet's corner with a wall)" in text
+    assert "P1–P1 gives 4.2 Pa on the coarse mesh against P2–P1's 4 (+5.0 %)" in text
+    assert "So the element does not explain fsi's lower pressure at 10 ms" in text
+    assert "doc.comsol.com" in text  # the source of the study's code's default element
+    element["element/p1p1_coarse"] = run(6.0)  # the element moves the plaque's own pressure
+    assert "So the element moves the plaque's pressure" in study_analyses.pressure_and_element(
+        element, main, paper
+    )
     del element["element/p1p1_fine"]
     assert study_analyses.pressure_and_element(element, main, paper) == ""

@@ -60,6 +60,11 @@ def boundary_place(
     return None
 
 
+def mm(value: float) -> str:
+    """A position in mm to 0.01 mm (no "-0.00")."""
+    return f"{1e3 * value + 0.0:.2f}".replace("-0.00", "0.00")
+
+
 def describe(place: str | None) -> str:
     return "" if place is None else PLACES[place]
 

@@ -249,13 +249,22 @@ def paper_values(path: Path = PAPER) -> dict[tuple[str, float, str, str, str], f
 
 
 def comparison_rows(summaries: dict[str, dict], paper: dict) -> list[dict]:
-    """One row per printed value: its key, the paper's value and ours (None: no run)."""
+    """One row per printed value: its key, the paper's value, ours (None: no run) and where
+    ours sits (``where``: {value, x, y, place}, None without the run's places)."""
     rows = []
     for (quantity, t, wall, fluid, mesh), printed in paper.items():
-        ours = at(summaries.get(f"{wall}_{fluid}_{mesh}"), t, PAPER_QUANTITY[quantity])
+        summary = summaries.get(f"{wall}_{fluid}_{mesh}")
+        column = PAPER_QUANTITY[quantity]
         rows.append(
             dict(
-                quantity=quantity, t_s=t, wall=wall, fluid=fluid, mesh=mesh, paper=printed, fsi=ours
+                quantity=quantity,
+                t_s=t,
+                wall=wall,
+                fluid=fluid,
+                mesh=mesh,
+                paper=printed,
+                fsi=at(summary, t, column),
+                where=where(summary, t, column),
             )
         )
     return rows

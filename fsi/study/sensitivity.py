@@ -9,6 +9,10 @@ from __future__ import annotations
 import math
 
 from fsi.study.runs import (
+    CONFIGS,
+    LABELS,
+    QUANTITIES,
+    TIMES,
     at,
     finished,
     fmt,
@@ -136,4 +140,56 @@ def convergence(runs: Summaries, main: Summaries) -> str:
             "",
             "\n".join(lines),
         ]
+    )
+
+
+def mesh_changes(main: Summaries) -> str:
+    """The largest coarse → fine change of each peak over the report times, relative to the
+    coarse value (the peak pressure of the fixed wall only: the moving wall's is a sample of
+    its ring)."""
+    parts = []
+    for column, title, _, _ in QUANTITIES:
+        walls = ("fixed",) if column == "peak_pressure" else ("fixed", "moving")
+        found = []
+        for c in (c for c in CONFIGS if c.split("_")[0] in walls):
+            for t in TIMES:
+                a, b = at(main.get(f"{c}_coarse"), t, column), at(main.get(f"{c}_fine"), t, column)
+                if a and b is not None:
+                    found.append((abs(b / a - 1), b / a - 1, c, t))
+        if found:
+            _, change, c, t = max(found)
+            which = "the fixed wall's " if walls == ("fixed",) else ""
+            parts.append(
+                f"{which}{title.split(': ')[1]} {100 * change:+.1f} % ({LABELS[c]}, {t:g} s)"
+            )
+    return "The largest changes: " + "; ".join(parts) + "." if parts else ""
+
+
+def pressure_convergence(runs: Summaries, main: Summaries) -> str:
+    """fsi's own fixed-wall Newtonian p(10 ms) and p(20 ms) on the four meshes and with every
+    step halved (the convergence analysis's runs beside the study's), beside the study's."""
+    levels = {
+        "coarse": main.get("fixed_newtonian_coarse"),
+        "medium": runs.get("convergence/fixed_newtonian_medium"),
+        "fine": main.get("fixed_newtonian_fine"),
+        "finest": runs.get("convergence/fixed_newtonian_finest"),
+        "fine, dt halved": runs.get("convergence/fixed_newtonian_fine_dt_halved"),
+    }
+    rows = {t: [at(s, t, "peak_pressure") for s in levels.values()] for t in (0.01, 0.02)}
+    if any(v is None for v in rows[0.01]):
+        return ""
+    lines = [
+        "| fixed wall, Newtonian | " + " | ".join(levels) + " |",
+        "|---" * (1 + len(levels)) + "|",
+    ]
+    lines += [
+        f"| p({1e3 * t:g} ms) (Pa) | " + " | ".join(map(fmt, v)) + " |" for t, v in rows.items()
+    ]
+    p10 = rows[0.01]
+    spread = max(p10) / min(p10) - 1
+    return (
+        "fsi's own peak pressure after the pulse on the four meshes and with every step halved "
+        "(`--analysis convergence`, to 20 ms):\n\n"
+        + "\n".join(lines)
+        + f"\n\np(10 ms) varies by {100 * spread:.2f} % over the meshes and the step."
     )
