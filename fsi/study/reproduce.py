@@ -27,7 +27,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from fsi.study.analyses import P10_VARIANTS, effective_length
+from fsi.study.analyses import effective_length
+from fsi.study.pressure_analyses import P10_VARIANTS
 from fsi.study.runs import PULSE_AMPLITUDE
 
 ROOT = Path(__file__).resolve().parents[2]
