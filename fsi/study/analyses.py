@@ -304,7 +304,9 @@ def _degree_bullet(
         f"{study_decay:.2g}-fold; p(10 ms) stays at {min(p10):.3g}–{max(p10):.3g} Pa, "
         f"{inside(study_p10, p10)} it the study's {study_p10:.3g} Pa. "
         + (
-            "So the decay is within what the unstated geometry moves, but the "
+            "So the decay is within what the unstated geometry moves (a range argument: no "
+            "run here with one stated reading gives the study's decay, so that this is its "
+            "cause is not shown), but the "
             f"{100 * (1 - max(p10) / study_p10):.0f}–{100 * (1 - min(p10) / study_p10):.0f} % "
             "lower pressure at 10 ms is not: neither the inlet nor the degree explains it, and "
             "we have not isolated its cause (what is measured about it follows). "
@@ -347,8 +349,8 @@ def late_velocity(inlet: Summaries, main: Summaries, paper: dict) -> str:
         + "; ".join(rows)
         + ". The study's total-stress inlet, as fsi applies it, lets the velocity at the inlet "
         "turn and the flow slow faster after the pulse than an inlet that holds it normal. "
-        f"Holding it normal multiplies the peak pressure at 0.8 s by {min(held):.2g}–"
-        f"{max(held):.2g} ({100 * min(normal_off):.0f}–{100 * max(normal_off):.0f} % from the "
+        f"Holding it normal multiplies the peak pressure at 0.8 s by {min(held):.3g}–"
+        f"{max(held):.3g} ({100 * min(normal_off):.0f}–{100 * max(normal_off):.0f} % from the "
         f"study's), where the stress inlet has it {100 * min(stress_off):.0f}–"
         f"{100 * max(stress_off):.0f} % from the study's. "
         + _both_late(pressure, rows_u)
@@ -439,6 +441,12 @@ def explanations(
             "#### Why the fixed wall's displacement differs (item 1: compliance)\n\n"
             + compliance(shape, others, main, paper, static, extra.get("plane_stress")),
             "#### Why the moving wall's displacement differs (item 2: a ringing wall)\n\n"
-            + damping(extra.get("damping", {}), main, paper, static, extra.get("plane_stress")),
+            + damping(
+                extra.get("damping", {}),
+                main,
+                paper,
+                static,
+                {**extra.get("plane_stress", {}), **extra.get("plausible", {})},
+            ),
         ],
     }

@@ -257,7 +257,7 @@ def same_answers(summaries: dict, extra: dict) -> str:
     return (
         f" (the commits differ in the scripts, the documents and fsi options these runs leave "
         f"at their defaults: the coarse fixed-wall Newtonian case run at {a['git'][:7]} on "
-        f"{a['ranks']} ranks and at {b['git'][:7]} on {b['ranks']} has "
+        f"{a['ranks']} rank(s) and at {b['git'][:7]} on {b['ranks']} has "
         + (
             "the same peaks at 10–100 ms to the last digit)"
             if worst == 0
@@ -483,13 +483,7 @@ def _figures(runs: dict, summaries: dict, figures: Path) -> list[str]:
     fig6 = figure_sss(runs, figures / "study_figure6_sss.png")
     parts.append(
         "## Figure 6: the maximum structural shear stress over time\n\n"
-        f"![Figure 6](figures/{fig6.name})\n\nThe plaque's (cap and lipid pool's) largest "
-        "|σ₁₂|, as the study plots it: left the pulse and the wall's first response on a "
-        "linear time axis, right the whole beat on a log one; log stress, the fixed-wall "
-        "curves (blue) being ~50× below the moving-wall ones (red). Newtonian wide and light, "
-        "Carreau narrow and dark on top, coarse solid, fine dashed: the two rheologies lie on "
-        "each other, so the lower row gives their ratio. The whole structure's maximum (the "
-        "moving wall's clamped corner, singular) is left out: see the findings.\n"
+        f"![Figure 6](figures/{fig6.name})\n\n" + figure6_caption(summaries) + "\n"
     )
     fields = field_figures(runs, summaries, figures)
     if fields:
@@ -497,6 +491,58 @@ def _figures(runs: dict, summaries: dict, figures: Path) -> list[str]:
         for caption, path in fields:
             parts.append(f"{caption}\n\n![{path.stem}](figures/{path.name})\n")
     return parts
+
+
+def figure6_caption(summaries: dict) -> str:
+    """Figure 6's caption, its numbers read from the summaries: how far the fixed-wall curves lie
+    below the moving-wall ones, how close the rheologies are, and where the whole structure's
+    maximum sits."""
+    from fsi.study.runs import peak
+
+    def largest(name, what="plaque_sss"):
+        found = peak(summaries.get(name), what)
+        return None if found is None else found[0]
+
+    below = [
+        largest(f"moving_newtonian_{m}") / largest(f"fixed_newtonian_{m}")
+        for m in ("coarse", "fine")
+        if largest(f"moving_newtonian_{m}") and largest(f"fixed_newtonian_{m}")
+    ]
+    rheology = [
+        abs(largest(f"{w}_carreau_{m}") / largest(f"{w}_newtonian_{m}") - 1)
+        for w in ("fixed", "moving")
+        for m in ("coarse", "fine")
+        if largest(f"{w}_carreau_{m}") and largest(f"{w}_newtonian_{m}")
+    ]
+    corner = []
+    for m in ("coarse", "fine"):
+        s = summaries.get(f"moving_newtonian_{m}") or {}
+        cell = s.get("largest_sss_at")
+        if cell is not None and largest(f"moving_newtonian_{m}", "max_sss"):
+            corner.append(
+                f"{m}: {largest(f'moving_newtonian_{m}', 'max_sss'):.4g} Pa at x = "
+                f"{locations.mm(cell['x'])} mm, y = {locations.mm(cell['y'])} mm, "
+                + (locations.describe(cell.get("place")) or "not at a clamped corner")
+            )
+    return (
+        "The largest |σ₁₂| of the plaque (cap and lipid pool; coloured) and, for the moving "
+        "wall, of the whole structure (wall and plaque, the study's Figure 6 quantity; black, "
+        "Newtonian): left the pulse and the wall's first response on a linear time axis, right "
+        "the whole beat on a log one; log stress. The moving wall's plaque maximum is "
+        + (f"{min(below):.3g}–{max(below):.3g}×" if below else "–")
+        + " the fixed wall's (Newtonian, coarse–fine). Newtonian wide and light, Carreau "
+        "narrow and dark on top, coarse solid, fine dashed: the rheologies' plaque maxima differ "
+        + (f"by at most {100 * max(rheology):.2g} %" if rheology else "by –")
+        + ", so the lower row gives their ratio. The whole structure's maximum ("
+        + ("; ".join(corner) or "not located")
+        + (
+            ") sits where the clamped end meets the loaded lumen: the elastic stress is "
+            "singular there and grows with the mesh (the findings), so the plaque's curves are "
+            "the ones to compare."
+            if corner and all("clamped end's corner" in c for c in corner)
+            else "): see the findings."
+        )
+    )
 
 
 def _findings(summaries: dict, paper: dict, extra: dict) -> list[str]:

@@ -69,7 +69,7 @@ def figure_sss(runs: dict, path: Path) -> Path:
         else:
             top.set_xlim(0, 1e3 * end)
             top.set_title(f"the pulse and the wall's first response (0–{1e3 * end:g} ms)")
-    axes[0, 0].set_ylabel("plaque's max |σ₁₂| (Pa)")
+    axes[0, 0].set_ylabel("max |σ₁₂| (Pa)")
     axes[1, 0].set_ylabel("Carreau / Newtonian")
     axes[0, 1].legend(fontsize=7, ncol=2)
     axes[1, 1].legend(fontsize=7)
@@ -80,6 +80,12 @@ def figure_sss(runs: dict, path: Path) -> Path:
 def _plaque_series(run, end=None):
     """(t, the plaque's max |σ₁₂|), t in ms up to ``end`` (s), else in s."""
     pts = [(r["t"], plaque_max(r)) for r in run.rows if plaque_max(r)]
+    return [(t if end is None else 1e3 * t, v) for t, v in pts if end is None or t <= end]
+
+
+def _whole_series(run, end=None):
+    """(t, the whole structure's max |σ₁₂|), as :func:`_plaque_series`."""
+    pts = [(r["t"], r["max_sss"]) for r in run.rows if r.get("max_sss")]
     return [(t if end is None else 1e3 * t, v) for t, v in pts if end is None or t <= end]
 
 
@@ -103,6 +109,10 @@ def _sss_curves(top, runs: dict, end: float | None, colours: dict, styles: dict)
                 alpha=0.35 if wide else 1.0,
                 label=f"{LABELS[c]}, {level}",
             )
+            whole = _whole_series(run, end)
+            if whole and wall == "moving" and fluid == "newtonian":
+                top.plot(*zip(*whole), style, color="k", lw=0.8,
+                         label=f"whole structure, {LABELS[c]}, {level}")  # fmt: skip
 
 
 def _sss_ratios(bottom, runs: dict, end: float | None, colours: dict, styles: dict) -> None:
@@ -216,6 +226,16 @@ def field_figures(runs: dict, summaries: dict, figures: Path) -> list[tuple[str,
     return out
 
 
+STUDY_WARP = 100.0
+"""The study's Figures 7–8 magnify the displacement ×100 (docs/model.md §6)."""
+
+
+def _drawn(run, t: float, warp: float) -> str:
+    """How long the run's largest |η| at ``t`` is drawn at magnification ``warp``."""
+    eta = report.value_at(run.rows, t, "peak_displacement") or 0.0
+    return f"{1e3 * warp * eta:.2g} mm"
+
+
 def _stress_figure(c: str, run, s: dict, figures: Path) -> tuple[str, Path] | None:
     """Figure 7 or 8 of configuration ``c``: σ₁₂ on the deformed structure of ``run`` (summary
     ``s``) at the time of the plaque's largest |σ₁₂|, drawn into ``figures``; its caption and
@@ -237,7 +257,9 @@ def _stress_figure(c: str, run, s: dict, figures: Path) -> tuple[str, Path] | No
     plot.field_snapshot(run.path, "sss", plaque[1], path, warp=warp, limit=plaque[0], marks=marks)
     return (
         f"Figure {FIGURE_OF_WALL[wall]}: σ₁₂ on the structure, {LABELS[c]} "
-        f"({run.path.name}), displacement ×{warp:g}, at t = {plaque[1]:.4g} s, "
+        f"({run.path.name}), displacement ×{warp:g} (the study draws ×{STUDY_WARP:g}, which "
+        f"would draw this run's largest |η| as {_drawn(run, plaque[1], STUDY_WARP)}; ×{warp:g} "
+        f"draws it as {_drawn(run, plaque[1], warp)}), at t = {plaque[1]:.4g} s, "
         f"when the plaque's |σ₁₂| is largest ({plaque[0]:.4g} Pa); the colours span "
         f"±{plaque[0]:.4g} Pa{marked}",
         path,

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from fsi.study.runs import CONFIGS, PAPER_QUANTITY, TIMES, at, fmt
 
+UNITS = {"velocity": (1.0, "m/s"), "pressure": (1.0, "Pa"), "displacement": (1e6, "µm")}
+
 LIMIT = 0.1
 """A value agrees with the study's when within this fraction of it (as Tables 1–3's count)."""
 
@@ -150,7 +152,11 @@ def _changes(shipped: dict, plausible: dict, paper: dict) -> str:
                 if before is None or now is None:
                     continue
                 was, is_ = abs(before / printed - 1) <= LIMIT, abs(now / printed - 1) <= LIMIT
-                label = f"{quantity} {c.replace('_', ' ')} {t:g} s ({fmt(before)} → {fmt(now)})"
+                scale, unit = UNITS[quantity]
+                label = (
+                    f"{quantity} {c.replace('_', ' ')} {t:g} s ({fmt(scale * before)} → "
+                    f"{fmt(scale * now)} {unit}; study {fmt(scale * printed)})"
+                )
                 if is_ and not was:
                     into.append(label)
                 elif was and not is_:
