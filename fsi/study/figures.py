@@ -169,9 +169,12 @@ RECIRCULATION_TIME = 0.1
 
 
 def best(runs: dict, summaries: dict, c: str) -> report_runs.Run | None:
-    """The fine run folder of configuration ``c`` if that run finished, else the coarse one."""
+    """The fine run folder of configuration ``c`` if that run finished and its folder is here,
+    else the coarse one."""
     fine = f"{c}_fine"
-    return runs.get(fine) if finished(summaries.get(fine)) else runs.get(f"{c}_coarse")
+    if finished(summaries.get(fine)) and fine in runs:
+        return runs[fine]
+    return runs.get(f"{c}_coarse")
 
 
 FIGURE_OF_WALL = {"moving": 7, "fixed": 8}
