@@ -33,8 +33,9 @@ ARGUMENT = (
     "at 0.8 s weighs the inlet held normal against it); the wall's damping stays the measured "
     "arterial loss angle (item 2 weighs the relaxation times); the element stays P2–P1 (fsi's "
     "P1–P1 is fluid-only). "
-    "This paragraph and the choice were committed before the runs were made; the count below "
-    "is what they gave."
+    "The choice and this argument were committed (git ecb1460) before the runs were made "
+    "(later edits only point to the analyses instead of restating their numbers); the count "
+    "below is what the runs gave."
 )
 """The choice and why, with the two measured facts it rests on left as ``{late}`` and
 ``{early}`` (:func:`argument` reads them from the plane-stress analysis's summaries)."""
