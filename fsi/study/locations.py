@@ -120,9 +120,9 @@ def fluid_maxima(run_dir: Path, t: float, geometry: dict) -> dict:
     out["pressure_off_openings"] = _entry(p.values[k], xy[k], geometry)
     lo, hi = plaque_range(geometry)
     nodes = _boundary_nodes(p.triangles)
-    sides = geometry.get("plaque_sides") or ["bottom"]
+    sides = set(geometry.get("plaque_sides") or ["bottom"])
     below = xy[nodes, 1] < geometry["height"] / 2
-    on_side = below if sides == ["bottom"] else ~below if sides == ["top"] else below | ~below
+    on_side = below if sides == {"bottom"} else ~below if sides == {"top"} else below | ~below
     surface = nodes[(xy[nodes, 0] > lo) & (xy[nodes, 0] < hi) & on_side]
     if len(surface):
         k = surface[np.argmax(p.values[surface])]
