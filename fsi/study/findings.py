@@ -296,8 +296,8 @@ def _clamped_corner_note(view: _OneMesh, summaries: dict) -> str | None:
         place = locations.boundary_place(at_cell["x"], at_cell["y"], g, "structure")
     end = "upstream" if at_cell["x"] < g["length"] / 2 else "downstream"
     where = (
-        f"in the {at_cell['region']} at its clamped {end} end's corner, "
-        f"{locations.describe(place)} (x = {locations.mm(at_cell['x'])} mm, y = "
+        f"in the {at_cell['region']} at its {end} end ({locations.describe(place)}: x = "
+        f"{locations.mm(at_cell['x'])} mm, y = "
         f"{locations.mm(at_cell['y'])} mm, the centroid of a cell "
         + (f"{1e3 * at_cell['h']:.2g} mm across)" if "h" in at_cell else "of unknown size)")
     )
