@@ -248,7 +248,8 @@ def _stress_figure(c: str, run, s: dict, figures: Path) -> tuple[str, Path] | No
     if plaque is None:
         return None
     marks, marked = [], ""
-    if where is not None and where["region"] == "wall" and whole[0] > plaque[0]:
+    corner = where is not None and where.get("place", "clamped_corner") == "clamped_corner"
+    if corner and where["region"] == "wall" and whole[0] > plaque[0]:
         marks.append((where["x"], where["y"], "clamped corner (singular)"))
         marked = (
             f"; the cross marks the clamped corner where the whole structure's largest "

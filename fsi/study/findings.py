@@ -360,9 +360,9 @@ def _rigid_wall_finding(view: _OneMesh) -> str | None:
     verdict = "confirmed" if ratio > 1 else "refuted"
     return (
         '**"The SSS in the rigid wall simulation seems to be overestimated."** Read as: with '
-        "the vessel wall held, the plaque's largest SSS exceeds that with the wall moving (the "
-        "study says overestimated against what, it does not say; against the moving wall is "
-        f"the one comparison its runs offer). The plaque's largest |σ₁₂|: fixed {fixed:.4g} Pa "
+        "the vessel wall held, the plaque's largest SSS exceeds that with the wall moving "
+        "(overestimated against what, the study does not say; against the moving wall is the "
+        f"one comparison its runs offer). The plaque's largest |σ₁₂|: fixed {fixed:.4g} Pa "
         f"({view.mesh('fixed_newtonian')}), moving {moving:.4g} Pa "
         f"({view.mesh('moving_newtonian')}), ratio {ratio:.3g} — {verdict} (confirmed if > 1)."
     )

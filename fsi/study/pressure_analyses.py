@@ -324,9 +324,11 @@ def moving_pressure(moving: dict | None, ring: dict) -> str:
     """The moving wall's peak pressure at 10–50 ms: its values and where each sits."""
     if moving is None:
         return ""
-    spots = [
-        f"{fmt(ring[t], 3)} Pa at {1e3 * t:g} ms ({_at_where(moving, t)})" for t in sorted(ring)
-    ]
+    spots = []
+    for t in sorted(ring):
+        off = where(moving, t, "pressure_off_openings")
+        inside = "" if off is None else f"; off the openings at most {fmt(off['value'], 3)} Pa"
+        spots.append(f"{fmt(ring[t], 3)} Pa at {1e3 * t:g} ms ({_at_where(moving, t)}{inside})")
     return (
         'The moving-wall cases\' "peak pressure" is max p over the fluid. While the ringing '
         f"wall draws blood in, it is the largest pressure left: {moving['name']} has "
