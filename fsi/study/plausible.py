@@ -139,16 +139,25 @@ def section(shipped: dict, extra: dict, paper: dict) -> str:
 
 
 def _changes(shipped: dict, plausible: dict, paper: dict) -> str:
-    """Which values the reading moves into or out of the 10 % band, coarse mesh."""
+    """Which values the reading moves into or out of the 10 % band, on each mesh whose four
+    runs it has."""
+    return " ".join(filter(None, (_mesh_changes(shipped, plausible, paper, m) for m in MESHES)))
+
+
+MESHES = ("coarse", "fine")
+
+
+def _mesh_changes(shipped: dict, plausible: dict, paper: dict, mesh: str) -> str:
+    """:func:`_changes` on one mesh ("" unless the reading's four runs there finished)."""
     into, out = [], []
     for c in CONFIGS:
-        a, b = shipped.get(f"{c}_coarse"), plausible.get(f"{c}_coarse")
+        a, b = shipped.get(f"{c}_{mesh}"), plausible.get(f"{c}_{mesh}")
         if a is None or b is None or not b["finished"]:
             return ""
         wall, fluid = c.split("_")
         for quantity, column in PAPER_QUANTITY.items():
             for t in TIMES:
-                printed = paper[(quantity, t, wall, fluid, "coarse")]
+                printed = paper[(quantity, t, wall, fluid, mesh)]
                 before, now = at(a, t, column), at(b, t, column)
                 if before is None or now is None:
                     continue
@@ -163,7 +172,7 @@ def _changes(shipped: dict, plausible: dict, paper: dict) -> str:
                 elif was and not is_:
                     out.append(label)
     return (
-        "On the coarse mesh the reading brings into the band: "
+        f"On the {mesh} mesh the reading brings into the band: "
         + ("; ".join(into) or "none")
         + "; and takes out of it: "
         + ("; ".join(out) or "none")
