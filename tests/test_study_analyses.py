@@ -196,3 +196,32 @@ def test_the_element_section_locates_each_peak_and_concludes_from_the_plaque_s_o
     assert "about fsi's difference from the study" in text
     del element["element/p1p1_fine"]
     assert study_analyses.pressure_and_element(element, main, paper) == ""
+
+
+def test_the_most_plausible_reading_is_counted_beside_the_shipped_one():
+    """plausible.count_table: values within 10 % of the study's per quantity and mesh; a
+    configuration whose four runs are not all there is "not run"."""
+    from fsi.study import plausible
+
+    paper = study_runs.paper_values()
+
+    def runs(factor: float, mesh: str = "coarse") -> dict:  # every value paper × factor
+        out = {}
+        for c in study_runs.CONFIGS:
+            wall, fluid = c.split("_")
+            at = {
+                t: {
+                    column: factor * paper[(q, t, wall, fluid, mesh)]
+                    for q, column in study_runs.PAPER_QUANTITY.items()
+                }
+                for t in study_runs.TIMES
+            }
+            out[f"{c}_{mesh}"] = summary(at)
+        return out
+
+    table = plausible.count_table(runs(1.05), runs(1.2), paper)
+    assert "| velocity | 20 of 20 | 0 of 20 | not run | not run |" in table
+    assert "| all | 60 of 60 | 0 of 60 | – | – |" in table
+    text = plausible._changes(runs(1.05), runs(1.2), paper)
+    assert text.startswith("On the coarse mesh the reading brings into the band: none; and ")
+    assert text.count("; study ") == 60
