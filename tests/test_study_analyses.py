@@ -151,33 +151,77 @@ def test_what_p10_does_not_depend_on_states_the_largest_change_and_how_pressure_
     text = study_analyses.pressure_at_10ms(p10, main, paper)
     assert "by more than 5.0 %" in text and "lowers it by 50 %" in text
     assert "| no SUPG (the Galerkin form) | 4.1 | +2.5 % | 3.5 |" in text
-    assert f"p(10 ms) / p(20 ms) = {4.0 / 3.4:.3f}" in text
-    assert f"(u(10 ms) / u(20 ms))² = {(0.27 / 0.25) ** 2:.3f}" in text
+    assert f"falls {4.0 / 3.4:.3f}-fold from 10 to 20 ms against {(0.27 / 0.25) ** 2:.3f}" in text
     assert "falls 1.258-fold against 1.053" in text  # the study's coarse Table 2 and Table 1
+    assert "fsi's yes, the study's no" in text and "holds a part that is not" in text
+    main = {"fixed_newtonian_coarse": run(4.0, 3.0)}  # falls faster than u²: no verdict drawn
+    text = study_analyses.pressure_at_10ms(p10, main, paper)
+    assert "fsi's no, the study's no" in text and "holds a part" not in text
     assert study_analyses.pressure_at_10ms({}, main, paper) == ""
 
 
-def test_the_element_section_sets_both_elements_beside_the_study_on_both_meshes():
-    """The ``element`` analysis's table (the study's rows from its Tables 1 and 2, then fsi's
-    P2–P1 and P1–P1 on each mesh) and the changes its text states: P1–P1 against P2–P1 and
-    against the study's value, each from the synthetic runs; nothing without all four runs."""
+def test_the_element_section_locates_each_peak_and_concludes_from_the_plaque_s_own():
+    """The ``element`` analysis: the study's rows from its Tables 1 and 2, fsi's P2–P1 and
+    P1–P1 on each mesh with where each peak pressure sits (a P1–P1 coarse peak at the
+    outlet's corner is marked †, as issue #47 found), the plaque's own maxima, and a
+    conclusion that follows them; nothing without all four runs."""
     paper = study_runs.paper_values()
     times = (0.01, 0.02, 0.05, 0.1)
 
-    def run(p: float, u: float = 0.27) -> dict:  # p(t) = p / (100 t)
-        return summary({t: {"peak_pressure": p / (100 * t), "peak_velocity": u} for t in times})
+    def run(p: float, plaque: float | None = None, corner: bool = False) -> dict:
+        s = summary({t: {"peak_pressure": p / (100 * t), "peak_velocity": 0.27} for t in times})
+        flank = {"value": plaque or p, "x": 0.00582, "y": 0.00023, "place": None}
+        peak = {"value": p, "x": 0.02, "y": 0.007, "place": "outlet_corner"} if corner else flank
+        s["where"] = {"0.01": {"peak_pressure": peak, "plaque_pressure": flank}}
+        s["name"] = "x"
+        return s
 
-    element = {"element/p2p1_coarse": run(4.0), "element/p1p1_coarse": run(6.0, 0.28),
-               "element/p2p1_fine": run(4.0), "element/p1p1_fine": run(4.4)}  # fmt: skip
+    element = {"element/p2p1_coarse": run(4.0), "element/p1p1_coarse": run(6.0, 4.2, True),
+               "element/p2p1_fine": run(4.0), "element/p1p1_fine": run(4.1)}  # fmt: skip
     main = {"fixed_newtonian_coarse": run(4.1)}
     text = study_analyses.pressure_and_element(element, main, paper)
-    assert "| study, coarse | 6.181 | 4.912 | 2.871 | 1.665 | 0.234 |" in text
-    assert "| fsi P1–P1, coarse | 6 | 3 | 1.2 | 0.6 | 0.28 |" in text
-    assert "p(10 ms) = 4 Pa against the deforming one's 4.1" in text
-    assert f"from 4 to 6 Pa ({100 * (6 / 6.181 - 1):+.1f} % from the study's coarse" in text
-    assert "it gives 4.4 Pa, +10.0 % from P2–P1's" in text
-    later = (f"{100 * (v / s - 1):+.0f} %" for v, s in ((3, 4.912), (1.2, 2.871), (0.6, 1.665)))
-    assert f"P1–P1 on the coarse mesh is {', '.join(later)} off the study" in text
-    assert f"P1–P1 is {100 * (4.4 / 6.579 - 1):+.0f} % from the study's fine value" in text
+    assert "| study, coarse | 6.181 | 4.912 | 2.871 | 1.665 | not printed | 0.234 |" in text
+    assert "| fsi P1–P1, coarse | 6 † | 3 | 1.2 | 0.6 | (20.00, 7.00) † the outlet's corner" in text
+    assert (
+        "| fsi P1–P1, coarse | 4.2 | – | – | – | (5.82, 0.23), the plaque's upstream flank |"
+        in text
+    )
+    assert "sits at a boundary in: P1–P1 coarse (the outlet's corner with a wall)" in text
+    assert "P1–P1 gives 4.2 Pa on the coarse mesh against P2–P1's 4 (+5.0 %)" in text
+    assert "So the element does not explain fsi's lower pressure at 10 ms" in text
+    assert "doc.comsol.com" in text  # the source of the study's code's default element
+    element["element/p1p1_coarse"] = run(6.0)  # the element moves the plaque's own pressure
+    text = study_analyses.pressure_and_element(element, main, paper)
+    assert f"the element closes {100 * 2 / 2.181:.0f} % of the gap" in text
+    assert "about fsi's difference from the study" in text
     del element["element/p1p1_fine"]
     assert study_analyses.pressure_and_element(element, main, paper) == ""
+
+
+def test_the_most_plausible_reading_is_counted_beside_the_shipped_one():
+    """plausible.count_table: values within 10 % of the study's per quantity and mesh; a
+    configuration whose four runs are not all there is "not run"."""
+    from fsi.study import plausible
+
+    paper = study_runs.paper_values()
+
+    def runs(factor: float, mesh: str = "coarse") -> dict:  # every value paper × factor
+        out = {}
+        for c in study_runs.CONFIGS:
+            wall, fluid = c.split("_")
+            at = {
+                t: {
+                    column: factor * paper[(q, t, wall, fluid, mesh)]
+                    for q, column in study_runs.PAPER_QUANTITY.items()
+                }
+                for t in study_runs.TIMES
+            }
+            out[f"{c}_{mesh}"] = summary(at)
+        return out
+
+    table = plausible.count_table(runs(1.05), runs(1.2), paper)
+    assert "| velocity | 20 of 20 | 0 of 20 | not run | not run |" in table
+    assert "| all | 60 of 60 | 0 of 60 | – | – |" in table
+    text = plausible._changes(runs(1.05), runs(1.2), paper)
+    assert text.startswith("On the coarse mesh the reading brings into the band: none; and ")
+    assert text.count("; study ") == 60

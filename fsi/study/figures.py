@@ -69,7 +69,7 @@ def figure_sss(runs: dict, path: Path) -> Path:
         else:
             top.set_xlim(0, 1e3 * end)
             top.set_title(f"the pulse and the wall's first response (0–{1e3 * end:g} ms)")
-    axes[0, 0].set_ylabel("plaque's max |σ₁₂| (Pa)")
+    axes[0, 0].set_ylabel("max |σ₁₂| (Pa)")
     axes[1, 0].set_ylabel("Carreau / Newtonian")
     axes[0, 1].legend(fontsize=7, ncol=2)
     axes[1, 1].legend(fontsize=7)
@@ -80,6 +80,12 @@ def figure_sss(runs: dict, path: Path) -> Path:
 def _plaque_series(run, end=None):
     """(t, the plaque's max |σ₁₂|), t in ms up to ``end`` (s), else in s."""
     pts = [(r["t"], plaque_max(r)) for r in run.rows if plaque_max(r)]
+    return [(t if end is None else 1e3 * t, v) for t, v in pts if end is None or t <= end]
+
+
+def _whole_series(run, end=None):
+    """(t, the whole structure's max |σ₁₂|), as :func:`_plaque_series`."""
+    pts = [(r["t"], r["max_sss"]) for r in run.rows if r.get("max_sss")]
     return [(t if end is None else 1e3 * t, v) for t, v in pts if end is None or t <= end]
 
 
@@ -103,6 +109,10 @@ def _sss_curves(top, runs: dict, end: float | None, colours: dict, styles: dict)
                 alpha=0.35 if wide else 1.0,
                 label=f"{LABELS[c]}, {level}",
             )
+            whole = _whole_series(run, end)
+            if whole and wall == "moving" and fluid == "newtonian":
+                top.plot(*zip(*whole), style, color="k", lw=0.8,
+                         label=f"whole structure, {LABELS[c]}, {level}")  # fmt: skip
 
 
 def _sss_ratios(bottom, runs: dict, end: float | None, colours: dict, styles: dict) -> None:
@@ -125,29 +135,31 @@ def _sss_ratios(bottom, runs: dict, end: float | None, colours: dict, styles: di
 
 
 def figure_convergence(summaries: dict, path: Path) -> Path:
-    """The coarse → fine change of the three peaks at the report times, per configuration, as a
-    fraction of the coarse run's largest value of that peak over the heartbeat: a moving wall's
-    peak pressure of 0.2 Pa at 10 ms (the ring's trough; 50 Pa at 20 ms) is no base for a
-    percentage."""
+    """The coarse → fine change of the three peaks at the report times, per configuration,
+    relative to the coarse value; the moving wall's peak pressure (a sample of its ring) hollow,
+    the pressures on a symmetric log axis."""
     plt = _pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), layout="constrained")
     for ax, (column, title, _, _) in zip(axes, QUANTITIES):
         for k, c in enumerate(CONFIGS):
             pts = []
-            largest = peak(summaries.get(f"{c}_coarse"), column)
             for t in TIMES:
                 coarse = at(summaries.get(f"{c}_coarse"), t, column)
                 fine = at(summaries.get(f"{c}_fine"), t, column)
-                if largest and coarse is not None and fine is not None:
-                    pts.append((t, 100 * (fine - coarse) / largest[0]))
+                if coarse and fine is not None:
+                    pts.append((t, 100 * (fine - coarse) / coarse))
+            ring = column == "peak_pressure" and c.startswith("moving")
             if pts:
-                ax.plot(*zip(*pts), "o-", color=f"C{k}", label=LABELS[c])
+                ax.plot(*zip(*pts), marker="o", color=f"C{k}", label=LABELS[c],
+                        mfc="none" if ring else f"C{k}", ls=":" if ring else "-")  # fmt: skip
         ax.axhline(0, color="k", lw=0.6)
         ax.set_xscale("log")
+        if column == "peak_pressure":  # the ring's samples move by up to ~100 %
+            ax.set_yscale("symlog", linthresh=1.0)
         ax.set_xlabel("t (s)")
         ax.set_title(title.split(": ")[1])
         ax.grid(True, alpha=0.3)
-    axes[0].set_ylabel("fine − coarse (% of the run's largest)")
+    axes[0].set_ylabel("(fine − coarse) / coarse (%)")
     axes[-1].legend(fontsize=7)
     plot.save_figure(fig, path, dpi=130)
     return path
@@ -158,9 +170,12 @@ RECIRCULATION_TIME = 0.1
 
 
 def best(runs: dict, summaries: dict, c: str) -> report_runs.Run | None:
-    """The fine run folder of configuration ``c`` if that run finished, else the coarse one."""
+    """The fine run folder of configuration ``c`` if that run finished and its folder is here,
+    else the coarse one."""
     fine = f"{c}_fine"
-    return runs.get(fine) if finished(summaries.get(fine)) else runs.get(f"{c}_coarse")
+    if finished(summaries.get(fine)) and fine in runs:
+        return runs[fine]
+    return runs.get(f"{c}_coarse")
 
 
 FIGURE_OF_WALL = {"moving": 7, "fixed": 8}
@@ -215,6 +230,16 @@ def field_figures(runs: dict, summaries: dict, figures: Path) -> list[tuple[str,
     return out
 
 
+STUDY_WARP = 100.0
+"""The study's Figures 7–8 magnify the displacement ×100 (docs/model.md §6)."""
+
+
+def _drawn(run, t: float, warp: float) -> str:
+    """How long the run's largest |η| at ``t`` is drawn at magnification ``warp``."""
+    eta = report.value_at(run.rows, t, "peak_displacement") or 0.0
+    return f"{1e3 * warp * eta:.2g} mm"
+
+
 def _stress_figure(c: str, run, s: dict, figures: Path) -> tuple[str, Path] | None:
     """Figure 7 or 8 of configuration ``c``: σ₁₂ on the deformed structure of ``run`` (summary
     ``s``) at the time of the plaque's largest |σ₁₂|, drawn into ``figures``; its caption and
@@ -224,7 +249,8 @@ def _stress_figure(c: str, run, s: dict, figures: Path) -> tuple[str, Path] | No
     if plaque is None:
         return None
     marks, marked = [], ""
-    if where is not None and where["region"] == "wall" and whole[0] > plaque[0]:
+    corner = where is not None and where.get("place", "clamped_corner") == "clamped_corner"
+    if corner and where["region"] == "wall" and whole[0] > plaque[0]:
         marks.append((where["x"], where["y"], "clamped corner (singular)"))
         marked = (
             f"; the cross marks the clamped corner where the whole structure's largest "
@@ -236,7 +262,9 @@ def _stress_figure(c: str, run, s: dict, figures: Path) -> tuple[str, Path] | No
     plot.field_snapshot(run.path, "sss", plaque[1], path, warp=warp, limit=plaque[0], marks=marks)
     return (
         f"Figure {FIGURE_OF_WALL[wall]}: σ₁₂ on the structure, {LABELS[c]} "
-        f"({run.path.name}), displacement ×{warp:g}, at t = {plaque[1]:.4g} s, "
+        f"({run.path.name}), displacement ×{warp:g} (the study draws ×{STUDY_WARP:g}, which "
+        f"would draw this run's largest |η| as {_drawn(run, plaque[1], STUDY_WARP)}; ×{warp:g} "
+        f"draws it as {_drawn(run, plaque[1], warp)}), at t = {plaque[1]:.4g} s, "
         f"when the plaque's |σ₁₂| is largest ({plaque[0]:.4g} Pa); the colours span "
         f"±{plaque[0]:.4g} Pa{marked}",
         path,

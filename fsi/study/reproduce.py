@@ -27,7 +27,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from fsi.study.analyses import P10_VARIANTS, effective_length
+from fsi.study.analyses import effective_length
+from fsi.study.pressure_analyses import P10_VARIANTS
 from fsi.study.runs import PULSE_AMPLITUDE
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -192,6 +193,18 @@ ANALYSES = {
         )
         for case in ("stenosis_fixed_newtonian", "stenosis_moving_newtonian")
     ],
+    # 7. The one most-plausible reading (docs/study.md, PLAUSIBLE in fsi/study/plausible.py):
+    #    plane stress, everything else as shipped, all four configurations.
+    "plausible": [
+        StudyRun(
+            case,
+            level,
+            sets=_plane_stress(),
+            label=f"plausible/{case.removeprefix('stenosis_')}_{level}",
+        )
+        for level in ("coarse", "fine")
+        for case in CASES
+    ],
     # 2. The moving wall's damping: which relaxation time makes the wall quasi-static by 10 ms.
     "damping": [
         StudyRun(
@@ -236,7 +249,7 @@ ANALYSES = {
             ),
             label=f"inlet/{case.removeprefix('stenosis_')}_normal_flow",
         )
-        for case in ("stenosis_fixed_newtonian", "stenosis_moving_newtonian")
+        for case in CASES
     ],
     # 3. The time scheme and the study's 5 ms steps after the resolved pulse.
     "steps": [

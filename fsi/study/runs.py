@@ -17,8 +17,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from types import SimpleNamespace
 
-import numpy as np
-
 from fsi.output import report, report_runs
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -138,26 +136,53 @@ def summarise(run: report_runs.Run) -> dict:
         },
         "maxima": maxima,
     }
-    if summary["finished"] and "max_sss" in maxima and (run.path / "solid.xdmf").is_file():
-        x, y, region = largest_at(run, "sss", maxima["max_sss"][1])
-        summary["largest_sss_at"] = {"x": float(x), "y": float(y), "region": region}
-    if summary["finished"] and (run.path / "fields.xdmf").is_file() and case.time.end >= 0.01:
-        summary["peak_pressure_at"] = {f"{PRESSURE_TIME:g}": pressure_peak_at(run, PRESSURE_TIME)}
+    if summary["finished"]:
+        summary.update(_locations(run, maxima, case.time.end))
     return summary
 
 
-PRESSURE_TIME = 0.01
-"""s: where the peak pressure sits after the pulse is kept in the summary at this time."""
+def _locations(run: report_runs.Run, maxima: dict, end: float) -> dict:
+    """Where the run's reported maxima sit (fsi/study/locations.py), from its field files: at
+    each of :data:`TIMES` up to ``end`` the largest pressure, |u| and |η|, the largest pressure
+    off the open boundaries and on the plaque's surface (``where``); the whole structure's and
+    the plaque's largest |σ₁₂| at their times (``largest_sss_at``, ``plaque_sss_at``)."""
+    from fsi.study import locations
+
+    geometry = dataclasses.asdict(run.case.geometry)
+    out: dict = {}
+    if (run.path / "fields.xdmf").is_file():
+        out["where"] = {}
+        for t in (t for t in TIMES if t <= end + 1e-12):
+            found = locations.fluid_maxima(run.path, t, geometry)
+            eta = locations.displacement_maximum(run.path, t, geometry)
+            out["where"][f"{t:g}"] = found if eta is None else {**found, "peak_displacement": eta}
+    if (run.path / "solid.xdmf").is_file():
+        for key, name, regions in (
+            ("largest_sss_at", "max_sss", None),
+            ("plaque_sss_at", "plaque_sss", ("cap", "lipid")),
+        ):
+            if name in maxima:
+                found = locations.cell_maximum(run.path, "sss", maxima[name][1], geometry, regions)
+                out[key] = {**found, "t": maxima[name][1]}
+    return out
 
 
-def pressure_peak_at(run: report_runs.Run, t: float) -> list[float]:
-    """Where the fluid's largest pressure is at time ``t``: its node's coordinates (m) as the
-    field file's drawing puts them (:func:`fsi.output.field_files.read_field`'s default)."""
-    from fsi.output import field_files
+def where(summary: dict | None, t: float, name: str) -> dict | None:
+    """Where ``name`` (``peak_pressure``, ``peak_velocity``, ``peak_displacement``,
+    ``pressure_off_openings``, ``plaque_pressure``) sits at report time ``t``: {value, x, y,
+    place}, or None (no such run, time or field files). A summary made before the places were
+    kept gives the peak pressure's position alone (its ``peak_pressure_at``)."""
+    if summary is None:
+        return None
+    found = summary.get("where", {}).get(f"{t:g}", {}).get(name)
+    old = summary.get("peak_pressure_at", {}).get(f"{t:g}")
+    if found is None and name == "peak_pressure" and old is not None:
+        from fsi.study import locations
 
-    snapshot = field_files.read_field(run.path, "pressure", t)
-    k = int(np.argmax(snapshot.values))
-    return [float(v) for v in snapshot.coordinates[k]]
+        g = summary["case"]["geometry"]
+        place = locations.boundary_place(old[0], old[1], g)
+        return {"value": at(summary, t, name), "x": old[0], "y": old[1], "place": place}
+    return found
 
 
 def make_summaries(
@@ -224,13 +249,22 @@ def paper_values(path: Path = PAPER) -> dict[tuple[str, float, str, str, str], f
 
 
 def comparison_rows(summaries: dict[str, dict], paper: dict) -> list[dict]:
-    """One row per printed value: its key, the paper's value and ours (None: no run)."""
+    """One row per printed value: its key, the paper's value, ours (None: no run) and where
+    ours sits (``where``: {value, x, y, place}, None without the run's places)."""
     rows = []
     for (quantity, t, wall, fluid, mesh), printed in paper.items():
-        ours = at(summaries.get(f"{wall}_{fluid}_{mesh}"), t, PAPER_QUANTITY[quantity])
+        summary = summaries.get(f"{wall}_{fluid}_{mesh}")
+        column = PAPER_QUANTITY[quantity]
         rows.append(
             dict(
-                quantity=quantity, t_s=t, wall=wall, fluid=fluid, mesh=mesh, paper=printed, fsi=ours
+                quantity=quantity,
+                t_s=t,
+                wall=wall,
+                fluid=fluid,
+                mesh=mesh,
+                paper=printed,
+                fsi=at(summary, t, column),
+                where=where(summary, t, column),
             )
         )
     return rows
@@ -263,16 +297,3 @@ def difference(row: dict) -> float | None:
     if row["fsi"] is None or row["paper"] == 0:
         return None
     return (row["fsi"] - row["paper"]) / abs(row["paper"])
-
-
-def largest_at(run: report_runs.Run, field: str, t: float) -> tuple[float, float, str]:
-    """Where the cell field's largest |value| is at time t: the cell's centroid (reference
-    coordinates, m) and its region."""
-    from fsi.geometry.tags import Region
-    from fsi.output import field_files
-
-    values = field_files.read_field(run.path, field, t, warp=0.0)
-    regions = field_files.read_field(run.path, "region", t, warp=0.0)
-    k = int(np.argmax(np.abs(values.values)))
-    centroid = values.coordinates[values.triangles[k]].mean(axis=0)
-    return centroid[0], centroid[1], Region(int(round(regions.values[k]))).label
