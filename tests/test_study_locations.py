@@ -62,3 +62,11 @@ def test_a_top_plaque_s_wall_layer_is_above_the_lumen():
     assert locations.boundary_place(0.0, -0.0005, top, "structure") is None
     assert locations.describe("outlet_corner") == "the outlet's corner with a wall"
     assert locations.describe(None) == ""
+
+
+def test_an_axisymmetric_vessel_s_wall_is_above_its_lumen():
+    """The bottom of an axisymmetric stenosis is the axis; its wall and plaque are on top."""
+    axi = {**GEOMETRY, "plaque_sides": None, "axisymmetric": True}
+    assert locations.plaque_sides(axi) == ("top",)
+    assert locations.boundary_place(0.0, 0.0075, axi, "structure") == "clamped_end"
+    assert locations.boundary_place(0.0, -0.0005, axi, "structure") is None

@@ -43,7 +43,7 @@ def boundary_place(
     if domain == "fluid":
         faces = (0.0, height)
     else:
-        sides = geometry.get("plaque_sides") or ["bottom"]
+        sides = plaque_sides(geometry)
         faces = tuple(
             f for side in sides for f in ((0.0, -t) if side == "bottom" else (height, height + t))
         )
@@ -58,6 +58,14 @@ def boundary_place(
                 return f"{name}_corner" if corner else name
             return "clamped_corner" if corner else "clamped_end"
     return None
+
+
+def plaque_sides(geometry: dict) -> tuple[str, ...]:
+    """The sides carrying a plaque (geometry/stenosis.py's rule): the top when axisymmetric
+    (the bottom is the axis), else ``plaque_sides`` (default the bottom)."""
+    if geometry.get("axisymmetric"):
+        return ("top",)
+    return tuple(geometry.get("plaque_sides") or ("bottom",))
 
 
 def mm(value: float) -> str:
@@ -120,7 +128,7 @@ def fluid_maxima(run_dir: Path, t: float, geometry: dict) -> dict:
     out["pressure_off_openings"] = _entry(p.values[k], xy[k], geometry)
     lo, hi = plaque_range(geometry)
     nodes = _boundary_nodes(p.triangles)
-    sides = set(geometry.get("plaque_sides") or ["bottom"])
+    sides = set(plaque_sides(geometry))
     below = xy[nodes, 1] < geometry["height"] / 2
     on_side = below if sides == {"bottom"} else ~below if sides == {"top"} else below | ~below
     surface = nodes[(xy[nodes, 0] > lo) & (xy[nodes, 0] < hi) & on_side]
