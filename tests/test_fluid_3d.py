@@ -242,7 +242,9 @@ def test_the_fieldsplit_preset_gives_the_direct_solvers_flow():
     # One mesh for both solvers: two builds may be partitioned apart on several ranks.
     case, submesh, tags = pipe(5e-4, section, density=1060.0)
     velocities, iterations = {}, {}
-    for name, options in (("lu", {}), ("fieldsplit", FIELDSPLIT)):
+    direct = case.fluid.solver.petsc_options  # the default: MUMPS's LU
+    assert direct["pc_type"] == "lu"
+    for name, options in (("lu", direct), ("fieldsplit", FIELDSPLIT)):
         settings = replace(case.fluid, solver=replace(case.fluid.solver, petsc_options=options))
         conditions = fluid_case.fluid_conditions(case)
         solver = fluid.FluidSolver(submesh, tags, settings, conditions, scheme="bdf2")
