@@ -2,7 +2,8 @@
 
 A run stopped after step k and restarted from its checkpoint continues like the uninterrupted
 run: rigid stenosis (BDF2 across a change of dt), coupled moving wall with Aitken and with
-IQN-ILS reusing the columns of past steps, also on another number of ranks. A failed step exits
+IQN-ILS reusing the columns of past steps (also with Robin–Neumann coupling, whose iterates
+hold the interface forces), also on another number of ranks. A failed step exits
 3 with the last converged step checkpointed, from which a run with a working setting finishes
 like the uninterrupted one. A checkpoint that does not fit the run (mesh, structure, a damaged
 file) is refused with exit status 2 before anything is written.
@@ -53,6 +54,13 @@ COUPLED_SET = ["time.schedule=[{until: 0.002, dt: 0.001}]", EVERY_STEP]
 ACCELERATIONS = {
     "aitken": ["coupling.acceleration=aitken"],
     "iqn-ils": ["coupling.acceleration=iqn-ils", "coupling.iqn_reuse=2"],
+    # z = [x, f] per node: the predictor's and IQN-ILS's columns hold the forces too
+    "robin-neumann": [
+        "coupling.acceleration=iqn-ils",
+        "coupling.iqn_reuse=2",
+        "coupling.scheme=robin-neumann",
+        "coupling.robin_coefficient=1e6",
+    ],
 }
 SERIAL = MPI.COMM_WORLD.size == 1
 RESIDUAL_REL = 1e-2  # residual norms of converged iterates on 2 ranks (see the top)
@@ -308,7 +316,8 @@ def test_coupled_restart_continues_like_the_uninterrupted_run(coupled, accelerat
     else:
         assert int(saved["coupling.iqn.steps"][1]) == 1
         keys, columns = saved["coupling.iqn.V.0"]
-        assert columns.shape[:2] == (len(keys), 2)  # (interface nodes, x/y, columns)
+        block = 4 if acceleration == "robin-neumann" else 2  # x, y (and f_x, f_y)
+        assert columns.shape[:2] == (len(keys), block)  # (interface nodes, values, columns)
         assert columns.shape[2] >= 3  # step 1 takes ≥ 4 iterations (measured 6)
 
 

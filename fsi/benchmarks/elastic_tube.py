@@ -290,7 +290,7 @@ def start_exactly(problem: partitioned.CoupledProblem, case, exact: WomersleyTub
         lambda x: exact.pressure(x[1], x[0], 0.0),
     )
     problem.predictor = coupling.predictor_from_config(case.coupling)
-    problem.predictor.record(x0, 0.0)
+    problem.predictor.record(problem.unknown.stack(x0), 0.0)
 
 
 def _gathered(points: np.ndarray, values: np.ndarray, comm) -> tuple[np.ndarray, np.ndarray]:

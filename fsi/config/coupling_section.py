@@ -26,6 +26,12 @@ class Coupling:
     only in a step's first, to the predicted interface displacement, and keeps that mesh (and
     its velocity) through the step's later iterations, where only the wall's velocity follows
     the iterate (fsi/coupled/adapters.py, :class:`ExplicitGeometryInterface`).
+    ``scheme``: ``dirichlet-neumann`` gives the fluid the wall's velocity on the interface;
+    ``robin-neumann`` gives it the Robin condition α (u − u_Γ) − σ n = the traction of the last
+    iteration (Badia, Nobile & Vergara 2008; docs/model.md, Coupling), which converges to the
+    same solution with fewer iterations where the fluid's added mass is large.
+    ``robin_coefficient``: α (Pa·s/m); null: from the wall, α = ρ_s H/Δt + E H Δt/((1 − ν²) R²)
+    (fsi/coupled/robin.py).
     """
 
     acceleration: Literal["constant", "aitken", "iqn-ils"] = "aitken"
@@ -38,6 +44,10 @@ class Coupling:
     predictor: Literal["constant", "linear", "quadratic", "cubic"] = "linear"
     fluid_forcing: float = checked(0.0, lambda v: 0 <= v < 1, "a number in [0, 1)")
     geometry: Literal["implicit", "explicit"] = "implicit"
+    scheme: Literal["dirichlet-neumann", "robin-neumann"] = "dirichlet-neumann"
+    robin_coefficient: float | None = checked(
+        None, lambda v: v is None or v > 0, "a positive number, or null for the wall's", "Pa s/m"
+    )
 
 
 @dataclass(frozen=True)

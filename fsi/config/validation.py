@@ -387,6 +387,8 @@ def _validate_solvers(case: Case) -> None:
             case.coupling.max_relaxation,
         )
 
+    _validate_robin(case)
+
     # Sub-solvers must be well below the coupling tolerance or the coupling stalls near it.
     for name in ("fluid", "structure"):
         rtol = getattr(case, name).solver.rtol
@@ -397,6 +399,24 @@ def _validate_solvers(case: Case) -> None:
                 f"at most coupling.tolerance / 10 = {case.coupling.tolerance / 10:g}",
                 rtol,
             )
+
+
+def _validate_robin(case: Case) -> None:
+    """Robin–Neumann's α from the wall (fsi/coupled/robin.py) needs a circular vessel: a plane
+    wall has no hoop stiffness, and its inertia alone gives an α far below the wall's response
+    (measured: the plane stenosis' 1,200 Pa s/m made the fluid diverge; 1e5–1e7 converged)."""
+    coupling = case.coupling
+    if coupling.scheme != "robin-neumann" or coupling.robin_coefficient is not None:
+        return
+    circular = is_axisymmetric(case.geometry) or dimension(case.geometry) == 3
+    if case.structure.mode != "rigid" and not circular:
+        raise ConfigError(
+            "",
+            "coupling.robin_coefficient",
+            "a number (Pa s/m) for a plane model with coupling.scheme 'robin-neumann': only an "
+            "axisymmetric or 3D vessel's wall gives it (docs/configuration.md, coupling)",
+            "null",
+        )
 
 
 def _validate_inlet(case: Case) -> None:

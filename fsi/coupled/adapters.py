@@ -16,7 +16,9 @@ import math
 import dolfinx.fem
 import numpy as np
 
+from fsi.coupled.coupling import InterfaceUnknown
 from fsi.coupled.interface import InterfaceMap
+from fsi.coupled.robin import RobinCoefficient
 from fsi.geometry.tags import Boundary
 from fsi.numerics.newton import Forcing, SolveFailed, SolveResult
 from fsi.physics.fluid import FluidSolver
@@ -95,6 +97,10 @@ class FluidInterface(_Adapter):
         warm_start: start each solve from the last iterate.
         forcing: the Newton forcing of a step's later solves, never looser than where its first
             stopped (:class:`fsi.numerics.newton.Forcing`; 0: every solve to the fluid's tolerance).
+        robin: the Robin–Neumann coupling's α(Δt) (:class:`fsi.coupled.robin.RobinCoefficient`)
+            for a fluid with a Robin interface; None: Dirichlet–Neumann. The input of a solve
+            is then z = [x, f] per node (:class:`fsi.coupled.coupling.InterfaceUnknown`): the
+            mesh follows x, and the fluid's Robin data are α and the nodal forces f.
 
     Raises (collectively) :class:`fsi.physics.mesh_motion.MeshQualityError` when the extension
     would collapse a cell, and :class:`fsi.numerics.newton.SolveFailed` when the fluid step fails.
@@ -109,11 +115,14 @@ class FluidInterface(_Adapter):
         interface: tuple[Boundary, ...] = (Boundary.INTERFACE,),
         warm_start: bool = True,
         forcing: float = 0.0,
+        robin: RobinCoefficient | None = None,
     ):
         super().__init__(fluid_solver, warm_start)
         self.motion, self.to_fluid, self.to_solid = motion, to_fluid, to_solid
         self.interface = tuple(int(b) for b in interface)
         self.forcing = forcing
+        self.robin = robin
+        self.unknown = InterfaceUnknown(to_solid.bs, forces=robin is not None)
         self.first_residual = math.nan  # |F| where the step's first solve stopped
         self.eta = dolfinx.fem.Function(fluid_solver.V, name="interface_displacement")
         self.mesh_quality = 1.0  # min J/J_ref of the last mesh motion
@@ -154,7 +163,21 @@ class FluidInterface(_Adapter):
         values = self.solver.nodal_forces(self.interface)
         return self.to_solid.transfer(values[self.to_solid.src_dofs])
 
+    def _set_robin_data(self, nodal_forces: np.ndarray) -> None:
+        """The fluid's Robin data: α(Δt) and the nodal forces (a solid interface vector) on its
+        velocity nodes."""
+        V = self.solver.V
+        forces = np.zeros((V.dofmap.index_map.size_local, V.dofmap.index_map_bs))
+        forces[self.to_fluid.dst_dofs] = self.to_fluid.transfer(
+            nodal_forces.reshape(-1, self.to_fluid.bs)
+        )
+        robin_data = self.solver.robin  # the fluid's Robin interface
+        robin_data.set(self.robin.at(self.dt), forces, self.solver.mixed_dofs()[0])
+
     def _solve(self, interface_input: np.ndarray) -> SolveResult:
+        if self.robin is not None:  # z = [x, f]
+            self._set_robin_data(self.unknown.nodal_forces(interface_input))
+            interface_input = self.unknown.displacement(interface_input)
         self._place_mesh(interface_input)
         forcing = None
         if self.forcing and self.solves > 1:

@@ -155,12 +155,18 @@ class Aitken:
     For a scalar (or ``a I``) linear map the second ω is exact: three evaluations converge.
     """
 
-    def __init__(self, comm: MPI.Comm, omega_initial: float, omega_max: float = 1.0):
+    def __init__(
+        self,
+        comm: MPI.Comm,
+        omega_initial: float,
+        omega_max: float = 1.0,
+        weights: np.ndarray | None = None,
+    ):
         if not 0 < omega_initial <= omega_max:
             raise ValueError(
                 f"need 0 < omega_initial <= omega_max, got {omega_initial}, {omega_max}"
             )
-        self.comm, self.omega_max = comm, omega_max
+        self.comm, self.omega_max, self.weights = comm, omega_max, weights
         self.omega = omega_initial
         self._previous_residual: np.ndarray | None = None
 
@@ -178,7 +184,7 @@ class Aitken:
     def next_input(self, x: np.ndarray, x_tilde: np.ndarray) -> np.ndarray:
         r = x_tilde - x
         if self._previous_residual is not None:
-            dr = r - self._previous_residual
+            dr = _weighted(self.weights, r - self._previous_residual)
             dr2 = dot(self.comm, dr, dr)
             if dr2 > 0.0:  # an unchanged residual leaves ω as it is
                 secant = dot(self.comm, self._previous_residual, dr) / dr2
@@ -212,15 +218,23 @@ class IQNILS:
     (nearly) dependent on newer ones. Without any column (the first iteration of the first step,
     or of every step with ``reuse = 0``) it is the relaxation ``x_{k+1} = x_k + ω r_k``. On a
     linear map of dimension n the columns span GMRES's Krylov space: at most n + 1 updates reach
-    the fixed point.
+    the fixed point. ``weights`` (local, 0 or 1 per entry; None: all 1) choose the entries the
+    least squares measure; the update moves every entry with the same coefficients c.
     """
 
-    def __init__(self, comm: MPI.Comm, omega: float, reuse: int = 0, threshold: float = 1e-8):
+    def __init__(
+        self,
+        comm: MPI.Comm,
+        omega: float,
+        reuse: int = 0,
+        threshold: float = 1e-8,
+        weights: np.ndarray | None = None,
+    ):
         if omega <= 0 or reuse < 0 or threshold <= 0:
             raise ValueError(
                 f"need omega > 0, reuse >= 0, threshold > 0; got {omega}, {reuse}, {threshold}"
             )
-        self.comm, self.omega, self.threshold = comm, omega, threshold
+        self.comm, self.omega, self.threshold, self.weights = comm, omega, threshold, weights
         self._old_steps: deque[tuple[list[np.ndarray], list[np.ndarray]]] = deque(maxlen=reuse or 1)
         self.reuse = reuse
         self._V: list[np.ndarray] = []  # this step's Δr, newest first
@@ -248,11 +262,13 @@ class IQNILS:
             for V_old, W_old in reversed(self._old_steps):
                 V.extend(V_old)
                 W.extend(W_old)
+        V = [_weighted(self.weights, v) for v in V]
         Q, R, kept = filtered_qr(self.comm, V, self.threshold) if V else (None, None, [])
         self.columns_used, self.columns_dropped = len(kept), len(V) - len(kept)
         if not kept:
             return x + self.omega * r
-        c = np.linalg.solve(R, -self.comm.allreduce(Q.T @ r, op=MPI.SUM))
+        measured = _weighted(self.weights, r)
+        c = np.linalg.solve(R, -self.comm.allreduce(Q.T @ measured, op=MPI.SUM))
         return x_tilde + np.column_stack([W[i] for i in kept]) @ c
 
     def end_step(self) -> None:
@@ -278,17 +294,25 @@ class IQNILS:
         self._V, self._W, self._previous = [], [], None
 
 
-ACCELERATIONS: dict[str, Callable[[Coupling, MPI.Comm], Acceleration]] = {
-    "constant": lambda c, comm: ConstantRelaxation(comm, c.initial_relaxation),
-    "aitken": lambda c, comm: Aitken(comm, c.initial_relaxation, c.max_relaxation),
-    "iqn-ils": lambda c, comm: IQNILS(comm, c.initial_relaxation, c.iqn_reuse, c.iqn_filter),
+def _weighted(weights: np.ndarray | None, v: np.ndarray) -> np.ndarray:
+    return v if weights is None else weights * v
+
+
+ACCELERATIONS: dict[str, Callable[..., Acceleration]] = {
+    "constant": lambda c, comm, w: ConstantRelaxation(comm, c.initial_relaxation),
+    "aitken": lambda c, comm, w: Aitken(comm, c.initial_relaxation, c.max_relaxation, w),
+    "iqn-ils": lambda c, comm, w: IQNILS(comm, c.initial_relaxation, c.iqn_reuse, c.iqn_filter, w),
 }
-"""The accelerations by the ``coupling.acceleration`` tag, built from the coupling section."""
+"""The accelerations by the ``coupling.acceleration`` tag, built from the coupling section and
+the weights of the entries they measure."""
 
 
-def from_config(coupling: Coupling, comm: MPI.Comm) -> Acceleration:
-    """The acceleration named by ``coupling.acceleration`` with the configuration's parameters."""
-    return ACCELERATIONS[coupling.acceleration](coupling, comm)
+def from_config(
+    coupling: Coupling, comm: MPI.Comm, weights: np.ndarray | None = None
+) -> Acceleration:
+    """The acceleration named by ``coupling.acceleration`` with the configuration's parameters,
+    measuring the entries of ``weights`` (:attr:`InterfaceUnknown.weights`; None: all)."""
+    return ACCELERATIONS[coupling.acceleration](coupling, comm, weights)
 
 
 # --------------------------------------------------------------------------------------------
@@ -358,6 +382,64 @@ class Predictor:
 def predictor_from_config(coupling: Coupling) -> Predictor:
     """The predictor named by ``coupling.predictor`` (constant, linear, quadratic or cubic)."""
     return Predictor(coupling.predictor)
+
+
+# --------------------------------------------------------------------------------------------
+# The unknown of a step's iterations
+
+
+@dataclass(frozen=True)
+class InterfaceUnknown:
+    """What a step's iterations solve for, per owned interface node: the displacement x
+    (``dimension`` values; Dirichlet–Neumann) or, with ``forces``, x followed by the fluid's
+    nodal forces f (Robin–Neumann: the fluid's Robin data are the last iterate's forces, so they
+    are part of the fixed point z = [x, f]). The accelerations measure z by its displacement
+    alone (:meth:`weights`): their secants and least squares see x, and f moves with the same
+    coefficients; the predictor extrapolates both. A step has converged when x and f have,
+    each by its relative residual (:meth:`residual`)."""
+
+    dimension: int
+    forces: bool = False
+
+    @property
+    def block(self) -> int:
+        """Values per node."""
+        return 2 * self.dimension if self.forces else self.dimension
+
+    def stack(self, x: np.ndarray, f: np.ndarray | None = None) -> np.ndarray:
+        """z from x and (with ``forces``) f, both flat or (n, dimension); f None: zero."""
+        if not self.forces:
+            return np.asarray(x, dtype=float).ravel()
+        x = np.asarray(x, dtype=float).reshape(-1, self.dimension)
+        f = np.zeros_like(x) if f is None else np.asarray(f, dtype=float).reshape(x.shape)
+        return np.hstack([x, f]).ravel()
+
+    def displacement(self, z: np.ndarray) -> np.ndarray:
+        """x of z (flat)."""
+        return np.asarray(z).reshape(-1, self.block)[:, : self.dimension].ravel()
+
+    def nodal_forces(self, z: np.ndarray) -> np.ndarray:
+        """f of z (flat; with ``forces`` only)."""
+        return np.asarray(z).reshape(-1, self.block)[:, self.dimension :].ravel()
+
+    def weights(self, size: int) -> np.ndarray | None:
+        """1 on the displacement's entries of a local z of ``size`` values, 0 on the forces'
+        (None without forces: every entry counts)."""
+        if not self.forces:
+            return None
+        w = np.zeros((size // self.block, self.block))
+        w[:, : self.dimension] = 1.0
+        return w.ravel()
+
+    def residual(self, comm: MPI.Comm, z: np.ndarray, z_tilde: np.ndarray) -> float:
+        """The step's convergence measure: :func:`relative_residual` of x, and with forces the
+        larger of it and f's."""
+        if not self.forces:
+            return relative_residual(comm, z, z_tilde)
+        return max(
+            relative_residual(comm, self.displacement(z), self.displacement(z_tilde)),
+            relative_residual(comm, self.nodal_forces(z), self.nodal_forces(z_tilde)),
+        )
 
 
 # --------------------------------------------------------------------------------------------
@@ -438,6 +520,7 @@ def couple_step(
     max_iterations: int,
     step: int = 0,
     t: float | None = None,
+    unknown: InterfaceUnknown | None = None,
 ) -> StepResult:
     """Dirichlet–Neumann iterations of one time step (ending at ``t``) until
     ``|x̃ − x| / |x̃| <= tolerance``.
@@ -448,11 +531,15 @@ def couple_step(
     returned. Otherwise ``x_{k+1} = acceleration.next_input(x_k, x̃_k)`` and both solvers
     ``restore_state()`` to the checkpoint saved at the start of the step.
 
+    With an ``unknown`` (:class:`InterfaceUnknown`) the iterates are its z: the fluid takes z,
+    the output is z̃ = [x̃, the fluid's forces] (Robin–Neumann), and the step converges on
+    :meth:`InterfaceUnknown.residual`; the returned displacement is x̃ all the same.
+
     Raises:
         CouplingNotConverged: after ``max_iterations`` iterations, with the solvers restored to
             the start of the step (collectively: every rank sees the same global residuals).
     """
-    x = predictor.predict(t)
+    z = predictor.predict(t)
     fluid.save_state()
     solid.save_state()
     acceleration.start_step()
@@ -461,16 +548,20 @@ def couple_step(
         if k > 0:
             fluid.restore_state()
             solid.restore_state()
-        x_tilde = solid.solve(fluid.solve(x))
-        residuals.append(relative_residual(comm, x, x_tilde))
+        forces = fluid.solve(z)
+        x_tilde = solid.solve(forces)
+        z_tilde = unknown.stack(x_tilde, forces) if unknown else x_tilde
+        residuals.append(
+            unknown.residual(comm, z, z_tilde) if unknown else relative_residual(comm, z, x_tilde)
+        )
         log.debug("step %d, coupling iteration %d: residual %.3e", step, k + 1, residuals[-1])
         if residuals[-1] <= tolerance:
             fluid.advance()
             solid.advance()
             acceleration.end_step()
-            predictor.record(x_tilde, t)
+            predictor.record(z_tilde, t)
             return StepResult(x_tilde, residuals)
-        x = acceleration.next_input(x, x_tilde)
+        z = acceleration.next_input(z, z_tilde)
     fluid.restore_state()
     solid.restore_state()
     raise CouplingNotConverged(step, residuals, tolerance)

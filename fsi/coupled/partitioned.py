@@ -1,7 +1,8 @@
 """The partitioned fluid–structure problem (docs/model.md, Coupling), assembled from one mesh of
 the whole system: the fluid and structure solvers, the mesh motion, the interface maps, the two
 sides of the coupler (fsi/coupled/adapters.py), the acceleration and the predictor, and the
-Dirichlet–Neumann step that joins them (fsi/coupled/coupling.py).
+Dirichlet–Neumann (or Robin–Neumann, fsi/coupled/robin.py) step that joins them
+(fsi/coupled/coupling.py).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from mpi4py import MPI
 import numpy as np
 
 from fsi import config
-from fsi.coupled import coupling
+from fsi.coupled import coupling, robin
 from fsi.coupled.adapters import ExplicitGeometryInterface, FluidInterface, SolidInterface
 from fsi.coupled.interface import InterfaceMap
 from fsi.geometry.tags import Boundary, Region
@@ -42,6 +43,11 @@ class CoupledProblem:
         self.fluid_side.begin_step(t, dt)
         self.solid_side.begin_step(t, dt)
 
+    @property
+    def unknown(self) -> coupling.InterfaceUnknown:
+        """What the iterations solve for: x, or [x, f] with Robin–Neumann."""
+        return self.fluid_side.unknown
+
     def step(self, index: int, t: float, dt: float) -> coupling.StepResult:
         """The Dirichlet–Neumann iterations of the step ending at ``t`` (collective)."""
         self.begin_step(t, dt)
@@ -55,6 +61,7 @@ class CoupledProblem:
             max_iterations=self.settings.max_iterations,
             step=index,
             t=t,
+            unknown=self.unknown,
         )
 
     @property
@@ -100,14 +107,12 @@ def build_coupled(
         and np.array_equal(to_solid.dst_dofs, solid_solver.interface_dofs)
     ):
         raise RuntimeError("the solid's interface vector and the interface maps disagree")
-    explicit = case.coupling.geometry == "explicit"
-    interface = ExplicitGeometryInterface if explicit else FluidInterface
-    fluid_side = interface(
-        fluid_solver, motion, to_fluid, to_solid, forcing=case.coupling.fluid_forcing
-    )
+    fluid_side = _fluid_side(case, fluid_solver, motion, to_fluid, to_solid)
     solid_side = SolidInterface(solid_solver)
     predictor = coupling.predictor_from_config(case.coupling)
-    predictor.record(solid_solver.interface_displacement().ravel(), 0.0)
+    x0 = solid_solver.interface_displacement()
+    predictor.record(fluid_side.unknown.stack(x0), 0.0)
+    weights = fluid_side.unknown.weights(x0.size * fluid_side.unknown.block // x0.shape[1])
     return CoupledProblem(
         whole,
         fluid_mesh,
@@ -116,7 +121,23 @@ def build_coupled(
         fluid_side,
         solid_solver,
         solid_side,
-        coupling.from_config(case.coupling, comm),
+        coupling.from_config(case.coupling, comm, weights),
         predictor,
         case.coupling,
+    )
+
+
+def _fluid_side(case: config.Case, fluid_solver, motion, to_fluid, to_solid) -> FluidInterface:
+    """The fluid's side of the coupler: ``coupling.geometry`` chooses the adapter,
+    ``coupling.scheme`` the interface condition (Robin–Neumann: with α, fsi/coupled/robin.py)."""
+    explicit = case.coupling.geometry == "explicit"
+    interface = ExplicitGeometryInterface if explicit else FluidInterface
+    robin_neumann = case.coupling.scheme == "robin-neumann"
+    return interface(
+        fluid_solver,
+        motion,
+        to_fluid,
+        to_solid,
+        forcing=case.coupling.fluid_forcing,
+        robin=robin.from_case(case) if robin_neumann else None,
     )

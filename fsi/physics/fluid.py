@@ -32,10 +32,15 @@ from fsi.numerics.newton import DirichletLifting, Forcing, Newton, SolveResult
 from fsi.numerics.timestepping import BdfHistory, bdf_weights
 from fsi.physics import rheology
 from fsi.physics.coordinates import Coordinates
-from fsi.physics.fluid_boundaries import BoundaryCondition, Velocity, as_tags, facets_of
+from fsi.physics.fluid_boundaries import (
+    BoundaryCondition,
+    Robin,
+    Velocity,
+    as_tags,
+    facets_of,
+)
 from fsi.physics.fluid_boundary_terms import (
     BoundaryTerms,
-    LumpedOutlet,
     outlet_values,
     restore_outlet_states,
 )
@@ -45,6 +50,9 @@ from fsi.physics.mesh_motion import AleMesh
 log = logging.getLogger(__name__)
 
 Scheme = Literal["backward_euler", "bdf2", "steady"]
+
+MOVING_WALLS = (Velocity, Robin)
+"""The conditions of a wall that moves with the structure: the fluid's forces act on it."""
 
 VELOCITY_DEGREE = {"p2p1": 2, "p1p1": 1}
 """The velocity's Lagrange degree of each ``fluid.element``; the pressure is P1 in both."""
@@ -89,14 +97,20 @@ class _FluidProblem(dolfinx.fem.petsc.NonlinearProblem):
     """The fluid's nonlinear problem: dolfinx's, but each residual evaluation also keeps the
     residual before its Dirichlet rows are set (:meth:`unconstrained_residual`, the nodal forces'
     source), and with lumped outlets each residual evaluation first sets their pressures from
-    the iterate and each Jacobian gets their rank-one blocks (:class:`LumpedOutlet`)."""
+    the iterate and each Jacobian gets their rank-one blocks (:class:`LumpedOutlet`). A Robin
+    interface (:class:`RobinInterface`) adds its term and nodal forces to the residual after
+    the kept part, so the nodal forces are −R of the Navier–Stokes residual alone."""
 
-    def __init__(
-        self, F: ufl.Form, U: dolfinx.fem.Function, bcs: list, lumped: Sequence[LumpedOutlet]
-    ):
+    def __init__(self, F: ufl.Form, U: dolfinx.fem.Function, boundary: BoundaryTerms):
         dU = ufl.TrialFunction(U.function_space)
-        super().__init__(F, U, bcs, J=ufl.derivative(F, U, dU))
-        self.lumped = tuple(lumped)
+        # F stays the residual whose −R is the nodal forces; a Robin interface's term and
+        # nodal forces are added to each evaluation after it (:meth:`F`), its term's derivative
+        # to the Jacobian.
+        robin = self.robin = boundary.robin
+        whole = F if robin is None else F + robin.form
+        super().__init__(F, U, boundary.bcs, J=ufl.derivative(whole, U, dU))
+        self._robin_form = None if robin is None else dolfinx.fem.form(robin.form)
+        self.lumped = tuple(boundary.lumped)
         self.comm: MPI.Comm = U.function_space.mesh.comm
         self._unconstrained = dolfinx.fem.Function(U.function_space)
         self._evaluated_at: np.ndarray | None = None  # the iterate of the last residual
@@ -113,6 +127,9 @@ class _FluidProblem(dolfinx.fem.petsc.NonlinearProblem):
         self._finish_unconstrained()
         with x.localForm() as local:
             self._evaluated_at = local.array_r.copy()
+        if self.robin is not None:
+            dolfinx.fem.petsc.assemble_vector(b, self._robin_form)
+            self.robin.add_to(b)
         self.dirichlet.apply(b, x)
 
     def _assemble_unconstrained(self) -> PETSc.Vec:
@@ -241,7 +258,8 @@ class FluidSolver:
             self.residual_form += term
         self._bcs, self._updates, self.lumped = boundary.bcs, boundary.updates, boundary.lumped
         self.step_coefficients = interior.step_coefficients  # SUPG's τ, held per solve
-        self.problem = _FluidProblem(self.residual_form, self.U, self._bcs, self.lumped)
+        self.robin = boundary.robin  # the Robin–Neumann interface's data, or None
+        self.problem = _FluidProblem(self.residual_form, self.U, boundary)
         split = {"u": _owned_rows(self.W, self._V_to_W), "p": _owned_rows(self.W, self._Q_to_W)}
         self.newton = Newton(self.comm, self.problem, self.config.solver, "fluid_", fields=split)
         # −R of the last step's solution, kept from before advance() (the residual needs the
@@ -445,7 +463,7 @@ class FluidSolver:
         before :meth:`advance`, or after it once it was taken before (the residual's inertia
         uses the step's time history; :meth:`_reaction`)."""
         if tags is None:
-            tags = [t for bc in self.boundaries if isinstance(bc, Velocity) for t in bc.tags]
+            tags = [t for bc in self.boundaries if isinstance(bc, MOVING_WALLS) for t in bc.tags]
         gdim = self.mesh.geometry.dim
         nodes = self._owned_nodes(tags)
         minus_R = self._reaction()

@@ -1,7 +1,7 @@
 """The fluid's boundary conditions as data, and the boundary data they need.
 
-One small frozen class per kind (:class:`NoSlip`, :class:`Velocity`, :class:`Inflow`,
-:class:`Outflow`, :class:`Slip`, :class:`Traction`, :class:`Axis`,
+One small frozen class per kind (:class:`NoSlip`, :class:`Velocity`, :class:`Robin`,
+:class:`Inflow`, :class:`Outflow`, :class:`Slip`, :class:`Traction`, :class:`Axis`,
 :class:`PrescribedVelocity`, :class:`PrescribedTraction`), a case's set of them
 (:func:`boundary_conditions`, :func:`walls`), the inlet's pressure P(t)
 (:func:`inlet_pressure`), the Turek–Hron inflow ramp and the parabolic inflow profile on a
@@ -65,6 +65,24 @@ class NoSlip:
 class Velocity:
     """u = the solver's :attr:`FluidSolver.boundary_velocity` on ``tags`` (the FSI interface:
     the coupler writes ∂η/∂t there)."""
+
+    tags: tuple[int, ...]
+
+    def __post_init__(self):
+        object.__setattr__(self, "tags", as_tags(self.tags))
+
+
+@dataclass(frozen=True)
+class Robin:
+    """The Robin–Neumann coupling's interface condition on ``tags``:
+
+        α (u − u_Γ) − σ n = t_k   (weakly: f = α M_Γ (u − u_Γ) + f_k at the nodes),
+
+    u_Γ the solver's :attr:`FluidSolver.boundary_velocity` (the wall's velocity), α and the
+    nodal forces f_k of the last coupling iteration set by the coupler (the fluid's
+    :class:`~fsi.physics.fluid_boundary_terms.RobinInterface`). At a fixed point u = u_Γ: the
+    solution of :class:`Velocity`. Nodes the interface shares with another boundary keep
+    u = u_Γ."""
 
     tags: tuple[int, ...]
 
@@ -173,6 +191,7 @@ class PrescribedTraction:
 BoundaryCondition = (
     NoSlip
     | Velocity
+    | Robin
     | Inflow
     | Outflow
     | Slip
@@ -196,11 +215,15 @@ def walls(boundaries: Sequence[Boundary], moving_interface: bool = False) -> tup
 
 
 def boundary_conditions(
-    fluid: config.Fluid, boundaries: Sequence[Boundary], moving_interface: bool
+    fluid: config.Fluid,
+    boundaries: Sequence[Boundary],
+    moving_interface: bool,
+    robin: bool = False,
 ) -> tuple[BoundaryCondition, ...]:
     """The fluid's boundary conditions in every mode (docs/model.md, Fluid), for a geometry with
     ``boundaries``: the configured inlet, the configured outlet, u = ∂η/∂t on the interface if
-    it moves (a coupled run), no-slip on the :func:`walls`, u_r = 0 on a tube's axis."""
+    it moves (a coupled run; with ``robin`` the Robin–Neumann coupling's :class:`Robin`
+    condition), no-slip on the :func:`walls`, u_r = 0 on a tube's axis."""
     inlet = Inflow(Boundary.INLET, fluid.inlet, fluid.inflow_stabilization, fluid.inflow_form)
     outlet = Outflow(
         Boundary.OUTLET,
@@ -208,7 +231,8 @@ def boundary_conditions(
         outlets.from_config(fluid.outlet),
         fluid.outlet.backflow_form,
     )
-    moving = (Velocity(Boundary.INTERFACE),) if moving_interface else ()
+    interface = Robin if robin else Velocity
+    moving = (interface(Boundary.INTERFACE),) if moving_interface else ()
     axis = (Axis(Boundary.AXIS),) if Boundary.AXIS in boundaries else ()
     return (inlet, outlet, *moving, NoSlip(walls(boundaries, moving_interface)), *axis)
 

@@ -33,6 +33,7 @@ from fsi.physics.fluid_boundaries import (
     Outflow,
     PrescribedTraction,
     PrescribedVelocity,
+    Robin,
     Slip,
     Traction,
     Velocity,
@@ -133,6 +134,42 @@ class LumpedOutlet:
         }
 
 
+# --------------------------------------------------------------------------------------------
+# The Robin–Neumann coupling's interface condition
+
+
+class RobinInterface:
+    """The data of a :class:`Robin` interface: the residual's term α ∫_Γ (u − u_Γ)·v ds
+    (:attr:`form`, kept apart from the residual whose −R gives the nodal forces) and the nodal
+    forces f_k of the last coupling iteration added to the residual at the interface's velocity
+    dofs (:attr:`load`, over the local dofs of W, owned ones only), so that the solution has
+    −R = α M_Γ (u − u_Γ) + f_k there (fsi/physics/fluid.py, ``_FluidProblem``)."""
+
+    def __init__(self, fields: FluidFields, s: WeakForm, tags: Sequence[int]):
+        mesh = fields.W.mesh
+        self.coefficient = dolfinx.fem.Constant(mesh, PETSc.ScalarType(0.0))
+        wall_velocity = fields.boundary_velocity
+        self.form = self.coefficient * ufl.dot(s.u - wall_velocity, s.v) * s.ds_of(tags)
+        index_map = fields.W.dofmap.index_map
+        self.owned = index_map.size_local * fields.W.dofmap.index_map_bs
+        self.load = np.zeros(self.owned)
+
+    def set(self, coefficient: float, forces: np.ndarray, V_to_W: np.ndarray) -> None:
+        """α (Pa·s/m) and the nodal forces, (n_owned, gdim) over the owned nodes of the
+        velocity space V, whose dofs ``V_to_W`` maps into W (:func:`fsi.compat.subspace_map`)."""
+        self.coefficient.value = coefficient
+        forces = np.asarray(forces, dtype=float).ravel()
+        to_W = V_to_W[: len(forces)]
+        owned = (to_W >= 0) & (to_W < self.owned)
+        self.load[:] = 0.0
+        self.load[to_W[owned]] = forces[owned]
+
+    def add_to(self, b: PETSc.Vec) -> None:
+        """The nodal forces into ``b``'s owned entries (ghost contributions not yet summed)."""
+        with b.localForm() as local:
+            local.array[: self.owned] += self.load
+
+
 _NORMAL_FLOW, _PRESCRIBED, _WALL = 0, 1, 2
 """The precedence of Dirichlet conditions: they are applied in this order, so at a dof two of
 them share (a corner) the later one wins: walls over inlets and the interface, both over the
@@ -210,6 +247,7 @@ class BoundaryTerms:
         self.bcs: list = []
         self.updates: list[Callable[[float], None]] = []
         self.lumped: list[LumpedOutlet] = []
+        self.robin: RobinInterface | None = None
         dirichlet = []
         for bc in boundaries:
             kind = self.BOUNDARY_KINDS.get(type(bc))
@@ -274,6 +312,19 @@ class BoundaryTerms:
         return _Contribution(
             dirichlet=[(_PRESCRIBED, self._dirichlet(self.fields.boundary_velocity, bc.tags))]
         )
+
+    def _robin(self, bc: Robin, s: WeakForm) -> _Contribution:
+        """The Robin–Neumann interface (:class:`RobinInterface`, kept apart in :attr:`robin`);
+        u = u_Γ where the interface meets another boundary (its corners, as with
+        :class:`Velocity`, so that the fixed point is the Dirichlet–Neumann solution)."""
+        if self.robin is not None:
+            raise ValueError("one Robin interface per fluid")
+        self.robin = RobinInterface(self.fields, s, bc.tags)
+        corners = _shared_velocity_dofs(self.fields, self.facet_tags, bc.tags)
+        condition = dolfinx.fem.dirichletbc(
+            self.fields.boundary_velocity, corners, self.fields.W.sub(0)
+        )
+        return _Contribution(dirichlet=[(_PRESCRIBED, condition)])
 
     def _inflow(self, bc: Inflow, s: WeakForm) -> _Contribution:
         """A velocity inlet (Dirichlet: parabolic, flow rate), or a traction inlet: σ n = −P(t) n
@@ -342,6 +393,7 @@ class BoundaryTerms:
         Axis: _axis,
         NoSlip: _no_slip,
         Velocity: _velocity,
+        Robin: _robin,
         Inflow: _inflow,
         Outflow: _outflow,
         Slip: _slip,
@@ -459,6 +511,20 @@ class BoundaryTerms:
 
         self.updates.append(update)
         return self._dirichlet(inflow, bc.tags)
+
+
+def _shared_velocity_dofs(fields: FluidFields, facet_tags, tags: Sequence[int]) -> list:
+    """The velocity dofs (W's and V's) of the facets of ``tags`` that other tags' facets share:
+    where the boundary ``tags`` meets another."""
+    mesh = fields.W.mesh
+    spaces, fdim = (fields.W.sub(0), fields.V), mesh.topology.dim - 1
+    own = dolfinx.fem.locate_dofs_topological(spaces, fdim, facets_of(facet_tags, tags))
+    present = set(np.unique(facet_tags.values).tolist())
+    present = set().union(*mesh.comm.allgather(present))
+    others = sorted(present - set(tags))
+    other = dolfinx.fem.locate_dofs_topological(spaces, fdim, facets_of(facet_tags, others))
+    shared = np.isin(own[0], other[0])
+    return [own[0][shared], own[1][shared]]
 
 
 def _check_tags(facet_tags, boundaries: Sequence[BoundaryCondition], comm) -> None:

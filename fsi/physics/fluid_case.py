@@ -15,8 +15,14 @@ from fsi.physics.fluid_boundaries import BoundaryCondition, boundary_conditions
 def fluid_conditions(case: config.Case, moving_interface: bool = False) -> tuple:
     """The case's fluid boundary conditions (:func:`fsi.physics.fluid_boundaries.
     boundary_conditions`): the configured inlet and outlets, no-slip on every wall; the
-    interface moves with the structure if ``moving_interface``, else it is a rigid wall too."""
-    return boundary_conditions(case.fluid, mesh.boundaries(case), moving_interface=moving_interface)
+    interface moves with the structure if ``moving_interface`` (with the Robin condition of
+    ``coupling.scheme: robin-neumann``), else it is a rigid wall too."""
+    return boundary_conditions(
+        case.fluid,
+        mesh.boundaries(case),
+        moving_interface=moving_interface,
+        robin=case.coupling.scheme == "robin-neumann",
+    )
 
 
 def fluid_solver(

@@ -258,7 +258,7 @@ class CoupledStepper(_Checkpointed):
         # Before the mesh ever moves: the checkpoint keys are reference coordinates.
         problem = self.problem
         points = problem.solid.interface_points
-        interface = state_arrays.interface_layout("interface", points, points.shape[1])
+        interface = state_arrays.interface_layout("interface", points, problem.unknown.block)
         self._layouts = {
             **fluid_layouts(problem.fluid),
             **structure_layouts(problem.solid),
