@@ -15,6 +15,9 @@ at most 180° (no periodic seams), split at φ = 0 so that the meridian there is
 edges; one boolean fragment makes the pieces conformal. :func:`point_a`, the lumen surface at
 mid-length on φ = 0 (the plaque's middle), is a mesh vertex.
 
+A tube's ``sector: 90`` is the quarter ``0 <= φ <= 90°`` (y, z >= 0), one piece revolved by
+90°; its cuts on the planes z = 0 and y = 0 (the problem's mirror planes) get no tag.
+
 Tags (geometry/tags.py), the axisymmetric cases' with surfaces for curves and volumes for
 surfaces: ``fluid``, ``wall``, ``cap``, ``lipid``; ``inlet`` (x = 0) and ``outlet``
 (x = length) across the lumen, ``interface`` (the lumen surface), ``clamped`` (the wall's end
@@ -82,6 +85,12 @@ def lipid_angle(p) -> float:
     return alpha - 2 * math.asin(min(1.0, p.cap_thickness / inner))
 
 
+def sector(p) -> float:
+    """The modelled part of the vessel's circumference (radians): a tube's ``sector`` (degrees;
+    90: the quarter ``0 <= φ <= 90°`` between the symmetry planes z = 0 and y = 0), else 2π."""
+    return math.radians(getattr(p, "sector", 360))
+
+
 def point_a(p) -> tuple[float, float, float]:
     """Point A (m): the lumen surface at mid-length on φ = 0 (+y), ``(length/2, R − s, 0)``
     with ``s`` the plaque's height there (0 for a tube); a mesh vertex."""
@@ -102,9 +111,10 @@ def analytic_volumes(p) -> dict[str, float]:
     π((R + t)² − R²)L, and the plaque's cap and lipid pool by Pappus's theorem (the revolved
     meridian areas of geometry/stenosis.py times their centroid's path)."""
     R, t, L = lumen_radius(p), p.wall_thickness, p.length
+    share = sector(p) / (2 * math.pi)  # a quarter tube's is a quarter
     volumes = {
-        Region.FLUID.label: math.pi * R**2 * L,
-        Region.WALL.label: math.pi * ((R + t) ** 2 - R**2) * L,
+        Region.FLUID.label: share * math.pi * R**2 * L,
+        Region.WALL.label: share * math.pi * ((R + t) ** 2 - R**2) * L,
     }
     if is_stenosis(p):
         A = stenosis.plaque_height(p)
@@ -133,7 +143,7 @@ def interface_area(p, samples: int = 20001) -> float:
     (relative error ~1e-9)."""
     R, L = lumen_radius(p), p.length
     if not is_stenosis(p):
-        return 2 * math.pi * R * L
+        return sector(p) * R * L
     alpha, l = plaque_angle(p), p.stenosis_length
     x = np.linspace(stenosis.apex_x(p) - l / 2, stenosis.apex_x(p) + l / 2, samples)
     s = stenosis.plaque_profile(p, x)
@@ -379,6 +389,10 @@ class _Builder:
             return tops
 
         plain = self.sections["plain"]
+        if not self.stenosed and sector(self.p) < 2 * math.pi:  # a quarter: φ from 0 to 90°
+            revolve(plain, sector(self.p))
+            self._fragment(inputs)
+            return
         if not self.stenosed:  # a tube: from the meridian φ = 0 both ways, as a plaque
             revolve(plain, -math.pi)
             revolve(plain, math.pi)
@@ -433,9 +447,12 @@ class _Builder:
         tol = 1e-4 * self.L  # OpenCASCADE enlarges its bounding boxes by its tolerance, 1e-7 m
         for surface, regions in sorted(bounding.items()):
             kinds = set(regions)
-            x0, _, _, x1, _, _ = gmsh.model.getBoundingBox(2, surface)
+            x0, y0, z0, x1, y1, z1 = gmsh.model.getBoundingBox(2, surface)
             at_inlet, at_outlet = x1 <= tol, x0 >= self.L - tol
             at_end = at_inlet or at_outlet
+            on_symmetry_plane = max(abs(y0), abs(y1)) <= tol or max(abs(z0), abs(z1)) <= tol
+            if len(regions) == 1 and on_symmetry_plane and sector(self.p) < 2 * math.pi:
+                continue  # a quarter's cut: no tag (fsi/physics: the normal component held)
             if kinds == {Region.FLUID}:
                 if at_end:
                     groups[Boundary.INLET if at_inlet else Boundary.OUTLET].append(surface)

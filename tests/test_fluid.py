@@ -156,6 +156,8 @@ def test_every_boundary_kind_has_its_function_and_others_are_refused():
     assert set(fluid_boundary_terms.BoundaryTerms.BOUNDARY_KINDS) == {
         fluid_boundaries.NoSlip,
         fluid_boundaries.Velocity,
+        fluid_boundaries.Robin,
+        fluid_boundaries.SymmetryPlane,
         fluid_boundaries.Inflow,
         fluid_boundaries.Outflow,
         fluid_boundaries.Slip,

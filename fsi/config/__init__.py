@@ -28,6 +28,7 @@ from fsi.config.domain import (
     TurekHronGeometry,
     dimension,
     is_axisymmetric,
+    symmetry_planes,
 )
 from fsi.config.fluid_section import (
     FLOW_RATE_INLETS,
@@ -100,6 +101,7 @@ __all__ = [
     "TubeGeometry",
     "TurekHronGeometry",
     "dimension",
+    "symmetry_planes",
     "is_axisymmetric",
     "MESH_LEVELS",
     "MeshSettings",

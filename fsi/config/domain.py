@@ -71,6 +71,9 @@ class TubeGeometry:
     # 3: the circular tube as a solid (docs/3d.md; with axisymmetric false); only `fsi mesh`
     # builds it so far.
     dimension: Literal[2, 3] = 2
+    # The part of a 3D tube that is modelled (degrees): 360 the whole, 90 the quarter
+    # y >= 0, z >= 0 with the symmetry planes y = 0 and z = 0 (docs/3d.md).
+    sector: Literal[90, 360] = 360
 
 
 @dataclass(frozen=True)
@@ -102,6 +105,13 @@ def is_axisymmetric(geometry: GeometrySettings) -> bool:
 def dimension(geometry: GeometrySettings) -> int:
     """The geometry's (and its mesh's) dimension: 3 for a solid vessel, otherwise 2."""
     return int(getattr(geometry, "dimension", 2))
+
+
+def symmetry_planes(geometry: GeometrySettings) -> tuple[int, ...]:
+    """The axes c of the planes x_c = 0 that bound a 3D quarter tube (``sector: 90``): the
+    solution's mirror planes, where the normal components of velocity, displacement and mesh
+    motion are 0; none for a whole vessel."""
+    return (1, 2) if getattr(geometry, "sector", 360) == 90 else ()
 
 
 MESH_LEVELS = {"coarse": 0, "medium": 1, "fine": 2, "finest": 3}

@@ -17,6 +17,7 @@ from fsi.config.domain import (
     TurekHronGeometry,
     dimension,
 )
+from fsi.config.fluid_section import FLOW_RATE_INLETS, ParabolicInflow
 from fsi.config.reader import ConfigError
 from fsi.geometry import stenosis as stenosis_geometry
 from fsi.geometry import vessel_3d
@@ -35,6 +36,7 @@ def validate_geometry(case: Case) -> None:
                 "", f"geometry.{f.name}", f"a length of at most {MAX_LENGTH:g} m", value
             )
     _validate_dimension(g)
+    _validate_sector(case)
     if isinstance(g, StenosisGeometry):
         _validate_stenosis(g)
     elif isinstance(g, TurekHronGeometry):
@@ -77,6 +79,26 @@ def _validate_dimension(g) -> None:
             "geometry.plaque_angle",
             "360 unless geometry.dimension is 3 (a plane or axisymmetric plaque spans no angle)",
             g.plaque_angle,
+        )
+
+
+def _validate_sector(case: Case) -> None:
+    """A quarter (``sector: 90``) is a 3D tube's, and its inlet a pressure inlet: a velocity
+    inlet's profile is laid out on a whole disk (fsi/physics/fluid_boundaries.py)."""
+    g = case.geometry
+    if getattr(g, "sector", 360) == 360:
+        return
+    if dimension(g) != 3:
+        raise ConfigError(
+            "", "geometry.sector", "360 unless geometry.dimension is 3 (a 3D tube)", g.sector
+        )
+    if isinstance(case.fluid.inlet, (ParabolicInflow, *FLOW_RATE_INLETS)):
+        raise ConfigError(
+            "",
+            "fluid.inlet.kind",
+            "a pressure inlet with geometry.sector 90 (a velocity inlet's profile needs the "
+            "whole disk)",
+            case.fluid.inlet.kind,
         )
 
 

@@ -93,7 +93,12 @@ def build_coupled(
         case, fluid_mesh, moving_interface=True, conditions=fluid_conditions
     )
     # Built before the mesh ever moves: both keep the reference coordinates X.
-    motion = MeshMotion(fluid_mesh, case.mesh_motion, moving=(Boundary.INTERFACE,))
+    motion = MeshMotion(
+        fluid_mesh,
+        case.mesh_motion,
+        moving=(Boundary.INTERFACE,),
+        symmetry_planes=config.symmetry_planes(case.geometry),
+    )
     solid_solver = solid.build(case, whole, comm, bcs=solid_conditions)
     fluid_facets = fluid_mesh.facets(Boundary.INTERFACE)
     to_fluid = InterfaceMap(

@@ -2,6 +2,7 @@
 
 One small frozen class per kind (:class:`NoSlip`, :class:`Velocity`, :class:`Robin`,
 :class:`Inflow`, :class:`Outflow`, :class:`Slip`, :class:`Traction`, :class:`Axis`,
+:class:`SymmetryPlane`,
 :class:`PrescribedVelocity`, :class:`PrescribedTraction`), a case's set of them
 (:func:`boundary_conditions`, :func:`walls`), the inlet's pressure P(t)
 (:func:`inlet_pressure`), the Turek–Hron inflow ramp and the parabolic inflow profile on a
@@ -161,6 +162,16 @@ class Axis:
 
 
 @dataclass(frozen=True)
+class SymmetryPlane:
+    """u_``component`` = 0 at every velocity node on the plane x_``component`` = 0, the other
+    components free with no traction: a mirror plane of the flow, such as a quarter tube's cuts
+    (``geometry.sector: 90``), which carry no tag."""
+
+    component: int
+    tags: tuple[int, ...] = ()
+
+
+@dataclass(frozen=True)
 class PrescribedVelocity:
     """u = ``value(x, t)`` on ``tags``: a velocity field given in Python, not by a case file
     (an exact solution imposed at the ends of a verification case, e.g. the deformable tube's
@@ -192,6 +203,7 @@ BoundaryCondition = (
     NoSlip
     | Velocity
     | Robin
+    | SymmetryPlane
     | Inflow
     | Outflow
     | Slip
@@ -219,11 +231,13 @@ def boundary_conditions(
     boundaries: Sequence[Boundary],
     moving_interface: bool,
     robin: bool = False,
+    symmetry_planes: Sequence[int] = (),
 ) -> tuple[BoundaryCondition, ...]:
     """The fluid's boundary conditions in every mode (docs/model.md, Fluid), for a geometry with
     ``boundaries``: the configured inlet, the configured outlet, u = ∂η/∂t on the interface if
     it moves (a coupled run; with ``robin`` the Robin–Neumann coupling's :class:`Robin`
-    condition), no-slip on the :func:`walls`, u_r = 0 on a tube's axis."""
+    condition), no-slip on the :func:`walls`, u_r = 0 on a tube's axis, the normal velocity 0
+    on the planes x_c = 0 of ``symmetry_planes`` (a quarter tube's cuts)."""
     inlet = Inflow(Boundary.INLET, fluid.inlet, fluid.inflow_stabilization, fluid.inflow_form)
     outlet = Outflow(
         Boundary.OUTLET,
@@ -234,7 +248,9 @@ def boundary_conditions(
     interface = Robin if robin else Velocity
     moving = (interface(Boundary.INTERFACE),) if moving_interface else ()
     axis = (Axis(Boundary.AXIS),) if Boundary.AXIS in boundaries else ()
-    return (inlet, outlet, *moving, NoSlip(walls(boundaries, moving_interface)), *axis)
+    mirrors = tuple(SymmetryPlane(c) for c in symmetry_planes)
+    walls_ = NoSlip(walls(boundaries, moving_interface))
+    return (*mirrors, inlet, outlet, *moving, walls_, *axis)
 
 
 def inlet_pressure(spec: config.Inlet) -> Callable[[float], float]:

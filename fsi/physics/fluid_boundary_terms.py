@@ -35,6 +35,7 @@ from fsi.physics.fluid_boundaries import (
     PrescribedVelocity,
     Robin,
     Slip,
+    SymmetryPlane,
     Traction,
     Velocity,
     boundary_points,
@@ -46,6 +47,7 @@ from fsi.physics.fluid_boundaries import (
     parabolic_values,
 )
 from fsi.physics.fluid_residual import FluidFields, WeakForm
+from fsi.physics.mesh import plane_dofs
 
 BACKFLOW_LENGTH = 0.5
 """ℓ/h of the ``tangential`` backflow term's regularization ℓ² ∇_Γu : ∇_Γv (h the cell
@@ -273,14 +275,24 @@ class BoundaryTerms:
     def _axis(self, bc: Axis, s: WeakForm) -> _Contribution:
         """u_r = 0 on the axis (or the plane symmetry line): the radial component alone; the
         axial one is free, its traction 0 (the symmetry)."""
-        component = self.fields.W.sub(0).sub(1)
-        dofs = dolfinx.fem.locate_dofs_topological(
-            component, self.mesh.topology.dim - 1, facets_of(self.facet_tags, bc.tags)
-        )
+        facets = facets_of(self.facet_tags, bc.tags)
+        return _Contribution(dirichlet=[(_PRESCRIBED, self._zero(1, facets=facets))])
+
+    def _symmetry_plane(self, bc: SymmetryPlane, s: WeakForm) -> _Contribution:
+        """u_c = 0 on the plane x_c = 0; first, so that walls and the interface win where
+        they meet it (their velocities have no normal component there)."""
+        return _Contribution(dirichlet=[(_NORMAL_FLOW, self._zero(bc.component))])
+
+    def _zero(self, c: int, facets: np.ndarray | None = None):
+        """u_c = 0 on ``facets``, or (None) on the plane x_c = 0."""
+        component = self.fields.W.sub(0).sub(c)
+        fdim = self.mesh.topology.dim - 1
+        if facets is None:
+            dofs = plane_dofs(self.mesh, component, c)
+        else:
+            dofs = dolfinx.fem.locate_dofs_topological(component, fdim, facets)
         zero = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(0.0))
-        return _Contribution(
-            dirichlet=[(_PRESCRIBED, dolfinx.fem.dirichletbc(zero, dofs, component))]
-        )
+        return dolfinx.fem.dirichletbc(zero, dofs, component)
 
     def _prescribed_velocity(self, bc: PrescribedVelocity, s: WeakForm) -> _Contribution:
         """u = value(x, t), interpolated at the time of each step before it is solved."""
@@ -341,7 +353,7 @@ class BoundaryTerms:
             self._backflow(s, bc.inflow_stabilization, bc.inflow_form, bc.tags),
         ]
         dirichlet = (
-            [(_NORMAL_FLOW, bc_) for bc_ in self._normal_flow(bc.tags)]
+            [(_NORMAL_FLOW, bc_) for bc_ in _normal_flow(self.fields, self.facet_tags, bc.tags)]
             if self.config.normal_flow
             else []
         )
@@ -394,6 +406,7 @@ class BoundaryTerms:
         NoSlip: _no_slip,
         Velocity: _velocity,
         Robin: _robin,
+        SymmetryPlane: _symmetry_plane,
         Inflow: _inflow,
         Outflow: _outflow,
         Slip: _slip,
@@ -446,31 +459,6 @@ class BoundaryTerms:
 
     # ---- Dirichlet conditions
 
-    def _normal_flow(self, tags: Sequence[int]) -> list:
-        """u·t = 0 on the open boundary ``tags``, which must be a straight segment (a flat
-        face in 3D) normal to a coordinate axis (every inlet and outlet of the shipped
-        geometries): the velocity components along it are 0, the normal one stays free."""
-        points = boundary_points(self.mesh, self.facet_tags, tags, self.comm)
-        extent = points.max(axis=0) - points.min(axis=0)
-        normal_axis = int(np.argmin(extent))
-        if extent[normal_axis] > 1e-9 * extent.max():
-            raise ValueError(
-                f"fluid.normal_flow needs straight open boundaries parallel to an "
-                f"axis; boundary {list(tags)} spans {' x '.join(f'{e:g}' for e in extent)} m"
-            )
-        facets = facets_of(self.facet_tags, tags)
-        zero = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(0.0))
-        conditions = []
-        for axis in range(len(extent)):
-            if axis == normal_axis:
-                continue
-            component = self.fields.W.sub(0).sub(axis)
-            dofs = dolfinx.fem.locate_dofs_topological(
-                component, self.mesh.topology.dim - 1, facets
-            )
-            conditions.append(dolfinx.fem.dirichletbc(zero, dofs, component))
-        return conditions
-
     def _velocity_inflow(self, bc: Inflow):
         """u = ramp(t) g(s, t) (−n) on a straight inlet of width H (s along it, n its outward
         normal): ``parabolic_velocity`` g = 1.5 Ū 4 s (H − s)/H² (a pipe's 2 Ū (1 − r²/R²)
@@ -511,6 +499,32 @@ class BoundaryTerms:
 
         self.updates.append(update)
         return self._dirichlet(inflow, bc.tags)
+
+
+def _normal_flow(fields: FluidFields, facet_tags, tags: Sequence[int]) -> list:
+    """u·t = 0 on the open boundary ``tags``, which must be a straight segment (a flat
+    face in 3D) normal to a coordinate axis (every inlet and outlet of the shipped
+    geometries): the velocity components along it are 0, the normal one stays free."""
+    points = boundary_points(fields.W.mesh, facet_tags, tags, fields.W.mesh.comm)
+    extent = points.max(axis=0) - points.min(axis=0)
+    normal_axis = int(np.argmin(extent))
+    if extent[normal_axis] > 1e-9 * extent.max():
+        raise ValueError(
+            f"fluid.normal_flow needs straight open boundaries parallel to an "
+            f"axis; boundary {list(tags)} spans {' x '.join(f'{e:g}' for e in extent)} m"
+        )
+    facets = facets_of(facet_tags, tags)
+    zero = dolfinx.fem.Constant(fields.W.mesh, PETSc.ScalarType(0.0))
+    conditions = []
+    for axis in range(len(extent)):
+        if axis == normal_axis:
+            continue
+        component = fields.W.sub(0).sub(axis)
+        dofs = dolfinx.fem.locate_dofs_topological(
+            component, fields.W.mesh.topology.dim - 1, facets
+        )
+        conditions.append(dolfinx.fem.dirichletbc(zero, dofs, component))
+    return conditions
 
 
 def _shared_velocity_dofs(fields: FluidFields, facet_tags, tags: Sequence[int]) -> list:

@@ -22,6 +22,7 @@ def fluid_conditions(case: config.Case, moving_interface: bool = False) -> tuple
         mesh.boundaries(case),
         moving_interface=moving_interface,
         robin=case.coupling.scheme == "robin-neumann",
+        symmetry_planes=config.symmetry_planes(case.geometry),
     )
 
 

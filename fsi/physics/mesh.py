@@ -375,3 +375,21 @@ def stenosis_measures(tagged: TaggedMesh, g: StenosisGeometry) -> dict:
         "stenosis_degree": float((bottom + top) / g.height),
         "min_cap_thickness_m": float(thinnest.min()),
     }
+
+
+def plane_dofs(mesh, space, component: int) -> np.ndarray:
+    """The dofs of ``space`` (a space or a subspace) on the mesh's vertices, edges, ... (every
+    entity below the cells) that lie on the plane x_``component`` = 0, to a millionth of the
+    mesh's extent: a symmetry plane's (fsi.physics.solid_boundaries.SymmetryPlane, the fluid's
+    and the mesh motion's)."""
+    x = mesh.geometry.x
+    tolerance = 1e-6 * float(mesh.comm.allreduce(np.ptp(x, axis=0).max(initial=0.0), op=MPI.MAX))
+    rows = []
+    for dim in range(mesh.topology.dim):
+        mesh.topology.create_entities(dim)
+        mesh.topology.create_connectivity(dim, mesh.topology.dim)  # dolfinx 0.9 needs it
+        entities = dolfinx.mesh.locate_entities(
+            mesh, dim, lambda p: np.abs(p[component]) <= tolerance
+        )
+        rows.append(dolfinx.fem.locate_dofs_topological(space, dim, entities))
+    return np.unique(np.concatenate(rows))

@@ -30,7 +30,7 @@ from fsi.geometry.tags import Boundary
 from fsi.numerics.newton import petsc_options
 from fsi.numerics.nullspace import rigid_body_modes
 from fsi.numerics.timestepping import BdfHistory
-from fsi.physics.mesh import TaggedMesh, owned_facet_dofs
+from fsi.physics.mesh import TaggedMesh, owned_facet_dofs, plane_dofs
 
 PREFIX = "mesh_"
 
@@ -146,6 +146,8 @@ class MeshMotion:
             moving and a fixed boundary takes the moving value (the interface must conform).
         quadrature_degree: of the harmonic/elastic operator (its integrand is constant per cell:
             0 is exact); the biharmonic's forms are integrated exactly whatever it is.
+        symmetry_planes: axes c of the mirror planes x_c = 0 (a quarter tube's untagged cuts):
+            d_c = 0 on them, the mesh slides along them.
     """
 
     def __init__(
@@ -155,8 +157,10 @@ class MeshMotion:
         moving: Sequence[Boundary] = (Boundary.INTERFACE,),
         fixed: Sequence[Boundary] | None = None,
         quadrature_degree: int = 1,
+        symmetry_planes: Sequence[int] = (),
     ):
         settings = settings or config.MeshMotionSettings()
+        self.symmetry_planes = tuple(symmetry_planes)
         self.settings = settings
         self.mesh = mesh = tagged.mesh
         self.comm: MPI.Comm = mesh.comm
@@ -238,7 +242,11 @@ class MeshMotion:
         n_owned = self.V.dofmap.index_map.size_local
         bc = np.union1d(self._moving_dofs, fixed_dofs)
         bc = bc[bc < n_owned]
-        self._bc_local = (bc[:, None] * bs + np.arange(bs)).ravel().astype(np.int32)
+        rows = [(bc[:, None] * bs + np.arange(bs)).ravel()]
+        for c in self.symmetry_planes:  # one component: unrolled rows of V
+            plane = plane_dofs(mesh, self.V.sub(c), c)
+            rows.append(plane[plane < n_owned * bs])
+        self._bc_local = np.unique(np.concatenate(rows)).astype(np.int32)
         start = self.V.dofmap.index_map.local_range[0]
         self._bc_rows = (self._bc_local + start * bs).astype(PETSc.IntType)
 

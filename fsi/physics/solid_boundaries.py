@@ -11,7 +11,6 @@ import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from mpi4py import MPI
 from petsc4py import PETSc
 
 import dolfinx
@@ -27,9 +26,10 @@ from fsi.config import (
     Material,
     StenosisGeometry,
     TubeGeometry,
+    symmetry_planes,
 )
 from fsi.geometry.tags import Boundary, Region
-from fsi.physics.mesh import TaggedMesh
+from fsi.physics.mesh import TaggedMesh, plane_dofs
 
 log = logging.getLogger(__name__)
 
@@ -132,7 +132,8 @@ def boundary_conditions(
     case: Case, pressure: Callable[[float], float] | None = None
 ) -> SolidBoundaryConditions:
     """The case's conditions: ``moving_wall`` clamps ΓD (the wall ends, or the flag's joint);
-    ``fixed_wall`` also holds every dof of the vessel wall, so only the plaque moves.
+    ``fixed_wall`` also holds every dof of the vessel wall, so only the plaque moves. A quarter
+    tube holds the normal displacement on its symmetry planes (:class:`SymmetryPlane`).
 
     ``structure.support`` (if not 0 and 0) supports the stenosis wall's exterior ΓN; in the
     fixed-wall mode ΓN belongs to the held wall and the term has no effect. The Turek–Hron
@@ -141,6 +142,7 @@ def boundary_conditions(
     if s.mode == "rigid":
         raise ValueError("structure.mode 'rigid' has no structure to solve")
     dirichlet: tuple[Dirichlet, ...] = (Clamp((Boundary.CLAMPED,)),)
+    dirichlet += tuple(SymmetryPlane(c) for c in symmetry_planes(case.geometry))  # a quarter
     stenosis = isinstance(case.geometry, StenosisGeometry)
     if s.mode == "fixed_wall" and stenosis:
         dirichlet += (HoldRegions((Region.WALL,)),)
@@ -173,22 +175,6 @@ def _facets(domain: TaggedMesh, boundaries: Sequence[Boundary] | None) -> np.nda
     if boundaries is None:
         return dolfinx.mesh.exterior_facet_indices(domain.mesh.topology)
     return domain.facets(*boundaries)
-
-
-def _plane_dofs(mesh, sub, component: int) -> np.ndarray:
-    """The dofs of the subspace ``sub`` on the mesh's vertices, edges, ... (every entity below
-    the cells) that lie on the plane x_``component`` = 0, to a millionth of the mesh's extent."""
-    x = mesh.geometry.x
-    tolerance = 1e-6 * float(mesh.comm.allreduce(np.ptp(x, axis=0).max(initial=0.0), op=MPI.MAX))
-    rows = []
-    for dim in range(mesh.topology.dim):
-        mesh.topology.create_entities(dim)
-        mesh.topology.create_connectivity(dim, mesh.topology.dim)  # dolfinx 0.9 needs it
-        entities = dolfinx.mesh.locate_entities(
-            mesh, dim, lambda p: np.abs(p[component]) <= tolerance
-        )
-        rows.append(dolfinx.fem.locate_dofs_topological(sub, dim, entities))
-    return np.unique(np.concatenate(rows))
 
 
 class DirichletConditions:
@@ -225,7 +211,7 @@ class DirichletConditions:
                 continue
             if isinstance(item, SymmetryPlane):
                 sub = V.sub(item.component)
-                rows = _plane_dofs(domain.mesh, sub, item.component)
+                rows = plane_dofs(domain.mesh, sub, item.component)
                 bc = dolfinx.fem.dirichletbc(PETSc.ScalarType(0), rows, sub)
                 self.bcs.append(bc)
                 self.homogeneous.append(bc)
