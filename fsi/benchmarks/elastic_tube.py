@@ -15,8 +15,9 @@ the command line's own code path (:func:`fsi.cli.main`) into ``--out`` (or, with
 - and the run's size and cost from its summary.json: ``cells``, ``dofs_fluid``,
   ``dofs_solid``, ``seconds_per_step``, ``ranks``.
 
-``--case pulse3d``: the same pulse in the tube meshed whole as tetrahedra
-(``configs/3d/tube_pulse.yaml``, docs/3d.md; point A on +y, the axis the x axis).
+``--case pulse3d``: the same pulse in the tube as tetrahedra, its quarter between the
+symmetry planes y = 0 and z = 0 (``configs/3d/tube_pulse.yaml``, docs/3d.md; point A on +y,
+the axis the x axis).
 
 ``--case womersley``: Womersley flow in a deformable tube
 (``configs/axisymmetric/tube_womersley.yaml``), run here rather than by ``fsi run``: the exact
