@@ -377,13 +377,29 @@ def stenosis_measures(tagged: TaggedMesh, g: StenosisGeometry) -> dict:
     }
 
 
+def _plane_tolerance(mesh) -> float:
+    """A millionth of the mesh's extent (every rank's)."""
+    x = mesh.geometry.x
+    return 1e-6 * float(mesh.comm.allreduce(np.ptp(x, axis=0).max(initial=0.0), op=MPI.MAX))
+
+
+def boundary_facets_on_plane(mesh, component: int) -> np.ndarray:
+    """The local boundary facets in the plane x_``component`` = 0 (to :func:`_plane_tolerance`):
+    a mirror plane that bounds the mesh, such as a quarter tube's cuts."""
+    tolerance = _plane_tolerance(mesh)
+    fdim = mesh.topology.dim - 1
+    mesh.topology.create_connectivity(fdim, mesh.topology.dim)
+    return dolfinx.mesh.locate_entities_boundary(
+        mesh, fdim, lambda p: np.abs(p[component]) <= tolerance
+    )
+
+
 def plane_dofs(mesh, space, component: int) -> np.ndarray:
     """The dofs of ``space`` (a space or a subspace) on the mesh's vertices, edges, ... (every
     entity below the cells) that lie on the plane x_``component`` = 0, to a millionth of the
     mesh's extent: a symmetry plane's (fsi.physics.solid_boundaries.SymmetryPlane, the fluid's
     and the mesh motion's)."""
-    x = mesh.geometry.x
-    tolerance = 1e-6 * float(mesh.comm.allreduce(np.ptp(x, axis=0).max(initial=0.0), op=MPI.MAX))
+    tolerance = _plane_tolerance(mesh)
     rows = []
     for dim in range(mesh.topology.dim):
         mesh.topology.create_entities(dim)

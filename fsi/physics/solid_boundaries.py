@@ -29,7 +29,7 @@ from fsi.config import (
     symmetry_planes,
 )
 from fsi.geometry.tags import Boundary, Region
-from fsi.physics.mesh import TaggedMesh, plane_dofs
+from fsi.physics.mesh import TaggedMesh, boundary_facets_on_plane, plane_dofs
 
 log = logging.getLogger(__name__)
 
@@ -86,6 +86,10 @@ class SymmetryPlane:
     its ends leave free (the rotation about the axis, the translations across it)."""
 
     component: int
+    bounding: bool = False
+    """The plane bounds the body (a quarter tube's cut): its nodes are those of the boundary's
+    facets in it (dolfinx 0.5 crashed locating dofs on a submesh's vertices and edges on 2
+    ranks there)."""
 
 
 Dirichlet = Clamp | HoldRegions | PrescribedDisplacement | Roller | SymmetryPlane
@@ -142,7 +146,7 @@ def boundary_conditions(
     if s.mode == "rigid":
         raise ValueError("structure.mode 'rigid' has no structure to solve")
     dirichlet: tuple[Dirichlet, ...] = (Clamp((Boundary.CLAMPED,)),)
-    dirichlet += tuple(SymmetryPlane(c) for c in symmetry_planes(case.geometry))  # a quarter
+    dirichlet += tuple(SymmetryPlane(c, bounding=True) for c in symmetry_planes(case.geometry))
     stenosis = isinstance(case.geometry, StenosisGeometry)
     if s.mode == "fixed_wall" and stenosis:
         dirichlet += (HoldRegions((Region.WALL,)),)
@@ -211,7 +215,11 @@ class DirichletConditions:
                 continue
             if isinstance(item, SymmetryPlane):
                 sub = V.sub(item.component)
-                rows = plane_dofs(domain.mesh, sub, item.component)
+                if item.bounding:
+                    facets = boundary_facets_on_plane(domain.mesh, item.component)
+                    rows = dolfinx.fem.locate_dofs_topological(sub, tdim - 1, facets)
+                else:
+                    rows = plane_dofs(domain.mesh, sub, item.component)
                 bc = dolfinx.fem.dirichletbc(PETSc.ScalarType(0), rows, sub)
                 self.bcs.append(bc)
                 self.homogeneous.append(bc)
