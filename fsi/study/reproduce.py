@@ -20,13 +20,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from fsi.run import child_runs
 from fsi.study.analyses import effective_length
 from fsi.study.pressure_analyses import P10_VARIANTS
 from fsi.study.runs import PULSE_AMPLITUDE
@@ -46,11 +46,6 @@ HALVED_SCHEDULE = (
 """The shipped configs' schedule with every step halved."""
 LARGE_STEPS = "time.schedule=[{until: 0.005, dt: 2.5e-4}, {until: 0.1, dt: 5.0e-3}]"
 """The pulse resolved, then the study's 5 ms steps."""
-MPI_ENV = {
-    "OMPI_ALLOW_RUN_AS_ROOT": "1",
-    "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
-    "OMPI_MCA_btl_vader_single_copy_mechanism": "none",
-}
 
 
 @dataclass(frozen=True)
@@ -388,7 +383,7 @@ def run_all(runs: list[StudyRun | StudySweep], folder: Path, ranks: int) -> None
                 stdout=f,
                 stderr=subprocess.STDOUT,
                 cwd=ROOT,
-                env={**os.environ, **MPI_ENV},
+                env=child_runs.environment(),
             )
         print(
             f"{run.name}: exit {code} after {time.perf_counter() - tic:.0f} s (log {log})",
