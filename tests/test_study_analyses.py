@@ -225,3 +225,23 @@ def test_the_most_plausible_reading_is_counted_beside_the_shipped_one():
     text = plausible._changes(runs(1.05), runs(1.2), paper)
     assert text.startswith("On the coarse mesh the reading brings into the band: none; and ")
     assert text.count("; study ") == 60
+
+
+def test_the_ring_is_the_frequency_of_the_wall_s_crests_after_the_pulse():
+    """A wall ringing at 79 Hz after the 5 ms pulse (|η| of a damped cosine, sampled every
+    0.25 ms to 50 ms, then every 1 ms): |η| crests twice a period, the crests past the pulse's
+    own peak and within the resolved steps give the frequency to the steps' resolution."""
+    from fsi import config
+
+    case = config.load(study_runs.ROOT / "configs" / "stenosis_moving_newtonian.yaml")
+    omega = 2 * math.pi * 79.0
+    times = [k * 2.5e-4 for k in range(1, 201)] + [0.05 + k * 1e-3 for k in range(1, 51)]
+    rows = [
+        {"t": t, "peak_displacement": 1e-4 * math.exp(-40 * t) * abs(math.cos(omega * t)) + 1e-9}
+        for t in times
+    ]
+    found = study_runs.ring(rows, case)
+    assert found["hz"] == pytest.approx(79.0, rel=0.01)
+    assert 0.005 < found["crests_s"][0] and found["crests_s"][-1] <= 0.05
+    assert len(found["crests_s"]) == 6  # 8 crests in (5, 50] ms, the pulse's own one left out
+    assert study_runs.ring(rows[:40], case) is None  # to 10 ms: too few crests
