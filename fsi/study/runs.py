@@ -182,7 +182,8 @@ def _locations(run: report_runs.Run, maxima: dict, end: float) -> dict:
     """Where the run's reported maxima sit (fsi/study/locations.py), from its field files: at
     each of :data:`TIMES` up to ``end`` the largest pressure, |u| and |η|, the largest pressure
     off the open boundaries and on the plaque's surface (``where``); the whole structure's and
-    the plaque's largest |σ₁₂| at their times (``largest_sss_at``, ``plaque_sss_at``)."""
+    the plaque's largest |σ₁₂| at their times (``largest_sss_at``, ``plaque_sss_at``, with the
+    structure's largest |η| then, which Figures 7–8 magnify)."""
     from fsi.study import locations
 
     geometry = dataclasses.asdict(run.case.geometry)
@@ -199,8 +200,10 @@ def _locations(run: report_runs.Run, maxima: dict, end: float) -> dict:
             ("plaque_sss_at", "plaque_sss", ("cap", "lipid")),
         ):
             if name in maxima:
-                found = locations.cell_maximum(run.path, "sss", maxima[name][1], geometry, regions)
-                out[key] = {**found, "t": maxima[name][1]}
+                t = maxima[name][1]
+                found = locations.cell_maximum(run.path, "sss", t, geometry, regions)
+                eta = report.value_at(run.rows, t, "peak_displacement")
+                out[key] = {**found, "t": t, "peak_displacement": eta}
     return out
 
 
