@@ -19,6 +19,7 @@ machine's cores), one at a time; a sweep is ``fsi sweep``, which skips its finis
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import subprocess
 import sys
@@ -26,10 +27,10 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from fsi import config
 from fsi.run import child_runs
 from fsi.study.analyses import effective_length
 from fsi.study.pressure_analyses import P10_VARIANTS
-from fsi.study.runs import PULSE_AMPLITUDE
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -116,12 +117,23 @@ RUNS = (
 )  # the moving wall first
 
 
-def _scaled_pulse(length: float, shipped: float = 0.02) -> float:
+@functools.cache
+def _shipped(case: str = "stenosis_fixed_newtonian") -> config.Case:
+    """A shipped case's configuration (fsi.config): the settings the analyses scale or convert
+    are read from it, not restated."""
+    return config.load(ROOT / "configs" / f"{case}.yaml")
+
+
+def _scaled_pulse(length: float) -> float:
     """The pulse amplitude (Pa) whose impulse moves the blood column of a segment ``length``
     long as fast as the shipped pulse moves the shipped segment's (the rigid-column estimate,
     fsi/study/analyses.py): amplitude ∝ effective length."""
+    shipped = _shipped()
+    g = shipped.geometry
     return (
-        PULSE_AMPLITUDE * effective_length(length, 0.01, 0.5) / effective_length(shipped, 0.01, 0.5)
+        shipped.fluid.inlet.amplitude
+        * effective_length(length, g.stenosis_length, g.stenosis_degree)
+        / effective_length(g.length, g.stenosis_length, g.stenosis_degree)
     )
 
 
@@ -138,11 +150,14 @@ held normal and no term on re-entering blood, the outlet's backflow term in its 
 form."""
 
 
-def _plane_stress(nu: float = 0.45, moduli=(("wall", 4.0e6), ("cap", 1.6e6), ("lipid", 1.6e6))):
-    """The shipped regions' moduli as the plane-strain equivalent of plane stress (SVK)."""
+def _plane_stress() -> tuple[str, ...]:
+    """The shipped regions' moduli (E, ν of the shipped configuration) as the plane-strain
+    equivalent of plane stress (SVK): E (1 + 2ν) / (1 + ν)², ν / (1 + ν)."""
+    materials = {r: getattr(_shipped().structure, r) for r in ("wall", "cap", "lipid")}
     return tuple(
         s
-        for region, e in moduli
+        for region, m in materials.items()
+        for e, nu in [(m.young_modulus, m.poisson_ratio)]
         for s in (
             f"structure.{region}.young_modulus={e * (1 + 2 * nu) / (1 + nu) ** 2:.6g}",
             f"structure.{region}.poisson_ratio={nu / (1 + nu):.6g}",

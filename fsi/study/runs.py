@@ -46,13 +46,6 @@ LABELS = {
 }
 CONFIGS = list(LABELS)
 
-PULSE_AMPLITUDE = 1200.0
-"""Pa: the shipped configs' peak inlet pressure, h = (A/2)(1 − cos 2πt/T) (docs/model.md §2)."""
-PULSE_DURATION = 0.005
-"""s: T, the shipped inlet pulse's length."""
-DENSITY = 1060.0
-"""kg/m³: the blood's density in the shipped study configs."""
-
 PULSE_WINDOW = 0.01
 """s: the wall shear stress during the pulse (and the wall's first response) is its maximum up
 to this time."""
@@ -322,6 +315,20 @@ def fmt(x: float | None, digits: int = 4) -> str:
 def span(t: float) -> str:
     """A time as the document writes it: below 0.1 s in ms, else in s."""
     return f"{1e3 * t:.4g} ms" if t < 0.1 else f"{t:.4g} s"
+
+
+def after_pulse(case: config.Case) -> tuple[float, float]:
+    """(the step of the schedule up to the inlet pulse's end, the step after it) (s)."""
+    duration = case.fluid.inlet.duration
+    before = next(s.dt for s in case.time.schedule if s.until >= duration - 1e-12)
+    after = next(s.dt for s in case.time.schedule if s.until > duration + 1e-12)
+    return before, after
+
+
+def ends(summaries) -> str:
+    """Where the runs of ``summaries`` (an iterable of summaries) end: "20 ms" (or "10 ms and
+    0.1 s"), from the end time each configuration set."""
+    return " and ".join(span(t) for t in sorted({run_case(s).time.end for s in summaries})) or "–"
 
 
 def schedule_text(case: config.Case) -> str:
