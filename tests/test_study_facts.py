@@ -549,3 +549,11 @@ def test_every_summary_gives_the_configuration_its_run_ran():
         assert {k: recorded["geometry"][k] for k in s["case"]["geometry"]} == s["case"][
             "geometry"
         ], name
+
+
+def test_the_axisymmetric_study_names_what_exists():
+    """docs/axisymmetric.md's account of the study's four cases names the study's code as it
+    is (it named scripts.study_analyses after that module had moved to fsi/study/)."""
+    text = (DOCS / "axisymmetric.md").read_text()
+    assert names_mismatches(text) == []
+    assert names_mismatches(text.replace("fsi.study.wall_analyses", "scripts.study_analyses"))
