@@ -7,14 +7,21 @@ import math
 import numpy as np
 import pytest
 
+from fsi import config
 from fsi.study import analyses as study_analyses
+from fsi.study import damping_analyses, sensitivity, wall_analyses
 from fsi.study import runs as study_runs
-from fsi.study import sensitivity, wall_analyses
+
+SHIPPED = config.to_dict(config.load(study_runs.ROOT / "configs" / "stenosis_fixed_newtonian.yaml"))
+"""The configuration the synthetic runs ran: the shipped fixed-wall Newtonian case."""
 
 
 def summary(at: dict[float, dict], degree: float = 0.5, **maxima) -> dict:
-    """A run summary holding the given report-time values (SI) and maxima."""
+    """A run summary holding the given report-time values (SI) and maxima, run with the
+    shipped fixed-wall Newtonian configuration."""
     return {
+        "name": "synthetic",
+        "config": SHIPPED,
         "case": {
             "geometry": {
                 "length": 0.02,
@@ -75,7 +82,7 @@ def test_a_wall_is_quasi_static_where_it_moves_as_its_static_compliance_says():
             0.05: {"peak_displacement": 3.0e-6, "peak_pressure": 0.0},  # no pressure: no ratio
         }
     )
-    assert [wall_analyses.quasi_static(s, c, t) for t in (0.01, 0.02, 0.05)] == [
+    assert [damping_analyses.quasi_static(s, c, t) for t in (0.01, 0.02, 0.05)] == [
         False,
         True,
         False,
@@ -83,9 +90,9 @@ def test_a_wall_is_quasi_static_where_it_moves_as_its_static_compliance_says():
     near, below = (
         summary({0.02: {"peak_displacement": d, "peak_pressure": 5.0}}) for d in (1.5e-6, 1.4e-6)
     )
-    assert wall_analyses.quasi_static(near, c, 0.02)  # 0.30 µm/Pa
-    assert not wall_analyses.quasi_static(below, c, 0.02)  # 0.28 µm/Pa
-    assert not wall_analyses.quasi_static(None, c, 0.02)
+    assert damping_analyses.quasi_static(near, c, 0.02)  # 0.30 µm/Pa
+    assert not damping_analyses.quasi_static(below, c, 0.02)  # 0.28 µm/Pa
+    assert not damping_analyses.quasi_static(None, c, 0.02)
 
 
 def _compliance_text(ratio_per_degree: dict[float, float]) -> str:
@@ -225,3 +232,21 @@ def test_the_most_plausible_reading_is_counted_beside_the_shipped_one():
     text = plausible._changes(runs(1.05), runs(1.2), paper)
     assert text.startswith("On the coarse mesh the reading brings into the band: none; and ")
     assert text.count("; study ") == 60
+
+
+def test_the_ring_is_the_frequency_of_the_wall_s_crests_after_the_pulse():
+    """A wall ringing at 79 Hz after the 5 ms pulse (|η| of a damped cosine, sampled every
+    0.25 ms to 50 ms, then every 1 ms): |η| crests twice a period, the crests past the pulse's
+    own peak and within the resolved steps give the frequency to the steps' resolution."""
+    case = config.load(study_runs.ROOT / "configs" / "stenosis_moving_newtonian.yaml")
+    omega = 2 * math.pi * 79.0
+    times = [k * 2.5e-4 for k in range(1, 201)] + [0.05 + k * 1e-3 for k in range(1, 51)]
+    rows = [
+        {"t": t, "peak_displacement": 1e-4 * math.exp(-40 * t) * abs(math.cos(omega * t)) + 1e-9}
+        for t in times
+    ]
+    found = study_runs.ring(rows, case)
+    assert found["hz"] == pytest.approx(79.0, rel=0.01)
+    assert 0.005 < found["crests_s"][0] and found["crests_s"][-1] <= 0.05
+    assert len(found["crests_s"]) == 6  # 8 crests in (5, 50] ms, the pulse's own one left out
+    assert study_runs.ring(rows[:40], case) is None  # to 10 ms: too few crests

@@ -132,3 +132,29 @@ def test_the_committed_tables_hold_the_study_s_printed_values():
 )
 def test_change(coarse, fine, expected):
     assert study_runs.change(coarse, fine) == expected
+
+
+def test_a_run_s_configuration_is_its_summary_s_or_its_command_s():
+    """runs.run_case: the configuration a summary keeps; else its command's case file with the
+    command's overrides (a sweep's run with its folder's), refused where that no longer gives
+    the settings the summary recorded."""
+    root = Path(__file__).resolve().parents[1]
+    case = config.load(root / "configs" / "stenosis_fixed_newtonian.yaml", ["mesh.level=fine"])
+    kept = {"name": "kept", "config": config.to_dict(case)}
+    assert study_runs.run_case(kept) == case
+    command = "fsi/__main__.py run configs/stenosis_fixed_newtonian.yaml --out results/x " + (
+        "--set mesh.level=fine --set 'time.schedule=[{until: 0.8, dt: 0.01}]'"
+    )
+    record = json.loads(json.dumps(study_runs.case_record(case)))
+    rebuilt = study_runs.run_case({"name": "x", "command": command, "case": record})
+    assert rebuilt.mesh.level == "fine" and rebuilt.time.schedule[0].dt == 0.01
+    sweep = "fsi/__main__.py sweep configs/stenosis_fixed_newtonian.yaml --out results/s " + (
+        "--vary geometry.stenosis_degree=0.3,0.4 --set mesh.level=fine"
+    )
+    record["geometry"]["stenosis_degree"] = 0.3
+    name = "geometry.stenosis_degree=0.3"
+    swept = study_runs.run_case({"name": name, "command": sweep, "case": record})
+    assert swept.geometry.stenosis_degree == 0.3
+    record["geometry"]["stenosis_degree"] = 0.4  # not what the case file and overrides give
+    with pytest.raises(ValueError, match="stenosis_degree"):
+        study_runs.run_case({"name": name, "command": sweep, "case": record})

@@ -50,6 +50,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from fsi.run import child_runs
+
 ROOT = Path(__file__).resolve().parents[2]
 CASE = ROOT / "configs" / "stenosis_moving_carreau.yaml"
 
@@ -211,14 +213,10 @@ def launch(args: argparse.Namespace, level: str, mode: str, ranks: int, steps: s
             "--json",
             str(target),
         ] + [f"--set={o}" for o in args.overrides]
-        env = dict(os.environ)
         if ranks > 1:
             command = ["mpirun", "-n", str(ranks), "--oversubscribe", *command]
-            if os.geteuid() == 0:
-                env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
-            env.setdefault("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
         tic = time.perf_counter()
-        done = subprocess.run(command, env=env, capture_output=True, text=True)
+        done = subprocess.run(command, env=child_runs.environment(), capture_output=True, text=True)
         if done.returncode != 0 or not target.exists():
             tail = (done.stderr or done.stdout).strip().splitlines()[-5:]
             return {"level": level, "mode": mode, "ranks": ranks, "failure": " | ".join(tail)}

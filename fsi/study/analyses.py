@@ -1,8 +1,8 @@
 """The sections of docs/study.md that explain where fsi differs from the study: each made from
 the summaries of the runs of fsi/study/reproduce.py's ``ANALYSES`` that isolate one cause
 (docs/study_runs/<analysis>/...). This module has the pressure's and the velocity's sections and
-composes them with the wall displacement's (fsi/study/wall_analyses.py) into
-:func:`explanations`.
+composes them with the wall displacement's (fsi/study/wall_analyses.py, the fixed wall;
+fsi/study/damping_analyses.py, the moving wall) into :func:`explanations`.
 
 Every threshold a verdict uses is stated beside it; the study's values come from
 docs/reference/boujena2014_tables.csv.
@@ -13,7 +13,9 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from fsi import config
 from fsi.output import report_runs
+from fsi.study.damping_analyses import damping
 from fsi.study.pressure_analyses import (
     moving_pressure,
     pressure_and_element,
@@ -22,18 +24,17 @@ from fsi.study.pressure_analyses import (
 )
 from fsi.study.runs import (
     CONFIGS,
-    DENSITY,
     LABELS,
-    PULSE_AMPLITUDE,
-    PULSE_DURATION,
+    after_pulse,
     at,
+    ends,
     fmt,
     make_summaries,
+    run_case,
 )
 from fsi.study.wall_analyses import (
     Summaries,
     compliance,
-    damping,
     paper_value,
     percent_range,
     range_from_paper,
@@ -129,22 +130,23 @@ def _pressure_table(
         row(f"fsi, {name}", *(at(main.get(name), t, "peak_pressure") for t in (0.01, 0.1, 0.8)))
         for name in ("fixed_newtonian_coarse", "fixed_newtonian_fine")
     ]
-    for name, label in (
-        ("backward_euler", "backward Euler"),
-        ("large_steps_bdf2", "5 ms steps after the pulse, BDF2"),
-        ("large_steps_backward_euler", "5 ms steps after the pulse, backward Euler"),
-    ):
+    shipped = main.get("fixed_newtonian_coarse")
+    for name in STEP_RUNS:
         found = steps.get(f"steps/{name}")
-        if found is not None:
-            row(f"fsi, coarse, {label}", *(at(found, t, "peak_pressure") for t in (0.01, 0.1)))
+        if found is not None and shipped is not None:
+            row(
+                f"fsi, coarse, {steps_label(found, shipped)}",
+                *(at(found, t, "peak_pressure") for t in (0.01, 0.1)),
+            )
     old = inlet.get("inlet/fixed_newtonian_normal_flow")
     before = row(
         "fsi, coarse, the inlet held normal (before the physiological-flow issue)",
         *(at(old, t, "peak_pressure") for t in (0.01, 0.1, 0.8)),
     )
+    shipped_degree = None if shipped is None else shipped["case"]["geometry"]["stenosis_degree"]
     for s in sorted(degree.values(), key=lambda s: s["case"]["geometry"]["stenosis_degree"]):
         d = s["case"]["geometry"]["stenosis_degree"]
-        if d != 0.5:
+        if d != shipped_degree:
             row(
                 f"fsi, coarse, stenosis degree {d:g}",
                 *(at(s, t, "peak_pressure") for t in (0.01, 0.1)),
@@ -156,8 +158,25 @@ def _pressure_table(
 # 4. Velocity: the calibration
 
 
-PULSE_IMPULSE = PULSE_AMPLITUDE * PULSE_DURATION / 2
-"""Pa s: the shipped inlet pulse's impulse, ∫ h dt = (A / 2) T."""
+STEP_RUNS = ("backward_euler", "large_steps_bdf2", "large_steps_backward_euler")
+"""The ``steps`` analysis's runs: the time scheme, and the study's steps after the pulse."""
+
+SCHEMES = {"bdf2": "BDF2", "backward_euler": "backward Euler"}
+
+
+def steps_label(s: dict, shipped: dict) -> str:
+    """A ``steps`` run in words, from its configuration beside the shipped run's: its steps
+    after the pulse where they differ ("5 ms steps after the pulse"), and its time scheme."""
+    case, base = run_case(s), run_case(shipped)
+    scheme = SCHEMES.get(case.time.scheme, case.time.scheme)
+    if case.time.schedule == base.time.schedule:
+        return scheme
+    return f"{1e3 * after_pulse(case)[1]:g} ms steps after the pulse, {scheme}"
+
+
+def pulse_impulse(case: config.Case) -> float:
+    """Pa s: the inlet pulse's impulse, ∫ h dt = (A / 2) T for h = (A/2)(1 − cos 2πt/T)."""
+    return case.fluid.inlet.amplitude * case.fluid.inlet.duration / 2
 
 
 def throat_mean(s: dict, t: float) -> float | None:
@@ -175,10 +194,15 @@ def effective_length(length: float, stenosis_length: float, degree: float) -> fl
 
 
 def rigid_column_velocity(
-    s: dict, impulse: float = PULSE_IMPULSE, density: float = DENSITY
+    s: dict, impulse: float | None = None, density: float | None = None
 ) -> float:
     """The mean throat velocity of a rigid blood column set moving by the inlet's impulse
-    (Pa s): impulse / (ρ L_eff) / (1 − degree)."""
+    (Pa s): impulse / (ρ L_eff) / (1 − degree); the impulse and the density are the run's
+    (its configuration's) unless given."""
+    if impulse is None or density is None:
+        case = run_case(s)
+        impulse = pulse_impulse(case) if impulse is None else impulse
+        density = case.fluid.density if density is None else density
     g = s["case"]["geometry"]
     d = g["stenosis_degree"]
     return impulse / (density * effective_length(g["length"], g["stenosis_length"], d)) / (1 - d)
@@ -210,11 +234,14 @@ def velocity_text(degree: Summaries, inlet: Summaries, main: Summaries, paper: d
     """Item 4: the calibration of the stenosis degree, redone against the right quantity, and
     why the shipped degree stays."""
     t = 0.01
+    base = main.get("fixed_newtonian_coarse")
+    d = None if base is None else base["case"]["geometry"]["stenosis_degree"]
     shipped = next(
-        (s for s in degree.values() if s["case"]["geometry"]["stenosis_degree"] == 0.5), None
+        (s for s in degree.values() if s["case"]["geometry"]["stenosis_degree"] == d), None
     )
     if shipped is None or throat_mean(shipped, t) is None:
         return "(runs missing)"
+    until = ends(degree.values())
     estimate = rigid_column_velocity(shipped)
     mean, u = throat_mean(shipped, t), at(shipped, t, "peak_velocity")
     above = percent_range(range_from_paper(main, paper, "velocity", t))
@@ -223,10 +250,11 @@ def velocity_text(degree: Summaries, inlet: Summaries, main: Summaries, paper: d
     return "\n".join(
         [
             f"fsi's peak velocity is {above} above the study's at 10 ms. The stenosis degree "
-            "(50 %) was chosen by the model notes with a rigid-column estimate: just after the "
+            f"({100 * d:g} %) was chosen by the model notes with a rigid-column estimate: just "
+            "after the "
             "pulse the blood moves almost as a rigid column, whose mean velocity in the throat "
             "is the pulse's impulse (A/2) T over ρ L_eff, with L_eff = ∫ H / h dx = L − l + "
-            f"l / √(1 − d), divided by 1 − d: {estimate:.3f} m/s at d = 0.5, the study's coarse "
+            f"l / √(1 − d), divided by 1 − d: {estimate:.3f} m/s at d = {d:g}, the study's coarse "
             f"maximum at 10 ms {targets['coarse']:g} m/s "
             + (
                 "to three digits"
@@ -235,7 +263,7 @@ def velocity_text(degree: Summaries, inlet: Summaries, main: Summaries, paper: d
             )
             + ". That compares a "
             "**mean** with a **maximum**. In fsi's run (the degree sweep below, coarse fixed-wall "
-            f"Newtonian to 0.1 s, `--only analyses --analysis degree`) at 10 ms the mean throat "
+            f"Newtonian to {until}, `--only analyses --analysis degree`) at 10 ms the mean throat "
             f"velocity (flow rate / throat height) is {mean:.3f} m/s, "
             f"{100 * (1 - mean / estimate):.0f} % below the rigid column (viscous losses), and "
             f"the maximum {u:.3f} m/s is {u / mean:.2f}× the mean (the jet's profile):",
@@ -246,11 +274,12 @@ def velocity_text(degree: Summaries, inlet: Summaries, main: Summaries, paper: d
             + " (coarse) and ".join(
                 "–" if match[m] is None else f"{match[m]:.3f}" for m in ("coarse", "fine")
             )
-            + " (fine; interpolated in the sweep). **We keep 0.5**: a degree taken from the "
+            + f" (fine; interpolated in the sweep). **We keep {d:g}**: a degree taken from the "
             "study's Table 1 would fit a model parameter to the numbers the model is compared "
             "with, which this project does not do (docs/model.md §1: the study states no "
-            "degree; 50 % is the model's stated default). The calibration is therefore not "
-            f"redone; fsi's maximum is {u / estimate:.3f}× the rigid column's mean (the mean's "
+            f"degree; {100 * d:g} % is the model's stated default). The calibration is "
+            f"therefore not redone; fsi's maximum is {u / estimate:.3f}× the rigid column's "
+            "mean (the mean's "
             f"{mean / estimate:.3f} × the jet's {u / mean:.2f}), the study's "
             f"{targets['coarse'] / estimate:.3f}×: the mismatch of quantities is fsi's whole "
             "difference at 10 ms on this degree, and the sweep gives how much the unstated "
@@ -262,23 +291,28 @@ def velocity_text(degree: Summaries, inlet: Summaries, main: Summaries, paper: d
 
 
 def _schemes(steps: Summaries | None, main: Summaries | None) -> str:
-    """What the time scheme and the study's 5 ms steps after the pulse do to p(10 ms)."""
+    """What the time scheme and the study's steps after the pulse do to p(10 ms), each run
+    described by its configuration (its scheme, its steps after the pulse and how much larger
+    they are than those before)."""
     if not steps or not main:
         return ""
-    base = at(main.get("fixed_newtonian_coarse"), 0.01, "peak_pressure")
-    change = {
-        n: at(steps.get(f"steps/{n}"), 0.01, "peak_pressure")
-        for n in ("backward_euler", "large_steps_bdf2", "large_steps_backward_euler")
-    }
-    if base is None or None in change.values():
+    shipped = main.get("fixed_newtonian_coarse")
+    base = at(shipped, 0.01, "peak_pressure")
+    runs = {n: steps.get(f"steps/{n}") for n in STEP_RUNS}
+    if base is None or any(at(r, 0.01, "peak_pressure") is None for r in runs.values()):
         return ""
-    c = {n: 100 * (v / base - 1) for n, v in change.items()}
+    c = {n: 100 * (at(r, 0.01, "peak_pressure") / base - 1) for n, r in runs.items()}
+    case = {n: run_case(r) for n, r in runs.items()}
+    before, after = after_pulse(case["large_steps_bdf2"])
+    schemes = {n: SCHEMES.get(k.time.scheme, k.time.scheme) for n, k in case.items()}
     return (
-        f"Backward Euler moves p(10 ms) by {c['backward_euler']:+.1f} %; the study's 5 ms steps "
-        f"after the pulse by {c['large_steps_bdf2']:+.1f} % with BDF2 and "
-        f"{c['large_steps_backward_euler']:+.1f} % with backward Euler (the step grows "
-        "20-fold there, where variable-step BDF2 overshoots: it is stable for ratios below "
-        "1 + √2)."
+        f"{schemes['backward_euler'][:1].upper()}{schemes['backward_euler'][1:]} moves "
+        "p(10 ms) by "
+        f"{c['backward_euler']:+.1f} %; the study's {1e3 * after:g} ms steps after the pulse by "
+        f"{c['large_steps_bdf2']:+.1f} % with {schemes['large_steps_bdf2']} and "
+        f"{c['large_steps_backward_euler']:+.1f} % with {schemes['large_steps_backward_euler']} "
+        f"(the step grows {after / before:.3g}-fold there, from {1e3 * before:g} ms, where "
+        "variable-step BDF2 overshoots: it is stable for ratios below 1 + √2)."
     )
 
 

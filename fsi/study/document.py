@@ -2,18 +2,19 @@
 the run folders of scripts/reproduce_study.py (the figures: fsi/study/figures.py).
 
 Each run folder is first reduced to a summary (fsi/study/runs.py): its provenance (git
-commit, ranks, command), the three peaks at the study's report times and the maxima the
-findings rest on. The summaries are committed (docs/study_runs/), and the tables, the CSV and
-the findings are made from them alone, so a reader can check every number without rerunning;
-only the figures read the run folders (metrics.csv and the field files). A run that is missing
-or unfinished shows as '–' (and is listed), so the document can be written at any stage; a
-summary already in docs/study_runs/ stands in for a run folder that is not there. The sections
-that explain the differences from the study are fsi/study/analyses.py's.
+commit, ranks, command), its resolved configuration, the three peaks at the study's report
+times and the maxima the findings rest on. The summaries are committed (docs/study_runs/), and
+the tables, the CSV and the text are made from them and the configurations their runs ran
+(``runs.run_case``) alone, so a reader can check every number without rerunning; only the
+figures read the run folders (metrics.csv and the field files; without them the committed
+figures stay). A run that is missing or unfinished shows as '–' (and is listed), so the
+document can be written at any stage; a summary already in docs/study_runs/ stands in for a run
+folder that is not there. The sections that explain the differences from the study are
+fsi/study/analyses.py's.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -36,35 +37,11 @@ from fsi.study.runs import (
     load,
     make_summaries,
     paper_values,
+    run_case,
+    schedule_text,
+    span,
     write_comparison_csv,
 )
-
-PREVIOUS_FINE = {
-    "peak_velocity": {
-        "fixed_newtonian": (0.2726, 0.2544, 0.2178, 0.1962, 0.03444),
-        "fixed_carreau": (0.2727, 0.2542, 0.2175, 0.1941, 0.02921),
-        "moving_newtonian": (0.2807, 0.2565, 0.2168, 0.195, 0.03409),
-        "moving_carreau": (0.2809, 0.2564, 0.2166, 0.193, 0.02886),
-    },
-    "peak_pressure": {
-        "fixed_newtonian": (4.843, 4.365, 3.811, 2.58, 0.1594),
-        "fixed_carreau": (4.861, 4.378, 3.804, 2.56, 0.1426),
-        "moving_newtonian": (0.09128, 54.84, 0.01144, 2.604, 0.1554),
-        "moving_carreau": (0.09902, 54.8, 0.01727, 2.587, 0.1405),
-    },
-    "peak_displacement": {
-        "fixed_newtonian": (0.05032, 0.04221, 0.03272, 0.02116, 0.001457),
-        "fixed_carreau": (0.04996, 0.04198, 0.03251, 0.02115, 0.001539),
-        "moving_newtonian": (79.67, 44.71, 7.28, 2.22, 0.04298),
-        "moving_carreau": (79.81, 44.68, 7.286, 2.22, 0.04146),
-    },
-}
-"""The fine-mesh peaks at :data:`TIMES` (µm for the displacement) before the physiological-flow
-settings, as docs/study.md printed them at git 3d90d70: the Galerkin fluid (no SUPG), the inlet
-in the do-nothing form with its velocity held normal, the outlet's backflow term in the ``full``
-form. The only numbers of the document not read from the runs: history, for
-:func:`changes_table`."""
-
 
 # --------------------------------------------------------------------------------------------
 # The study's tables beside ours
@@ -169,7 +146,9 @@ def paper_mesh_changes(rows: Sequence[dict], quantity: str, limit: float = 0.1) 
     )
 
 
-def agreement(rows: Sequence[dict], quantity: str | None = None, limit: float = 0.1) -> str:
+def agreement(
+    rows: Sequence[dict], quantity: str | None = None, limit: float = plausible.LIMIT
+) -> str:
     """How many of the printed values ours is within ``limit`` of: "k of n values" (and how
     many have no run)."""
     chosen = [r for r in rows if quantity is None or r["quantity"] == quantity]
@@ -182,23 +161,6 @@ def agreement(rows: Sequence[dict], quantity: str | None = None, limit: float = 
 
 # --------------------------------------------------------------------------------------------
 # Tables
-
-
-def changes_table(summaries: dict, column: str, scale: float) -> str:
-    """The fine runs' peaks of ``column`` beside :data:`PREVIOUS_FINE`'s: before → now (change)."""
-    lines = [
-        "| t (s) | " + " | ".join(LABELS[c] for c in CONFIGS) + " |",
-        "|---" * (1 + len(CONFIGS)) + "|",
-    ]
-    for k, t in enumerate(TIMES):
-        cells = []
-        for c in CONFIGS:
-            before = PREVIOUS_FINE[column][c][k]
-            now = at(summaries.get(f"{c}_fine"), t, column)
-            now = None if now is None else scale * now
-            cells.append(f"{fmt(before)} → {fmt(now)} ({change(before, now)})")
-        lines.append(f"| {t:g} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
 
 
 def printed_table(summaries: dict) -> str:
@@ -315,18 +277,39 @@ def _opening(folder: Path, summaries: dict, extra: dict, missing: list[str]) -> 
     parts = [
         "# The study reproduced\n",
         "Generated by `scripts/reproduce_study.py` from the runs in "
-        f"`{_shown(folder)}/`, through their summaries in `docs/study_runs/` (every number "
-        "below is read from them, but the earlier settings' in the section on what changed). "
-        "The four configurations of docs/model.md §4 on the coarse and the fine mesh, the whole "
-        "heartbeat (0.8 s), with the shipped configs' resolved schedule (0.25 ms steps to "
-        "50 ms, 1 ms to 0.1 s, 5 ms to 0.8 s: docs/wall-damping.md), and the "
-        "study's printed schedule (5 ms to 0.4 s, 10 ms to 0.8 s) on the coarse mesh; "
-        f"{_ranks(summaries)}. "
+        f"`{_shown(folder)}/`, through their summaries in `docs/study_runs/`: every number "
+        "below about a run is read from its summary or computed from the configuration it ran "
+        "(the summary's `config`, or its command's case file and overrides: "
+        "`fsi.study.runs.run_case`). The four configurations of docs/model.md §4 on the "
+        f"coarse and the fine mesh to {_ends(summaries)}, with the shipped configs' resolved "
+        f"schedule ({_schedule(summaries, printed=False)}; why: docs/wall-damping.md), and "
+        f"with the study's printed schedule ({_schedule(summaries, printed=True)}) on the "
+        f"coarse mesh; {_ranks(summaries)}. "
         f"Made with fsi at git {', '.join(commits) or '–'}{same_answers(summaries, extra)}.\n",
     ]
     if missing:
         parts.append("**Not finished yet** (shown as '–'): " + ", ".join(missing) + ".\n")
     return parts
+
+
+def _schedule(summaries: dict, printed: bool) -> str:
+    """The step schedule of the study's runs on the printed (else the resolved) schedule, from
+    the configurations they ran; each with its runs where they differ."""
+    found: dict[str, list[str]] = {}
+    for name, s in summaries.items():
+        if name.endswith("_printed") == printed:
+            found.setdefault(schedule_text(run_case(s)), []).append(name)
+    if len(found) <= 1:
+        return next(iter(found), "–")
+    return "; ".join(f"{text} ({', '.join(sorted(n))})" for text, n in found.items())
+
+
+def _ends(summaries: dict) -> str:
+    """Where the study's runs end (t = 0.8 s, the whole heartbeat), from their configurations."""
+    ends = sorted({run_case(s).time.end for s in summaries.values()})
+    return " and ".join(f"t = {t:g} s" for t in ends) + (
+        " (the whole heartbeat)" if len(ends) == 1 else ""
+    )
 
 
 def _ranks(summaries: dict) -> str:
@@ -349,13 +332,14 @@ def _tables(
         "## Tables 1–3 beside the study's\n\n"
         f"The study's printed values (docs/reference/boujena2014_tables.csv) and ours, also "
         f"in [`{table_csv.name}`]({table_csv.name}) (SI units); difference = (fsi − paper) / "
-        f"paper. fsi is within 10 % of the paper for {agreement(rows)}.\n"
+        f"paper. fsi is within {100 * plausible.LIMIT:g} % of the paper for {agreement(rows)}.\n"
     )
     explain = study_analyses.explanations(extra, summaries, paper, docs / "study_runs")
     for (_, title, unit, scale), quantity in zip(QUANTITIES, PAPER_QUANTITY):
         parts.append(
             f"### {title} ({unit})\n\n{paper_table(rows, quantity, scale)}\n\n"
-            f"fsi is within 10 % of the paper for {agreement(rows, quantity)}.\n"
+            f"fsi is within {100 * plausible.LIMIT:g} % of the paper for "
+            f"{agreement(rows, quantity)}.\n"
         )
         parts.append(at_boundaries(rows, quantity) + "\n")
         meshes = paper_mesh_changes(rows, quantity)
@@ -385,28 +369,33 @@ def _convergence_and_changes(summaries: dict, extra: dict, figures: Path) -> lis
     )
     parts.append(
         "## What the physiological-flow settings changed (fine mesh)\n\n"
-        "The study configs now run SUPG, the study's own inlet (σ n = −h n, the velocity "
-        "free to turn, β = 0.1 on the tangential velocity of inflow) and the outlet's "
-        "tangential backflow term (docs/boundary-conditions.md). Before (docs/study.md at "
-        "git 3d90d70; the only numbers here not read from the runs): the Galerkin fluid, the "
-        "inlet in the do-nothing form with its velocity held normal, the outlet's `full` "
-        "backflow term. Before → now (change):\n"
-    )
-    for column, title, unit, scale in QUANTITIES:
-        parts.append(
-            f"{title.split(': ')[1]} ({unit}):\n\n{changes_table(summaries, column, scale)}\n"
+        + sensitivity.settings_changes(
+            summaries, extra.get("earlier", {}), extra.get("inlet", {}), extra.get("p10", {})
         )
-    parts.append(_what_changed(summaries, extra.get("inlet", {})) + "\n")
-    parts.append(
-        "## The study's printed schedule (coarse mesh)\n\n"
-        "Its first step, 5 ms, is the whole inlet pulse, which is back to 0 at t = "
-        "5 ms: the fluid's backward-Euler/BDF step sees P(5 ms) = 0"
-        + _at_rest(summaries)
-        + " (docs/model.md §4).\n\n"
-        + printed_table(summaries)
-        + "\n"
     )
+    parts.append("## The study's printed schedule (coarse mesh)\n\n" + _printed(summaries) + "\n")
     return parts
+
+
+def _printed(summaries: dict) -> str:
+    """Why the printed schedule's runs stay at rest: its first step against the inlet pulse,
+    both read from their configurations; and their peaks."""
+    cases = [run_case(s) for n, s in summaries.items() if n.endswith("_printed")]
+    first = {c.time.schedule[0].dt for c in cases}
+    pulse = {getattr(c.fluid.inlet, "duration", None) for c in cases}
+    if len(first) != 1 or len(pulse) != 1 or None in pulse:
+        return printed_table(summaries)
+    dt, duration = first.pop(), pulse.pop()
+    whole = (
+        "is the whole inlet pulse, which is back to 0 at t = "
+        f"{span(duration)}: the fluid's backward-Euler/BDF step sees P({span(dt)}) = 0"
+        if dt >= duration
+        else f"is shorter than the inlet pulse ({span(duration)})"
+    )
+    return (
+        f"Its first step, {span(dt)}, {whole}{_at_rest(summaries)} (docs/model.md §4).\n\n"
+        + printed_table(summaries)
+    )
 
 
 def _at_rest(summaries: dict) -> str:
@@ -421,59 +410,9 @@ def _at_rest(summaries: dict) -> str:
         return ""
     moving = sum(v != 0 for v in values)
     return (
-        ": every peak of the four runs is 0 at every report time (they stay at rest)"
+        f": every peak of the {len(CONFIGS)} runs is 0 at every report time (they stay at rest)"
         if moving == 0
         else f": {moving} of the {len(values)} peaks are not 0"
-    )
-
-
-def _largest_change(summaries: dict, column: str, configs, times, scale: float = 1.0) -> float:
-    """The largest |before → now| relative change of ``column`` over ``configs`` and
-    ``times`` (:data:`PREVIOUS_FINE` against the fine runs)."""
-    found = []
-    for c in configs:
-        for k, t in enumerate(TIMES):
-            now = at(summaries.get(f"{c}_fine"), t, column)
-            if t in times and now is not None:
-                found.append(abs(scale * now / PREVIOUS_FINE[column][c][k] - 1))
-    return max(found) if found else math.nan
-
-
-def _what_changed(summaries: dict, inlet: dict) -> str:
-    """What the before → now tables show, in numbers read from them, and the inlet held
-    normal (the inlet analysis, coarse) beside the shipped coarse runs."""
-    pulse = (0.01, 0.02)
-    during = max(
-        _largest_change(summaries, "peak_velocity", CONFIGS, pulse),
-        _largest_change(summaries, "peak_displacement", CONFIGS, pulse, 1e6),
-    )
-    fixed = ("fixed_newtonian", "fixed_carreau")
-    p_fixed = _largest_change(summaries, "peak_pressure", fixed, pulse)
-    late_p = [_largest_change(summaries, "peak_pressure", CONFIGS, (t,)) for t in (0.1, 0.8)]
-    late_u = _largest_change(summaries, "peak_velocity", CONFIGS, (0.8,))
-    pairs = []
-    for c in CONFIGS:
-        old, new = inlet.get(f"inlet/{c}_normal_flow"), summaries.get(f"{c}_coarse")
-        if old is None or new is None:
-            continue
-        pairs.append(
-            f"{LABELS[c]}: p(0.1 s) {fmt(at(old, 0.1, 'peak_pressure'))} → "
-            f"{fmt(at(new, 0.1, 'peak_pressure'))} Pa, u(0.8 s) "
-            f"{fmt(at(old, 0.8, 'peak_velocity'))} → {fmt(at(new, 0.8, 'peak_velocity'))} m/s"
-        )
-    return (
-        f"During the pulse (t ≤ 20 ms) the peak velocity and displacement are within "
-        f"{100 * during:.1f} % of before and the fixed wall's peak pressure within "
-        f"{100 * p_fixed:.1f} %; the moving wall's peak pressure there is the ringing wall's "
-        "sample (Table 2's section). Afterwards the stress inlet holds the total normal "
-        "stress, not the pressure: with h = 0 the inlet's pressure is 2μ ∂u_n/∂n, and its "
-        "zero shear stress lets the velocity turn; the peak velocity at 0.8 s moves by up to "
-        f"{100 * late_u:.0f} %, the peak pressure at 0.1 s and 0.8 s by up to "
-        f"{100 * late_p[0]:.0f} % and {100 * late_p[1]:.0f} %. The inlet alone, the coarse "
-        "runs with the inlet held normal (`--analysis inlet`) → shipped: "
-        + ("; ".join(pairs) or "not run")
-        + ". SUPG and the outlet's forms are compared to 20 ms only (the p10 table); that "
-        "they change nothing later is not shown by a run kept here."
     )
 
 
@@ -556,8 +495,8 @@ def _findings(summaries: dict, paper: dict, extra: dict) -> list[str]:
         "numbers).\n\n"
         + "\n".join(f"- {f}" for f in findings(summaries, paper, extra.get("convergence")))
         + "\n\nThe recirculation zone with the outlet further downstream (the last finding): "
-        "the fixed wall with the segment 1 and 2 cm longer downstream (`geometry.length`, "
-        "`geometry.stenosis_centre: 0.01`), its inlet pulse scaled by the blood column's "
+        f"the fixed wall with {_longer(extra.get('downstream', {}), summaries)}, its inlet "
+        "pulse scaled by the blood column's "
         "effective length so that the pulse's impulse moves the longer column as fast (a "
         "pressure pulse into a longer column drives a slower flow; item 4 has the estimate); "
         "the moving wall lengthened as it is becomes another wall (clamped further apart it is "
@@ -565,3 +504,21 @@ def _findings(summaries: dict, paper: dict, extra: dict) -> list[str]:
         "downstream`):\n\n" + sensitivity.downstream(extra.get("downstream", {}), summaries) + "\n"
     )
     return parts
+
+
+def _longer(downstream: dict, summaries: dict) -> str:
+    """How the downstream analysis lengthens the segment, from its runs' geometries: "the
+    segment 1 and 2 cm longer downstream (`geometry.length`, `geometry.stenosis_centre:
+    0.01`)"."""
+    base = summaries.get("fixed_newtonian_coarse")
+    runs = [s for n, s in downstream.items() if n.startswith("downstream/fixed_")]
+    if base is None or not runs:
+        return "the segment longer downstream (not run)"
+    g0 = base["case"]["geometry"]
+    extra = sorted({s["case"]["geometry"]["length"] - g0["length"] for s in runs})
+    centres = {s["case"]["geometry"]["stenosis_centre"] for s in runs}
+    centre = f"`geometry.stenosis_centre: {centres.pop():g}`" if len(centres) == 1 else "its centre"
+    return (
+        f"the segment {' and '.join(f'{100 * e:.3g}' for e in extra)} cm longer downstream "
+        f"(`geometry.length`, {centre})"
+    )

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fsi.output import field_files, plot, report, report_runs
+from fsi.output import field_files, plot, report
 from fsi.study.runs import (
     CONFIGS,
     LABELS,
@@ -46,7 +46,10 @@ def figure_sss(runs: dict, path: Path) -> Path:
     pulse (linear time, left) and the whole beat (log time, right), log stress (the fixed-wall
     values are ~50× below the moving-wall ones); below, the Carreau/Newtonian ratio of each
     wall and mesh, which is what separates curves that lie on each other above. Newtonian
-    wide and light, Carreau narrow and dark on top of it; coarse solid, fine dashed."""
+    wide and light, Carreau narrow and dark on top of it; coarse solid, fine dashed. Without
+    the run folders (``--document-only`` from the summaries) the committed figure is kept."""
+    if path.is_file() and not any(f"{c}_{m}" in runs for c in CONFIGS for m in ("coarse", "fine")):
+        return path
     plt = _pyplot()
     fig, axes = plt.subplots(
         2, 2, figsize=(12, 7), sharex="col", height_ratios=(2, 1), layout="constrained"
@@ -169,13 +172,17 @@ RECIRCULATION_TIME = 0.1
 """Figure 9's time: the recirculation zone is developed (its lengths are in the findings)."""
 
 
-def best(runs: dict, summaries: dict, c: str) -> report_runs.Run | None:
-    """The fine run folder of configuration ``c`` if that run finished and its folder is here,
-    else the coarse one."""
-    fine = f"{c}_fine"
-    if finished(summaries.get(fine)) and fine in runs:
-        return runs[fine]
-    return runs.get(f"{c}_coarse")
+def chosen(summaries: dict, c: str) -> dict | None:
+    """The summary of configuration ``c``'s fine run if that run finished, else its coarse
+    run's: the run Figures 7–9 show."""
+    fine = summaries.get(f"{c}_fine")
+    return fine if finished(fine) else summaries.get(f"{c}_coarse")
+
+
+def _kept(run, path: Path) -> bool:
+    """Whether a figure at ``path`` can be shown: drawn from the run folder ``run`` if it is
+    here, else the committed picture if there is one (its caption is read from the summary)."""
+    return run is not None or path.is_file()
 
 
 FIGURE_OF_WALL = {"moving": 7, "fixed": 8}
@@ -194,24 +201,29 @@ def field_figures(runs: dict, summaries: dict, figures: Path) -> list[tuple[str,
     plaque's range (a larger value elsewhere, the moving wall's singular clamped corner, shows
     saturated and is marked); the velocity's streamlines of the Carreau runs (the study's
     Figure 9 is Carreau) at t = RECIRCULATION_TIME, and the wall shear stress along the
-    diseased wall."""
+    diseased wall. Each figure is drawn when its run folder is here, else the committed one is
+    kept (``--document-only`` from the summaries); its caption comes from the summary."""
     out = []
     for c in sorted(CONFIGS, key=lambda c: FIGURE_OF_WALL[c.split("_")[0]]):
-        run = best(runs, summaries, c)
-        if run is None:
+        s = chosen(summaries, c)
+        if s is None:
             continue
-        figure = _stress_figure(c, run, summaries[run.path.name], figures)
+        figure = _stress_figure(c, runs.get(s["name"]), s, figures)
         if figure is not None:
             out.append(figure)
     for c in ("fixed_carreau", "moving_carreau"):
-        run = best(runs, summaries, c)
-        if run is None or run.rows[-1]["t"] < RECIRCULATION_TIME:
-            continue
+        s = chosen(summaries, c)
         path = figures / f"study_streamlines_{c}.png"
-        plot.field_snapshot(run.path, "velocity", RECIRCULATION_TIME, path, streamlines=True)
+        if s is None or s["end_time_s"] < RECIRCULATION_TIME:
+            continue
+        run = runs.get(s["name"])
+        if not _kept(run, path):
+            continue
+        if run is not None:
+            plot.field_snapshot(run.path, "velocity", RECIRCULATION_TIME, path, streamlines=True)
         out.append(
             (
-                f"Figure 9: velocity and streamlines, {LABELS[c]} ({run.path.name}), "
+                f"Figure 9: velocity and streamlines, {LABELS[c]} ({s['name']}), "
                 f"t = {RECIRCULATION_TIME:g} s (Carreau, as the study's Figure 9; the Newtonian "
                 "runs' recirculation lengths are in the findings)",
                 path,
@@ -234,19 +246,18 @@ STUDY_WARP = 100.0
 """The study's Figures 7–8 magnify the displacement ×100 (docs/model.md §6)."""
 
 
-def _drawn(run, t: float, warp: float) -> str:
-    """How long the run's largest |η| at ``t`` is drawn at magnification ``warp``."""
-    eta = report.value_at(run.rows, t, "peak_displacement") or 0.0
-    return f"{1e3 * warp * eta:.2g} mm"
-
-
 def _stress_figure(c: str, run, s: dict, figures: Path) -> tuple[str, Path] | None:
-    """Figure 7 or 8 of configuration ``c``: σ₁₂ on the deformed structure of ``run`` (summary
-    ``s``) at the time of the plaque's largest |σ₁₂|, drawn into ``figures``; its caption and
-    path, or None without a plaque maximum."""
+    """Figure 7 or 8 of configuration ``c``: σ₁₂ on the deformed structure of the run of
+    summary ``s`` at the time of the plaque's largest |σ₁₂|, drawn into ``figures`` from its run
+    folder ``run`` (None: the committed picture kept); its caption and path, or None without a
+    plaque maximum, the structure's |η| then, or a picture."""
     wall = c.split("_")[0]
     plaque, whole, where = peak(s, "plaque_sss"), peak(s, "max_sss"), s.get("largest_sss_at")
-    if plaque is None:
+    eta = (s.get("plaque_sss_at") or {}).get("peak_displacement")
+    if eta is None and run is not None and plaque is not None:
+        eta = report.value_at(run.rows, plaque[1], "peak_displacement")
+    path = figures / f"study_sss_{c}.png"
+    if plaque is None or eta is None or not _kept(run, path):
         return None
     marks, marked = [], ""
     corner = where is not None and where.get("place", "clamped_corner") == "clamped_corner"
@@ -257,14 +268,16 @@ def _stress_figure(c: str, run, s: dict, figures: Path) -> tuple[str, Path] | No
             f"|σ₁₂|, {whole[0]:.4g} Pa at t = {whole[1]:.4g} s, sits (a singularity of the "
             "boundary conditions, see the findings)"
         )
-    path = figures / f"study_sss_{c}.png"
-    warp = warp_for(report.value_at(run.rows, plaque[1], "peak_displacement") or 0.0)
-    plot.field_snapshot(run.path, "sss", plaque[1], path, warp=warp, limit=plaque[0], marks=marks)
+    warp = warp_for(eta)
+    if run is not None:
+        plot.field_snapshot(
+            run.path, "sss", plaque[1], path, warp=warp, limit=plaque[0], marks=marks
+        )
     return (
         f"Figure {FIGURE_OF_WALL[wall]}: σ₁₂ on the structure, {LABELS[c]} "
-        f"({run.path.name}), displacement ×{warp:g} (the study draws ×{STUDY_WARP:g}, which "
-        f"would draw this run's largest |η| as {_drawn(run, plaque[1], STUDY_WARP)}; ×{warp:g} "
-        f"draws it as {_drawn(run, plaque[1], warp)}), at t = {plaque[1]:.4g} s, "
+        f"({s['name']}), displacement ×{warp:g} (the study draws ×{STUDY_WARP:g}, which "
+        f"would draw this run's largest |η| as {1e3 * STUDY_WARP * eta:.2g} mm; ×{warp:g} "
+        f"draws it as {1e3 * warp * eta:.2g} mm), at t = {plaque[1]:.4g} s, "
         f"when the plaque's |σ₁₂| is largest ({plaque[0]:.4g} Pa); the colours span "
         f"±{plaque[0]:.4g} Pa{marked}",
         path,
@@ -287,8 +300,9 @@ def figure_wall_shear(runs: dict, summaries: dict, path: Path) -> Path | None:
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 3.6), layout="constrained")
     drawn = False
-    for k, c in enumerate(CONFIGS):
-        run = best(runs, summaries, c)
+    shown = [chosen(summaries, c) for c in CONFIGS]
+    for k, (c, s) in enumerate(zip(CONFIGS, shown)):
+        run = None if s is None else runs.get(s["name"])
         if run is None or run.rows[-1]["t"] < RECIRCULATION_TIME:
             continue
         snap = field_files.read_field(run.path, "wall_shear_stress", RECIRCULATION_TIME)
@@ -308,7 +322,8 @@ def figure_wall_shear(runs: dict, summaries: dict, path: Path) -> Path | None:
         drawn = True
     if not drawn:
         plt.close(fig)
-        return None
+        here = any(s is not None and s["name"] in runs for s in shown)
+        return path if path.is_file() and not here else None  # the committed one, kept
     ax.axhline(0, color="k", lw=0.6)
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("wall shear stress (Pa)")

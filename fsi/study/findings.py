@@ -12,7 +12,6 @@ from fsi.study import locations
 from fsi.study.runs import (
     CONFIGS,
     LABELS,
-    PULSE_AMPLITUDE,
     PULSE_WINDOW,
     TIMES,
     apex_x,
@@ -21,6 +20,8 @@ from fsi.study.runs import (
     finished,
     fmt,
     peak,
+    run_case,
+    span,
 )
 
 # --------------------------------------------------------------------------------------------
@@ -29,46 +30,53 @@ from fsi.study.runs import (
 
 def load_reason(newtonian: dict | None, carreau: dict | None) -> str:
     """Why the rheology barely changes the structure's load: the wall shear stresses during
-    the pulse against the inlet pressure."""
+    the pulse against the inlet pressure (its amplitude and length read from the runs'
+    configurations)."""
     wn, wc = peak(newtonian, "pulse_wss"), peak(carreau, "pulse_wss")
     if wn is None or wc is None:
         return ""
     wn, wc = wn[0], wc[0]
+    inlets = {
+        (k.fluid.inlet.amplitude, k.fluid.inlet.duration)
+        for k in map(run_case, (newtonian, carreau))
+    }
+    if len(inlets) != 1:
+        return ""
+    amplitude, duration = inlets.pop()
     return (
         f" Why we differ: the structure is loaded by the blood's pressure and its "
-        f"viscous traction; the pressure, up to {PULSE_AMPLITUDE:g} Pa during the 5 ms pulse, "
-        "is set by the inlet and the same for both rheologies, while the largest wall shear "
-        f"stress in the first {1e3 * PULSE_WINDOW:g} ms is {wn:.3g} Pa (Newtonian) and "
+        f"viscous traction; the pressure, up to {amplitude:g} Pa during the {span(duration)} "
+        "pulse, is set by the inlet and the same for both rheologies, while the largest wall "
+        f"shear stress in the first {span(PULSE_WINDOW)} is {wn:.3g} Pa (Newtonian) and "
         f"{wc:.3g} Pa (Carreau): the viscous part differs by {abs(wn - wc):.2g} Pa, "
-        f"{100 * abs(wn - wc) / PULSE_AMPLITUDE:.2g} % of the pressure. "
-        + viscosities()
+        f"{100 * abs(wn - wc) / amplitude:.2g} % of the pressure. "
+        + viscosities(newtonian, carreau)
         + " A study that finds a large difference must have loaded the wall differently "
         "(e.g. by a flow rate instead of a pressure, or with a Carreau viscosity near μ0)."
     )
 
 
 SHEAR_RATES = (100.0, 1000.0)
-"""1/s: the range over which :func:`viscosities` compares the shipped laws."""
+"""1/s: the range over which :func:`viscosities` compares the runs' laws."""
 
 
-def viscosities() -> str:
-    """The shipped Carreau law's viscosity against the shipped Newtonian one at
-    :data:`SHEAR_RATES` (a property of the configs' laws, not a measurement)."""
-    from pathlib import Path
-
-    from fsi import config
+def viscosities(newtonian: dict, carreau: dict) -> str:
+    """The Carreau run's viscosity law against the Newtonian run's viscosity at
+    :data:`SHEAR_RATES`, from the configurations they ran (a property of the laws, not a
+    measurement)."""
     from fsi.physics.rheology import CarreauViscosity
 
-    configs = Path(__file__).resolve().parents[2] / "configs"
-    law = config.load(configs / "stenosis_fixed_carreau.yaml", []).fluid.rheology
-    newtonian = config.load(configs / "stenosis_fixed_newtonian.yaml", []).fluid.rheology
-    carreau = CarreauViscosity(law.mu_0, law.mu_inf, law.relaxation_time, law.power_index)
-    off = [carreau.mu(s) / newtonian.viscosity - 1 for s in SHEAR_RATES]
+    law, fluid = run_case(carreau).fluid.rheology, run_case(newtonian).fluid.rheology
+    if law.model != "carreau" or fluid.model != "newtonian":
+        return ""
+    carreau_law = CarreauViscosity(law.mu_0, law.mu_inf, law.relaxation_time, law.power_index)
+    off = [carreau_law.mu(s) / fluid.viscosity - 1 for s in SHEAR_RATES]
     return (
-        f"The shipped Carreau law's viscosity is {100 * off[0]:+.0f} % from the Newtonian "
-        f"{1e3 * newtonian.viscosity:g} mPa·s at {SHEAR_RATES[0]:g} s⁻¹ and "
-        f"{100 * off[1]:+.0f} % at {SHEAR_RATES[1]:g} s⁻¹ (the shear rates the pulse drives are "
-        "not kept in the summaries)"
+        f"The Carreau law of {carreau['name']} (μ0 = {1e3 * law.mu_0:g} mPa·s, μ∞ = "
+        f"{1e3 * law.mu_inf:g} mPa·s, λ = {law.relaxation_time:g} s, n = {law.power_index:g}) "
+        f"is {100 * off[0]:+.0f} % from {newtonian['name']}'s {1e3 * fluid.viscosity:g} mPa·s "
+        f"at {SHEAR_RATES[0]:g} s⁻¹ and {100 * off[1]:+.0f} % at {SHEAR_RATES[1]:g} s⁻¹ (the "
+        "shear rates the pulse drives are not kept in the summaries)"
         + (
             ", so the two runs load the wall alike where the shear rate is in that range."
             if max(map(abs, off)) < 0.15
@@ -149,7 +157,8 @@ def _how_weak_ratio(summaries: dict, ratio: float, convergence: dict | None = No
         )
     return (
         f" How weak: the rheologies differ by {100 * abs(ratio - 1):.2f} %{mesh}, and the "
-        'bounds 1 and 1.1 are ours (the study says only "slightly higher"); the sign of so '
+        f"bounds {SLIGHTLY_HIGHER[0]:g} and {SLIGHTLY_HIGHER[1]:g} are ours (the study says only "
+        '"slightly higher"); the sign of so '
         "small a difference is all the finding rests on."
     )
 
@@ -234,6 +243,16 @@ class _OneMesh:
         return f"{c}_{self.level}" if self.pick(c) is not None else "–"
 
 
+SLIGHTLY_HIGHER = (1.0, 1.1)
+"""The Newtonian / Carreau SSS ratio that reads as "slightly higher" (our bounds)."""
+
+GREATLY = 1.5
+"""The Newtonian / Carreau SSS ratio that reads as "greatly exceeds" (our bound)."""
+
+SAME_WITHIN = 0.1
+"""The spread of the recirculation lengths that reads as "the same" (our threshold)."""
+
+
 def _fixed_wall_finding(view: _OneMesh, summaries: dict, convergence: dict | None) -> str | None:
     """Fixed wall: Newtonian and Carreau give nearly the same SSS, Newtonian slightly higher."""
     fn, fc = view.largest("fixed_newtonian", "max_sss"), view.largest("fixed_carreau", "max_sss")
@@ -241,7 +260,7 @@ def _fixed_wall_finding(view: _OneMesh, summaries: dict, convergence: dict | Non
         ratio = fn / fc
         verdict = (
             "confirmed"
-            if 1.0 <= ratio <= 1.1
+            if SLIGHTLY_HIGHER[0] <= ratio <= SLIGHTLY_HIGHER[1]
             else "partly: nearly the same, but Carreau is higher"
             if 0.9 <= ratio < 1.0
             else "refuted"
@@ -251,8 +270,8 @@ def _fixed_wall_finding(view: _OneMesh, summaries: dict, convergence: dict | Non
             f"slightly higher.** Largest SSS over the heartbeat: Newtonian {fn:.4g} Pa "
             f"({view.mesh('fixed_newtonian')}), Carreau {fc:.4g} Pa "
             f"({view.mesh('fixed_carreau')}); "
-            f"ratio {ratio:.4f} — {verdict} (confirmed if 1 ≤ ratio ≤ 1.1)."
-            + _how_weak_ratio(summaries, ratio, convergence)
+            f"ratio {ratio:.4f} — {verdict} (confirmed if {SLIGHTLY_HIGHER[0]:g} ≤ ratio ≤ "
+            f"{SLIGHTLY_HIGHER[1]:g})." + _how_weak_ratio(summaries, ratio, convergence)
         )
     return None
 
@@ -265,13 +284,13 @@ def _moving_wall_finding(view: _OneMesh, paper: dict | None) -> str | None:
     dc = view.largest("moving_carreau", "peak_displacement")
     if mn and mc and dn and dc:
         ratio, dratio = mn / mc, dn / dc
-        verdict = "confirmed" if ratio > 1.5 and dratio > 1.0 else "refuted"
+        verdict = "confirmed" if ratio > GREATLY and dratio > 1.0 else "refuted"
         return (
             f"**Moving wall: the Newtonian SSS maximum greatly exceeds the Carreau one, "
             f"and the Newtonian displacements are larger.** Largest SSS: Newtonian "
             f"{mn:.4g} Pa, Carreau {mc:.4g} Pa (ratio {ratio:.4f}); largest displacement: "
             f"Newtonian {1e6 * dn:.4g} µm, Carreau {1e6 * dc:.4g} µm (ratio {dratio:.4f}) "
-            f"— {verdict} (confirmed if the SSS ratio > 1.5 and the displacement ratio "
+            f"— {verdict} (confirmed if the SSS ratio > {GREATLY:g} and the displacement ratio "
             f"> 1). In the plaque alone: {fmt(view.largest('moving_newtonian', 'plaque_sss'))} Pa "
             f"vs {fmt(view.largest('moving_carreau', 'plaque_sss'))} Pa "
             f"({view.mesh('moving_newtonian')}, "
@@ -333,13 +352,14 @@ def _recirculation_finding(view: _OneMesh, summaries: dict) -> str | None:
             )
             for wall in ("fixed", "moving")
         ]
-        verdict = "confirmed" if spread < 0.1 else "refuted"
+        verdict = "confirmed" if spread < SAME_WITHIN else "refuted"
         return (
             f"**The recirculation downstream is the same for fixed and moving walls.** "
             f"Longest reversed-flow zone over the heartbeat: fixed {1e3 * rf[0]:.3g} / "
             f"{1e3 * rf[1]:.3g} mm (Newtonian / Carreau, at t = {times[0]} s), moving "
             f"{1e3 * rm[0]:.3g} / {1e3 * rm[1]:.3g} mm (at t = {times[1]} s); spread "
-            f"{100 * spread:.1f} % — {verdict} (confirmed if within 10 %; a threshold of our "
+            f"{100 * spread:.1f} % — {verdict} (confirmed if within {100 * SAME_WITHIN:g} %; a "
+            "threshold of our "
             "choosing: the study gives none). The maxima compared are each run's longest zone "
             "over the beat, reached at the times given, not zones at one time. "
             + _recirculation_caveat(summaries)

@@ -6,15 +6,19 @@ beside the shipped configuration (:func:`count_table`). No parameter is fitted t
 
 from __future__ import annotations
 
-from fsi.study.runs import CONFIGS, PAPER_QUANTITY, TIMES, at, fmt
+from fsi.study.runs import CONFIGS, PAPER_QUANTITY, TIMES, at, fmt, run_case
 
 UNITS = {"velocity": (1.0, "m/s"), "pressure": (1.0, "Pa"), "displacement": (1e6, "µm")}
+
+PER_MESH = len(CONFIGS) * len(TIMES)
+"""The study's printed values per quantity and mesh: its configurations × its report times."""
 
 LIMIT = 0.1
 """A value agrees with the study's when within this fraction of it (as Tables 1–3's count)."""
 
 ARGUMENT = (
-    "The study's printed text where it speaks (the dimensions, the 1200 Pa total-stress inlet, "
+    "The study's printed text where it speaks (the dimensions, the {amplitude} Pa total-stress "
+    "inlet, "
     "the stress-free outlet, the materials, the schedule's report times) and, where it is "
     "silent, the reading the analyses above favour on evidence other than a fit: **plane "
     "stress** for the 2D structure (`--only analyses --analysis plausible`: the shipped cases "
@@ -28,7 +32,7 @@ ARGUMENT = (
     "how-to-model-generalized-plane-strain-with-comsol-multiphysics)); if the study kept "
     "its code's default, the shipped plane strain is the study's. Everything else stays as "
     "shipped, because no analysis favours another reading without reading it off the tables: "
-    "the stenosis degree stays 0.5 (the degree that gives Table 1's velocity would be fitted "
+    "the stenosis degree stays {degree} (the degree that gives Table 1's velocity would be fitted "
     "to it, item 4); the inlet stays the printed total stress (the paragraph on the velocity "
     "at 0.8 s weighs the inlet held normal against it); the wall's damping stays the measured "
     "arterial loss angle (item 2 weighs the relaxation times); the element stays P2–P1 (fsi's "
@@ -38,7 +42,9 @@ ARGUMENT = (
     "below is what the runs gave."
 )
 """The choice and why, with the two measured facts it rests on left as ``{late}`` and
-``{early}`` (:func:`argument` reads them from the plane-stress analysis's summaries)."""
+``{early}`` (:func:`argument` reads them from the plane-stress analysis's summaries) and the
+shipped settings it keeps as ``{amplitude}`` and ``{degree}`` (read from the shipped run's
+configuration)."""
 
 
 def argument(plane: dict, main: dict, paper: dict) -> str:
@@ -65,7 +71,14 @@ def argument(plane: dict, main: dict, paper: dict) -> str:
         if ratio(fixed, 0.01) is None or not strain
         else f"{ratio(fixed, 0.01) / strain:.2g}× plane strain's |η| / p at 10 ms"
     )
-    return ARGUMENT.format(late=late, early=early)
+    base = main.get("fixed_newtonian_coarse")
+    case = None if base is None else run_case(base)
+    return ARGUMENT.format(
+        late=late,
+        early=early,
+        amplitude="–" if case is None else f"{case.fluid.inlet.amplitude:g}",
+        degree="–" if case is None else f"{case.geometry.stenosis_degree:g}",
+    )
 
 
 def _count(summaries: dict, paper: dict, quantity: str, mesh: str) -> tuple[int, int] | None:
@@ -108,7 +121,7 @@ def count_table(shipped: dict, plausible: dict, paper: dict) -> str:
     for mesh in ("coarse", "fine"):
         for name in ("shipped", "plausible"):
             found = totals.get((name, mesh))
-            whole = found is not None and found[1] == 20 * 3
+            whole = found is not None and found[1] == PER_MESH * len(UNITS)
             cells.append(f"{found[0]} of {found[1]}" if whole else "–")
     lines.append("| all | " + " | ".join(cells) + " |")
     return "\n".join(lines)
@@ -128,8 +141,8 @@ def section(shipped: dict, extra: dict, paper: dict) -> str:
             "## One most-plausible reading\n",
             argument(extra.get("plane_stress", {}), shipped, paper),
             "",
-            f"Values within {100 * LIMIT:g} % of the study's (of the 20 per quantity and mesh: "
-            "four configurations × five report times):",
+            f"Values within {100 * LIMIT:g} % of the study's (of the {PER_MESH} per quantity and "
+            f"mesh: {len(CONFIGS)} configurations × {len(TIMES)} report times):",
             "",
             count_table(shipped, runs, paper),
             "",

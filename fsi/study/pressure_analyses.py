@@ -8,7 +8,7 @@ and the moving wall's peak pressure, a sample of its ring (:func:`moving_pressur
 from __future__ import annotations
 
 from fsi.study import locations
-from fsi.study.runs import DENSITY, apex_x, at, fmt, where
+from fsi.study.runs import apex_x, at, ends, fmt, run_case, where
 from fsi.study.wall_analyses import Summaries, paper_value
 
 
@@ -27,7 +27,7 @@ def stagnation(main: Summaries, paper: dict) -> str:
     g = s["case"]["geometry"]
     u = q / g["height"]
     printed = paper_value(paper, "pressure", 0.01, "fixed", "coarse")
-    stagnation = 0.5 * DENSITY * u**2
+    stagnation = 0.5 * run_case(s).fluid.density * u**2
     faster = (printed / stagnation) ** 0.5 - 1
     u_study = paper_value(paper, "velocity", 0.01, "fixed", "coarse")
     u_ours = at(main.get("fixed_newtonian_coarse"), 0.01, "peak_velocity")
@@ -65,15 +65,25 @@ P10_VARIANTS = {
         "the inlet in the do-nothing form",
         ("fluid.inlet_open_boundary=do_nothing",),
     ),
-    "degree_0.6": ("stenosis degree 0.6", ("geometry.stenosis_degree=0.6",)),
-    "degree_0.7": ("stenosis degree 0.7", ("geometry.stenosis_degree=0.7",)),
+    "degree_0.6": ("stenosis degree {degree:g}", ("geometry.stenosis_degree=0.6",)),
+    "degree_0.7": ("stenosis degree {degree:g}", ("geometry.stenosis_degree=0.7",)),
     "plaque_both_sides": (
-        "a plaque on each side, closing 0.25 of the height each",
+        "a plaque on each side, closing {closing:g} of the height each",
         ("geometry.plaque_sides=[bottom, top]",),
     ),
 }
 """The coarse fixed-wall Newtonian runs to 20 ms of the ``p10`` analysis (scripts/
-reproduce_study.py): name → (what it changes, its ``--set`` overrides)."""
+reproduce_study.py): name → (what it changes, its ``--set`` overrides); the geometry in the
+description (``{degree}``, ``{closing}``: the fraction of the height each plaque closes) is
+filled in from the run's configuration (:func:`variant_label`)."""
+
+
+def variant_label(name: str, s: dict) -> str:
+    """The description of the ``p10`` run ``name`` (summary ``s``), its geometry read from
+    the configuration it ran."""
+    g = run_case(s).geometry
+    closing = g.stenosis_degree / len(g.plaque_sides or ("bottom",))
+    return P10_VARIANTS[name][0].format(degree=g.stenosis_degree, closing=closing)
 
 
 def pressure_at_10ms(p10: Summaries, main: Summaries, paper: dict) -> str:
@@ -105,9 +115,9 @@ def pressure_at_10ms(p10: Summaries, main: Summaries, paper: dict) -> str:
     both = changes.get("plaque_both_sides")
     return "\n".join(
         [
-            "What p(10 ms) does not depend on (coarse fixed-wall Newtonian runs to 20 ms, `--only "
-            "analyses --analysis p10`): the forms of the openings, the stabilizations and steeper "
-            "stenoses, one at a time.",
+            "What p(10 ms) does not depend on (coarse fixed-wall Newtonian runs to "
+            f"{ends(p10.values())}, `--only analyses --analysis p10`): the forms of the "
+            "openings, the stabilizations and steeper stenoses, one at a time.",
             "",
             "\n".join(lines),
             "",
@@ -159,14 +169,14 @@ def _p10_table(p10: Summaries, base: dict, p_base: float) -> tuple[list[str], di
         f"| shipped | {fmt(p_base)} | – | {fmt(at(base, 0.02, 'peak_pressure'))} |",
     ]
     changes = {}
-    for name, (label, _) in P10_VARIANTS.items():
+    for name in P10_VARIANTS:
         s = p10.get(f"p10/{name}")
         p = at(s, 0.01, "peak_pressure")
         if p is None:
             continue
         changes[name] = p / p_base - 1
         lines.append(
-            f"| {label} | {fmt(p)} | {100 * changes[name]:+.1f} % | "
+            f"| {variant_label(name, s)} | {fmt(p)} | {100 * changes[name]:+.1f} % | "
             f"{fmt(at(s, 0.02, 'peak_pressure'))} |"
         )
     return lines, changes
@@ -263,8 +273,9 @@ def pressure_and_element(element: Summaries, main: Summaries, paper: dict) -> st
     ]
     text = [
         "The element (`--only analyses --analysis element`: the fixed-wall Newtonian case to "
-        "0.1 s with the plaque held rigid, which fsi's P1–P1 needs, being fluid-only; held "
-        f"rigid, the P2–P1 plaque gives p(10 ms) = {fmt(rigid)} Pa against the deforming one's "
+        f"{ends(element.values())} with the plaque held rigid, which fsi's P1–P1 needs, being "
+        f"fluid-only; held rigid, the P2–P1 plaque gives p(10 ms) = {fmt(rigid)} Pa against "
+        "the deforming one's "
         f"{fmt(at(main.get('fixed_newtonian_coarse'), 0.01, 'peak_pressure'))}). "
         f"{COMSOL_ELEMENT}. fsi ships P2–P1 and has P1–P1 with SUPG/PSPG/LSIC "
         "(docs/boundary-conditions.md §7). The peak pressure over the fluid, and where it sits "

@@ -19,17 +19,18 @@ machine's cores), one at a time; a sweep is ``fsi sweep``, which skips its finis
 from __future__ import annotations
 
 import argparse
+import functools
 import json
-import os
 import subprocess
 import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from fsi import config
+from fsi.run import child_runs
 from fsi.study.analyses import effective_length
 from fsi.study.pressure_analyses import P10_VARIANTS
-from fsi.study.runs import PULSE_AMPLITUDE
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -46,11 +47,6 @@ HALVED_SCHEDULE = (
 """The shipped configs' schedule with every step halved."""
 LARGE_STEPS = "time.schedule=[{until: 0.005, dt: 2.5e-4}, {until: 0.1, dt: 5.0e-3}]"
 """The pulse resolved, then the study's 5 ms steps."""
-MPI_ENV = {
-    "OMPI_ALLOW_RUN_AS_ROOT": "1",
-    "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
-    "OMPI_MCA_btl_vader_single_copy_mechanism": "none",
-}
 
 
 @dataclass(frozen=True)
@@ -121,20 +117,47 @@ RUNS = (
 )  # the moving wall first
 
 
-def _scaled_pulse(length: float, shipped: float = 0.02) -> float:
+@functools.cache
+def _shipped(case: str = "stenosis_fixed_newtonian") -> config.Case:
+    """A shipped case's configuration (fsi.config): the settings the analyses scale or convert
+    are read from it, not restated."""
+    return config.load(ROOT / "configs" / f"{case}.yaml")
+
+
+def _scaled_pulse(length: float) -> float:
     """The pulse amplitude (Pa) whose impulse moves the blood column of a segment ``length``
     long as fast as the shipped pulse moves the shipped segment's (the rigid-column estimate,
     fsi/study/analyses.py): amplitude ∝ effective length."""
+    shipped = _shipped()
+    g = shipped.geometry
     return (
-        PULSE_AMPLITUDE * effective_length(length, 0.01, 0.5) / effective_length(shipped, 0.01, 0.5)
+        shipped.fluid.inlet.amplitude
+        * effective_length(length, g.stenosis_length, g.stenosis_degree)
+        / effective_length(g.length, g.stenosis_length, g.stenosis_degree)
     )
 
 
-def _plane_stress(nu: float = 0.45, moduli=(("wall", 4.0e6), ("cap", 1.6e6), ("lipid", 1.6e6))):
-    """The shipped regions' moduli as the plane-strain equivalent of plane stress (SVK)."""
+EARLIER_SETTINGS = (
+    "fluid.supg=false",
+    "fluid.inlet_open_boundary=same",
+    "fluid.normal_flow=true",
+    "fluid.inflow_stabilization=0",
+    "fluid.outlet.backflow_form=full",
+)
+"""The fluid as the study's configs set it before the physiological-flow settings (docs/study.md
+at git 3d90d70): the Galerkin form, the inlet in the outlet's do-nothing form with its velocity
+held normal and no term on re-entering blood, the outlet's backflow term in its ``full``
+form."""
+
+
+def _plane_stress() -> tuple[str, ...]:
+    """The shipped regions' moduli (E, ν of the shipped configuration) as the plane-strain
+    equivalent of plane stress (SVK): E (1 + 2ν) / (1 + ν)², ν / (1 + ν)."""
+    materials = {r: getattr(_shipped().structure, r) for r in ("wall", "cap", "lipid")}
     return tuple(
         s
-        for region, e in moduli
+        for region, m in materials.items()
+        for e, nu in [(m.young_modulus, m.poisson_ratio)]
         for s in (
             f"structure.{region}.young_modulus={e * (1 + 2 * nu) / (1 + nu) ** 2:.6g}",
             f"structure.{region}.poisson_ratio={nu / (1 + nu):.6g}",
@@ -236,6 +259,17 @@ ANALYSES = {
             label="damping/large_steps",
             end=0.1,
         ),
+    ],
+    # 5. What the physiological-flow settings changed: the fine runs with the fluid's earlier
+    #    settings, beside the shipped fine runs.
+    "earlier": [
+        StudyRun(
+            case,
+            "fine",
+            sets=EARLIER_SETTINGS,
+            label=f"earlier/{case.removeprefix('stenosis_')}_fine",
+        )
+        for case in CASES
     ],
     # 3. The inlet before the physiological-flow issue (do-nothing, velocity held normal).
     "inlet": [
@@ -340,7 +374,8 @@ ANALYSES = {
 }
 """The runs that isolate the causes of the differences from the study (docs/study.md, one
 section each), on the coarse mesh (the fixed wall's displacement is within 0.5 % of the fine
-mesh's and the velocity within 0.4 %), but the convergence runs on the other meshes."""
+mesh's and the velocity within 0.4 %), but the convergence runs on the other meshes and the
+earlier settings' and the most-plausible reading's also on the fine one."""
 
 
 def state(out: Path, end: float = 0.8) -> str:
@@ -388,7 +423,7 @@ def run_all(runs: list[StudyRun | StudySweep], folder: Path, ranks: int) -> None
                 stdout=f,
                 stderr=subprocess.STDOUT,
                 cwd=ROOT,
-                env={**os.environ, **MPI_ENV},
+                env=child_runs.environment(),
             )
         print(
             f"{run.name}: exit {code} after {time.perf_counter() - tic:.0f} s (log {log})",

@@ -10,13 +10,16 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import json
 import math
 import re
+import shlex
 from collections.abc import Sequence
 from pathlib import Path
 from types import SimpleNamespace
 
+from fsi import config
 from fsi.output import report, report_runs
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -42,13 +45,6 @@ LABELS = {
     "moving_carreau": "moving wall, Carreau",
 }
 CONFIGS = list(LABELS)
-
-PULSE_AMPLITUDE = 1200.0
-"""Pa: the shipped configs' peak inlet pressure, h = (A/2)(1 − cos 2πt/T) (docs/model.md §2)."""
-PULSE_DURATION = 0.005
-"""s: T, the shipped inlet pulse's length."""
-DENSITY = 1060.0
-"""kg/m³: the blood's density in the shipped study configs."""
 
 PULSE_WINDOW = 0.01
 """s: the wall shear stress during the pulse (and the wall's first response) is its maximum up
@@ -111,20 +107,8 @@ def summarise(run: report_runs.Run) -> dict:
         "command": re.sub(
             r"\S*/(fsi/__main__\.py|configs/|results/)", r"\1", info.get("command", "")
         ),
-        "case": {
-            "name": case.name,
-            "structure_mode": case.structure.mode,
-            "geometry": dataclasses.asdict(case.geometry),
-            "relaxation_time_s": case.structure.wall.viscous_relaxation_time,
-            "young_modulus": {
-                r: getattr(case.structure, r).young_modulus for r in ("wall", "cap", "lipid")
-            },
-            "support": dataclasses.asdict(case.structure.support),
-            "inlet_open_boundary": case.fluid.inlet_open_boundary,
-            "normal_flow": case.fluid.normal_flow,
-            "end_s": case.time.end,
-            "inlet_amplitude": getattr(case.fluid.inlet, "amplitude", None),
-        },
+        "case": case_record(case),
+        "config": config.to_dict(case),
         "steps": len(rows),
         "end_time_s": rows[-1]["t"] if rows else 0.0,
         "finished": bool(rows) and abs(rows[-1]["t"] - case.time.end) < 1e-9,
@@ -136,16 +120,63 @@ def summarise(run: report_runs.Run) -> dict:
         },
         "maxima": maxima,
     }
+    if case.structure.mode == "moving_wall":
+        summary["ring"] = ring(rows, case)
     if summary["finished"]:
         summary.update(_locations(run, maxima, case.time.end))
     return summary
+
+
+def case_record(case: config.Case) -> dict:
+    """The settings the analyses vary, as a summary records them (``case``): the case's name,
+    the structure's mode, the geometry, the wall's relaxation time, the regions' moduli, the
+    tissue support, the inlet's form and amplitude and the end time."""
+    return {
+        "name": case.name,
+        "structure_mode": case.structure.mode,
+        "geometry": dataclasses.asdict(case.geometry),
+        "relaxation_time_s": case.structure.wall.viscous_relaxation_time,
+        "young_modulus": {
+            r: getattr(case.structure, r).young_modulus for r in ("wall", "cap", "lipid")
+        },
+        "support": dataclasses.asdict(case.structure.support),
+        "inlet_open_boundary": case.fluid.inlet_open_boundary,
+        "normal_flow": case.fluid.normal_flow,
+        "end_s": case.time.end,
+        "inlet_amplitude": getattr(case.fluid.inlet, "amplitude", None),
+    }
+
+
+def ring(rows: Sequence[dict], case: config.Case) -> dict | None:
+    """The moving wall's ring after the inlet pulse, from its peak |η| over time: the crests
+    of |η| (each a row above the one before and not below the one after, its time refined by
+    the parabola through the three) after the first crest past the pulse's end (the pulse's own
+    peak response) and within the schedule's first segment (the steps that resolve the ring),
+    and the frequency they give, (n − 1) / (2 (t_last − t_first)): |η| crests twice per period
+    of the wall's lowest coupled mode (docs/wall-damping.md). None without a pulse or three
+    such crests."""
+    pulse = getattr(case.fluid.inlet, "duration", None)
+    window = case.time.schedule[0].until
+    series = [(r["t"], r["peak_displacement"]) for r in rows if "peak_displacement" in r]
+    crests = [
+        t + 0.5 * (t - s) * (a - c) / (a - 2 * b + c)  # the parabola's vertex (equal steps)
+        for (s, a), (t, b), (u, c) in zip(series, series[1:], series[2:])
+        if pulse is not None and pulse < t and u <= window + 1e-12 and a < b >= c
+    ][1:]
+    if len(crests) < 3:
+        return None
+    return {
+        "hz": (len(crests) - 1) / (2 * (crests[-1] - crests[0])),
+        "crests_s": crests,
+    }
 
 
 def _locations(run: report_runs.Run, maxima: dict, end: float) -> dict:
     """Where the run's reported maxima sit (fsi/study/locations.py), from its field files: at
     each of :data:`TIMES` up to ``end`` the largest pressure, |u| and |η|, the largest pressure
     off the open boundaries and on the plaque's surface (``where``); the whole structure's and
-    the plaque's largest |σ₁₂| at their times (``largest_sss_at``, ``plaque_sss_at``)."""
+    the plaque's largest |σ₁₂| at their times (``largest_sss_at``, ``plaque_sss_at``, with the
+    structure's largest |η| then, which Figures 7–8 magnify)."""
     from fsi.study import locations
 
     geometry = dataclasses.asdict(run.case.geometry)
@@ -162,8 +193,10 @@ def _locations(run: report_runs.Run, maxima: dict, end: float) -> dict:
             ("plaque_sss_at", "plaque_sss", ("cap", "lipid")),
         ):
             if name in maxima:
-                found = locations.cell_maximum(run.path, "sss", maxima[name][1], geometry, regions)
-                out[key] = {**found, "t": maxima[name][1]}
+                t = maxima[name][1]
+                found = locations.cell_maximum(run.path, "sss", t, geometry, regions)
+                eta = report.value_at(run.rows, t, "peak_displacement")
+                out[key] = {**found, "t": t, "peak_displacement": eta}
     return out
 
 
@@ -183,6 +216,57 @@ def where(summary: dict | None, t: float, name: str) -> dict | None:
         place = locations.boundary_place(old[0], old[1], g)
         return {"value": at(summary, t, name), "x": old[0], "y": old[1], "place": place}
     return found
+
+
+def run_case(summary: dict) -> config.Case:
+    """The configuration the run used, through fsi.config: the resolved configuration its
+    summary keeps (``config``, its run folder's config.yaml); for a summary made before it kept
+    one, its command's case file with the command's ``--set`` overrides (and, for a run of
+    ``fsi sweep``, its folder's name's settings), which must then give the settings the summary
+    recorded (``case``): raises ValueError where today's case file no longer does."""
+    if "config" in summary:
+        return _config_from_dict(json.dumps(summary["config"], sort_keys=True))
+    case = _config_from_command(summary["command"], summary["name"])
+    off = _differences(summary["case"], case_record(case))
+    if off:
+        raise ValueError(
+            f"{summary['name']}: the configuration of its command ({summary['command']}) is "
+            f"not the one its summary recorded: {'; '.join(off)}"
+        )
+    return case
+
+
+@functools.cache
+def _config_from_dict(data: str) -> config.Case:
+    return config.from_dict(json.loads(data))
+
+
+@functools.cache
+def _config_from_command(command: str, name: str) -> config.Case:
+    """The case of ``fsi run CONFIG --set ...`` (or of the run ``name`` of ``fsi sweep CONFIG
+    --set ... --vary ...``: its folder is named ``key=value,key=value``)."""
+    words = shlex.split(command)
+    verb = next(w for w in words if w in ("run", "sweep"))
+    case_file = ROOT / words[words.index(verb) + 1]
+    overrides = [b for a, b in zip(words, words[1:]) if a == "--set"]
+    if verb == "sweep":
+        overrides += re.split(r",(?=[\w.]+=)", name)
+    return config.load(case_file, overrides)
+
+
+def _differences(recorded, rebuilt, key: str = "") -> list[str]:
+    """Where ``rebuilt`` differs from ``recorded`` (keys only ``rebuilt`` has are new
+    settings, not differences)."""
+    if isinstance(recorded, dict) and isinstance(rebuilt, dict):
+        return [
+            d
+            for k in recorded
+            for d in _differences(recorded[k], rebuilt.get(k), f"{key}.{k}".strip("."))
+        ]
+    same = recorded == rebuilt or (
+        isinstance(recorded, list) and list(recorded) == list(rebuilt or ())
+    )
+    return [] if same else [f"{key}: {recorded!r} recorded, {rebuilt!r} rebuilt"]
 
 
 def make_summaries(
@@ -226,6 +310,33 @@ def finished(summary: dict | None) -> bool:
 
 def fmt(x: float | None, digits: int = 4) -> str:
     return "–" if x is None or not math.isfinite(x) else f"{x:.{digits}g}"
+
+
+def span(t: float) -> str:
+    """A time as the document writes it: below 0.1 s in ms, else in s."""
+    return f"{1e3 * t:.4g} ms" if t < 0.1 else f"{t:.4g} s"
+
+
+def after_pulse(case: config.Case) -> tuple[float, float]:
+    """(the step of the schedule up to the inlet pulse's end, the step after it) (s)."""
+    duration = case.fluid.inlet.duration
+    before = next(s.dt for s in case.time.schedule if s.until >= duration - 1e-12)
+    after = next(s.dt for s in case.time.schedule if s.until > duration + 1e-12)
+    return before, after
+
+
+def ends(summaries) -> str:
+    """Where the runs of ``summaries`` (an iterable of summaries) end: "20 ms" (or "10 ms and
+    0.1 s"), from the end time each configuration set."""
+    return " and ".join(span(t) for t in sorted({run_case(s).time.end for s in summaries})) or "–"
+
+
+def schedule_text(case: config.Case) -> str:
+    """The case's step schedule in words: "0.25 ms steps to 50 ms, 1 ms to 0.1 s, …"."""
+    return ", ".join(
+        f"{1e3 * s.dt:.4g} ms{' steps' if k == 0 else ''} to {span(s.until)}"
+        for k, s in enumerate(case.time.schedule)
+    )
 
 
 def change(coarse: float | None, fine: float | None) -> str:
