@@ -115,9 +115,9 @@ def build_coupled(
     fluid_side = _fluid_side(case, fluid_solver, motion, to_fluid, to_solid)
     solid_side = SolidInterface(solid_solver)
     predictor = coupling.predictor_from_config(case.coupling)
-    x0 = solid_solver.interface_displacement()
-    predictor.record(fluid_side.unknown.stack(x0), 0.0)
-    weights = fluid_side.unknown.weights(x0.size * fluid_side.unknown.block // x0.shape[1])
+    z0 = fluid_side.unknown.stack(solid_solver.interface_displacement())
+    predictor.record(z0, 0.0)
+    weights = fluid_side.unknown.weights(z0.size)
     return CoupledProblem(
         whole,
         fluid_mesh,

@@ -47,7 +47,7 @@ from fsi.physics.fluid_boundaries import (
     parabolic_values,
 )
 from fsi.physics.fluid_residual import FluidFields, WeakForm
-from fsi.physics.mesh import boundary_facets_on_plane
+from fsi.physics.mesh import bounding_plane_dofs
 
 BACKFLOW_LENGTH = 0.5
 """ℓ/h of the ``tangential`` backflow term's regularization ℓ² ∇_Γu : ∇_Γv (h the cell
@@ -284,14 +284,14 @@ class BoundaryTerms:
         return _Contribution(dirichlet=[(_NORMAL_FLOW, self._zero(bc.component))])
 
     def _zero(self, c: int, facets: np.ndarray | None = None):
-        """u_c = 0 on ``facets``, or (None) on the boundary's facets in the plane x_c = 0 (a
-        mirror plane bounds the fluid: its dofs are those facets'; dolfinx 0.5 crashed locating
-        a mixed space's dofs on vertices and edges on 2 ranks)."""
+        """u_c = 0 on ``facets``, or (None) on the plane x_c = 0, which bounds the fluid."""
         component = self.fields.W.sub(0).sub(c)
-        fdim = self.mesh.topology.dim - 1
         if facets is None:
-            facets = boundary_facets_on_plane(self.mesh, c)
-        dofs = dolfinx.fem.locate_dofs_topological(component, fdim, facets)
+            dofs = bounding_plane_dofs(self.mesh, component, c)
+        else:
+            dofs = dolfinx.fem.locate_dofs_topological(
+                component, self.mesh.topology.dim - 1, facets
+            )
         zero = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(0.0))
         return dolfinx.fem.dirichletbc(zero, dofs, component)
 

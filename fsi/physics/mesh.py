@@ -383,22 +383,26 @@ def _plane_tolerance(mesh) -> float:
     return 1e-6 * float(mesh.comm.allreduce(np.ptp(x, axis=0).max(initial=0.0), op=MPI.MAX))
 
 
-def boundary_facets_on_plane(mesh, component: int) -> np.ndarray:
-    """The local boundary facets in the plane x_``component`` = 0 (to :func:`_plane_tolerance`):
-    a mirror plane that bounds the mesh, such as a quarter tube's cuts."""
+def bounding_plane_dofs(mesh, space, component: int) -> np.ndarray:
+    """The dofs of ``space`` (a space or a subspace) on the boundary's facets in the plane
+    x_``component`` = 0 (to :func:`_plane_tolerance`): a mirror plane that bounds the mesh, such
+    as a quarter tube's cuts, whose dofs are those facets' (dolfinx 0.5 crashed locating a
+    submesh's dofs on its vertices and edges on 2 ranks, as :func:`plane_dofs` does)."""
     tolerance = _plane_tolerance(mesh)
     fdim = mesh.topology.dim - 1
     mesh.topology.create_connectivity(fdim, mesh.topology.dim)
-    return dolfinx.mesh.locate_entities_boundary(
+    facets = dolfinx.mesh.locate_entities_boundary(
         mesh, fdim, lambda p: np.abs(p[component]) <= tolerance
     )
+    return dolfinx.fem.locate_dofs_topological(space, fdim, facets)
 
 
 def plane_dofs(mesh, space, component: int) -> np.ndarray:
     """The dofs of ``space`` (a space or a subspace) on the mesh's vertices, edges, ... (every
     entity below the cells) that lie on the plane x_``component`` = 0, to a millionth of the
-    mesh's extent: a symmetry plane's (fsi.physics.solid_boundaries.SymmetryPlane, the fluid's
-    and the mesh motion's)."""
+    mesh's extent: a symmetry plane that may cut through the body (the structure's
+    :class:`fsi.physics.solid_boundaries.SymmetryPlane`; one that bounds it:
+    :func:`bounding_plane_dofs`)."""
     tolerance = _plane_tolerance(mesh)
     rows = []
     for dim in range(mesh.topology.dim):

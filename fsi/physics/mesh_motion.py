@@ -30,7 +30,7 @@ from fsi.geometry.tags import Boundary
 from fsi.numerics.newton import petsc_options
 from fsi.numerics.nullspace import rigid_body_modes
 from fsi.numerics.timestepping import BdfHistory
-from fsi.physics.mesh import TaggedMesh, boundary_facets_on_plane, owned_facet_dofs
+from fsi.physics.mesh import TaggedMesh, bounding_plane_dofs, owned_facet_dofs
 
 PREFIX = "mesh_"
 
@@ -244,8 +244,7 @@ class MeshMotion:
         bc = bc[bc < n_owned]
         rows = [(bc[:, None] * bs + np.arange(bs)).ravel()]
         for c in self.symmetry_planes:  # one component: unrolled rows of V
-            on_plane = boundary_facets_on_plane(mesh, c)
-            plane = dolfinx.fem.locate_dofs_topological(self.V.sub(c), fdim, on_plane)
+            plane = bounding_plane_dofs(mesh, self.V.sub(c), c)
             rows.append(plane[plane < n_owned * bs])
         self._bc_local = np.unique(np.concatenate(rows)).astype(np.int32)
         start = self.V.dofmap.index_map.local_range[0]

@@ -29,7 +29,7 @@ from fsi.config import (
     symmetry_planes,
 )
 from fsi.geometry.tags import Boundary, Region
-from fsi.physics.mesh import TaggedMesh, boundary_facets_on_plane, plane_dofs
+from fsi.physics.mesh import TaggedMesh, bounding_plane_dofs, plane_dofs
 
 log = logging.getLogger(__name__)
 
@@ -88,8 +88,7 @@ class SymmetryPlane:
     component: int
     bounding: bool = False
     """The plane bounds the body (a quarter tube's cut): its nodes are those of the boundary's
-    facets in it (dolfinx 0.5 crashed locating dofs on a submesh's vertices and edges on 2
-    ranks there)."""
+    facets in it (:func:`fsi.physics.mesh.bounding_plane_dofs`)."""
 
 
 Dirichlet = Clamp | HoldRegions | PrescribedDisplacement | Roller | SymmetryPlane
@@ -215,11 +214,8 @@ class DirichletConditions:
                 continue
             if isinstance(item, SymmetryPlane):
                 sub = V.sub(item.component)
-                if item.bounding:
-                    facets = boundary_facets_on_plane(domain.mesh, item.component)
-                    rows = dolfinx.fem.locate_dofs_topological(sub, tdim - 1, facets)
-                else:
-                    rows = plane_dofs(domain.mesh, sub, item.component)
+                dofs_on = bounding_plane_dofs if item.bounding else plane_dofs
+                rows = dofs_on(domain.mesh, sub, item.component)
                 bc = dolfinx.fem.dirichletbc(PETSc.ScalarType(0), rows, sub)
                 self.bcs.append(bc)
                 self.homogeneous.append(bc)
