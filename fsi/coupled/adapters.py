@@ -123,6 +123,7 @@ class FluidInterface(_Adapter):
         self.forcing = forcing
         self.robin = robin
         self.unknown = InterfaceUnknown(to_solid.bs, forces=robin is not None)
+        self._nodes = to_solid.comm.allreduce(len(to_solid.dst_dofs))  # interface nodes, global
         self.first_residual = math.nan  # |F| where the step's first solve stopped
         self.eta = dolfinx.fem.Function(fluid_solver.V, name="interface_displacement")
         self.mesh_quality = 1.0  # min J/J_ref of the last mesh motion
@@ -162,6 +163,17 @@ class FluidInterface(_Adapter):
         """The fluid's nodal forces on the structure as a solid interface vector (n, gdim), N/m."""
         values = self.solver.nodal_forces(self.interface)
         return self.to_solid.transfer(values[self.to_solid.src_dofs])
+
+    def weights(self) -> np.ndarray | None:
+        """The weights that measure this step's iterates z in metres
+        (:meth:`fsi.coupled.coupling.InterfaceUnknown.weights`): with Robin–Neumann, 1 on x and
+        c = Δt / (α Ā) on f, Ā the interface's area per node: a change δf of the Robin data
+        leaves the slip u − u_Γ = δf / (α Ā) at a node, c δf over one step. None without."""
+        if self.robin is None:
+            return None
+        area_per_node = self.solver.robin.area / self._nodes
+        size = len(self.to_solid.dst_dofs) * self.unknown.block
+        return self.unknown.weights(size, self.dt / (self.robin.at(self.dt) * area_per_node))
 
     def _set_robin_data(self, nodal_forces: np.ndarray) -> None:
         """The fluid's Robin data: α(Δt) and the nodal forces (a solid interface vector) on its

@@ -97,8 +97,9 @@ def filtered_qr(comm: MPI.Comm, columns: Sequence[np.ndarray], threshold: float)
 class Acceleration(Protocol):
     """Chooses the next interface input of a step's fixed-point iterations."""
 
-    def start_step(self) -> None:
-        """A new time step begins (its first ``next_input`` follows)."""
+    def start_step(self, weights: np.ndarray | None = None) -> None:
+        """A new time step begins (its first ``next_input`` follows); its secants and least
+        squares measure the entries of the inputs times ``weights`` (local; None: as they are)."""
 
     def next_input(self, x: np.ndarray, x_tilde: np.ndarray) -> np.ndarray:
         """The next input ``x_{k+1}`` from the input ``x_k`` and the output ``x̃_k = H(x_k)``."""
@@ -125,8 +126,8 @@ class ConstantRelaxation:
             raise ValueError(f"relaxation factor must be positive, got {omega}")
         self.comm, self.omega = comm, omega
 
-    def start_step(self) -> None:
-        pass
+    def start_step(self, weights: np.ndarray | None = None) -> None:
+        pass  # measures nothing
 
     def next_input(self, x: np.ndarray, x_tilde: np.ndarray) -> np.ndarray:
         return x + self.omega * (x_tilde - x)
@@ -149,8 +150,9 @@ class Aitken:
     """Aitken's Δ² dynamic relaxation (Küttler & Wall 2008, Comput. Mech. 43:61–72).
 
     ``x_{k+1} = x_k + ω_k r_k`` with ``r_k = x̃_k − x_k`` and, from the second iteration of a
-    step on, ``ω_k = −ω_{k−1} r_{k−1}·(r_k − r_{k−1}) / |r_k − r_{k−1}|²`` (global dot products),
-    the secant of the residual along the last step. ``|ω| <= omega_max`` always. The first step
+    step on, ``ω_k = −ω_{k−1} r_{k−1}·(r_k − r_{k−1}) / |r_k − r_{k−1}|²`` (global dot products
+    of the residuals times the step's weights, :meth:`start_step`), the secant of the residual
+    along the last step. ``|ω| <= omega_max`` always. The first step
     starts with ``omega_initial``; every later step starts with the last ω of the step before.
     For a scalar (or ``a I``) linear map the second ω is exact: three evaluations converge.
     """
@@ -160,13 +162,12 @@ class Aitken:
         comm: MPI.Comm,
         omega_initial: float,
         omega_max: float = 1.0,
-        weights: np.ndarray | None = None,
     ):
         if not 0 < omega_initial <= omega_max:
             raise ValueError(
                 f"need 0 < omega_initial <= omega_max, got {omega_initial}, {omega_max}"
             )
-        self.comm, self.omega_max, self.weights = comm, omega_max, weights
+        self.comm, self.omega_max, self.weights = comm, omega_max, None
         self.omega = omega_initial
         self._previous_residual: np.ndarray | None = None
 
@@ -177,7 +178,8 @@ class Aitken:
     def _capped(self, omega: float) -> float:
         return float(np.sign(omega) * min(abs(omega), self.omega_max))
 
-    def start_step(self) -> None:
+    def start_step(self, weights: np.ndarray | None = None) -> None:
+        self.weights = weights
         self._previous_residual = None
         self.omega = self._capped(self.omega)
 
@@ -187,7 +189,8 @@ class Aitken:
             dr = _weighted(self.weights, r - self._previous_residual)
             dr2 = dot(self.comm, dr, dr)
             if dr2 > 0.0:  # an unchanged residual leaves ω as it is
-                secant = dot(self.comm, self._previous_residual, dr) / dr2
+                previous = _weighted(self.weights, self._previous_residual)
+                secant = dot(self.comm, previous, dr) / dr2
                 self.omega = self._capped(-self.omega * secant)
         self._previous_residual = r
         return x + self.omega * r
@@ -218,8 +221,8 @@ class IQNILS:
     (nearly) dependent on newer ones. Without any column (the first iteration of the first step,
     or of every step with ``reuse = 0``) it is the relaxation ``x_{k+1} = x_k + ω r_k``. On a
     linear map of dimension n the columns span GMRES's Krylov space: at most n + 1 updates reach
-    the fixed point. ``weights`` (local, 0 or 1 per entry; None: all 1) choose the entries the
-    least squares measure; the update moves every entry with the same coefficients c.
+    the fixed point. The step's ``weights`` (:meth:`start_step`) scale the entries the least
+    squares measure; the update moves every entry with the same coefficients c.
     """
 
     def __init__(
@@ -228,13 +231,12 @@ class IQNILS:
         omega: float,
         reuse: int = 0,
         threshold: float = 1e-8,
-        weights: np.ndarray | None = None,
     ):
         if omega <= 0 or reuse < 0 or threshold <= 0:
             raise ValueError(
                 f"need omega > 0, reuse >= 0, threshold > 0; got {omega}, {reuse}, {threshold}"
             )
-        self.comm, self.omega, self.threshold, self.weights = comm, omega, threshold, weights
+        self.comm, self.omega, self.threshold, self.weights = comm, omega, threshold, None
         self._old_steps: deque[tuple[list[np.ndarray], list[np.ndarray]]] = deque(maxlen=reuse or 1)
         self.reuse = reuse
         self._V: list[np.ndarray] = []  # this step's Δr, newest first
@@ -247,7 +249,8 @@ class IQNILS:
     def relaxation(self) -> None:
         return None  # a least-squares update, no single ω
 
-    def start_step(self) -> None:
+    def start_step(self, weights: np.ndarray | None = None) -> None:
+        self.weights = weights
         self._V, self._W, self._previous = [], [], None
 
     def next_input(self, x: np.ndarray, x_tilde: np.ndarray) -> np.ndarray:
@@ -299,20 +302,16 @@ def _weighted(weights: np.ndarray | None, v: np.ndarray) -> np.ndarray:
 
 
 ACCELERATIONS: dict[str, Callable[..., Acceleration]] = {
-    "constant": lambda c, comm, w: ConstantRelaxation(comm, c.initial_relaxation),
-    "aitken": lambda c, comm, w: Aitken(comm, c.initial_relaxation, c.max_relaxation, w),
-    "iqn-ils": lambda c, comm, w: IQNILS(comm, c.initial_relaxation, c.iqn_reuse, c.iqn_filter, w),
+    "constant": lambda c, comm: ConstantRelaxation(comm, c.initial_relaxation),
+    "aitken": lambda c, comm: Aitken(comm, c.initial_relaxation, c.max_relaxation),
+    "iqn-ils": lambda c, comm: IQNILS(comm, c.initial_relaxation, c.iqn_reuse, c.iqn_filter),
 }
-"""The accelerations by the ``coupling.acceleration`` tag, built from the coupling section and
-the weights of the entries they measure."""
+"""The accelerations by the ``coupling.acceleration`` tag, built from the coupling section."""
 
 
-def from_config(
-    coupling: Coupling, comm: MPI.Comm, weights: np.ndarray | None = None
-) -> Acceleration:
-    """The acceleration named by ``coupling.acceleration`` with the configuration's parameters,
-    measuring the entries of ``weights`` (:attr:`InterfaceUnknown.weights`; None: all)."""
-    return ACCELERATIONS[coupling.acceleration](coupling, comm, weights)
+def from_config(coupling: Coupling, comm: MPI.Comm) -> Acceleration:
+    """The acceleration named by ``coupling.acceleration`` with the configuration's parameters."""
+    return ACCELERATIONS[coupling.acceleration](coupling, comm)
 
 
 # --------------------------------------------------------------------------------------------
@@ -393,10 +392,11 @@ class InterfaceUnknown:
     """What a step's iterations solve for, per owned interface node: the displacement x
     (``dimension`` values; Dirichlet–Neumann) or, with ``forces``, x followed by the fluid's
     nodal forces f (Robin–Neumann: the fluid's Robin data are the last iterate's forces, so they
-    are part of the fixed point z = [x, f]). The accelerations measure z by its displacement
-    alone (:meth:`weights`): their secants and least squares see x, and f moves with the same
-    coefficients; the predictor extrapolates both. A step has converged when x and f have,
-    each by its relative residual (:meth:`residual`)."""
+    are part of the fixed point z = [x, f]). The predictor extrapolates both. The accelerations
+    and the step's convergence measure z in metres (:meth:`weights`): x as it is, f times
+    c = Δt / (α Ā), which turns a change of the Robin data into the slip it leaves, u − u_Γ,
+    over one step (α the Robin coefficient, Ā the interface's area per node;
+    :meth:`fsi.coupled.adapters.FluidInterface.weights`)."""
 
     dimension: int
     forces: bool = False
@@ -422,24 +422,14 @@ class InterfaceUnknown:
         """f of z (flat; with ``forces`` only)."""
         return np.asarray(z).reshape(-1, self.block)[:, self.dimension :].ravel()
 
-    def weights(self, size: int) -> np.ndarray | None:
-        """1 on the displacement's entries of a local z of ``size`` values, 0 on the forces'
-        (None without forces: every entry counts)."""
+    def weights(self, size: int, force_weight: float) -> np.ndarray | None:
+        """1 on the displacement's entries of a local z of ``size`` values, ``force_weight`` (m/N)
+        on the forces' (None without forces: every entry counts as it is)."""
         if not self.forces:
             return None
-        w = np.zeros((size // self.block, self.block))
+        w = np.full((size // self.block, self.block), float(force_weight))
         w[:, : self.dimension] = 1.0
         return w.ravel()
-
-    def residual(self, comm: MPI.Comm, z: np.ndarray, z_tilde: np.ndarray) -> float:
-        """The step's convergence measure: :func:`relative_residual` of x, and with forces the
-        larger of it and f's."""
-        if not self.forces:
-            return relative_residual(comm, z, z_tilde)
-        return max(
-            relative_residual(comm, self.displacement(z), self.displacement(z_tilde)),
-            relative_residual(comm, self.nodal_forces(z), self.nodal_forces(z_tilde)),
-        )
 
 
 # --------------------------------------------------------------------------------------------
@@ -521,6 +511,7 @@ def couple_step(
     step: int = 0,
     t: float | None = None,
     unknown: InterfaceUnknown | None = None,
+    weights: np.ndarray | None = None,
 ) -> StepResult:
     """Dirichlet–Neumann iterations of one time step (ending at ``t``) until
     ``|x̃ − x| / |x̃| <= tolerance``.
@@ -532,8 +523,9 @@ def couple_step(
     ``restore_state()`` to the checkpoint saved at the start of the step.
 
     With an ``unknown`` (:class:`InterfaceUnknown`) the iterates are its z: the fluid takes z,
-    the output is z̃ = [x̃, the fluid's forces] (Robin–Neumann), and the step converges on
-    :meth:`InterfaceUnknown.residual`; the returned displacement is x̃ all the same.
+    the output is z̃ = [x̃, the fluid's forces] (Robin–Neumann), and the residual is that of
+    z and z̃ times ``weights`` (:meth:`InterfaceUnknown.weights`; None: as they are); the
+    returned displacement is x̃ all the same.
 
     Raises:
         CouplingNotConverged: after ``max_iterations`` iterations, with the solvers restored to
@@ -542,7 +534,7 @@ def couple_step(
     z = predictor.predict(t)
     fluid.save_state()
     solid.save_state()
-    acceleration.start_step()
+    acceleration.start_step(weights)
     residuals: list[float] = []
     for k in range(max_iterations):
         if k > 0:
@@ -552,7 +544,7 @@ def couple_step(
         x_tilde = solid.solve(forces)
         z_tilde = unknown.stack(x_tilde, forces) if unknown else x_tilde
         residuals.append(
-            unknown.residual(comm, z, z_tilde) if unknown else relative_residual(comm, z, x_tilde)
+            relative_residual(comm, _weighted(weights, z), _weighted(weights, z_tilde))
         )
         log.debug("step %d, coupling iteration %d: residual %.3e", step, k + 1, residuals[-1])
         if residuals[-1] <= tolerance:

@@ -62,6 +62,7 @@ class CoupledProblem:
             step=index,
             t=t,
             unknown=self.unknown,
+            weights=self.fluid_side.weights(),
         )
 
     @property
@@ -117,7 +118,6 @@ def build_coupled(
     predictor = coupling.predictor_from_config(case.coupling)
     z0 = fluid_side.unknown.stack(solid_solver.interface_displacement())
     predictor.record(z0, 0.0)
-    weights = fluid_side.unknown.weights(z0.size)
     return CoupledProblem(
         whole,
         fluid_mesh,
@@ -126,7 +126,7 @@ def build_coupled(
         fluid_side,
         solid_solver,
         solid_side,
-        coupling.from_config(case.coupling, comm, weights),
+        coupling.from_config(case.coupling, comm),
         predictor,
         case.coupling,
     )

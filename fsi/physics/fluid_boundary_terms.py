@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
+from mpi4py import MPI
 from petsc4py import PETSc
 
 import dolfinx
@@ -145,11 +146,16 @@ class RobinInterface:
     (:attr:`form`, kept apart from the residual whose −R gives the nodal forces) and the nodal
     forces f_k of the last coupling iteration added to the residual at the interface's velocity
     dofs (:attr:`load`, over the local dofs of W, owned ones only), so that the solution has
-    −R = α M_Γ (u − u_Γ) + f_k there (fsi/physics/fluid.py, ``_FluidProblem``)."""
+    −R = α M_Γ (u − u_Γ) + f_k there (fsi/physics/fluid.py, ``_FluidProblem``). :attr:`area` is
+    the interface's measure in the forces' (m² in 3D and as a whole ring when axisymmetric; m per
+    metre of depth in the plane)."""
 
     def __init__(self, fields: FluidFields, s: WeakForm, tags: Sequence[int]):
         mesh = fields.W.mesh
         self.coefficient = dolfinx.fem.Constant(mesh, PETSc.ScalarType(0.0))
+        one = dolfinx.fem.Constant(mesh, PETSc.ScalarType(1.0))
+        local = dolfinx.fem.assemble_scalar(dolfinx.fem.form(one * s.ds_of(tags)))
+        self.area = mesh.comm.allreduce(local, op=MPI.SUM)
         wall_velocity = fields.boundary_velocity
         self.form = self.coefficient * ufl.dot(s.u - wall_velocity, s.v) * s.ds_of(tags)
         index_map = fields.W.dofmap.index_map
