@@ -97,7 +97,7 @@ class FluidInterface(_Adapter):
         warm_start: start each solve from the last iterate.
         forcing: the Newton forcing of a step's later solves, never looser than where its first
             stopped (:class:`fsi.numerics.newton.Forcing`; 0: every solve to the fluid's tolerance).
-        robin: the Robin–Neumann coupling's α(Δt) (:class:`fsi.coupled.robin.RobinCoefficient`)
+        alpha: the Robin–Neumann coupling's α(Δt) (:class:`fsi.coupled.robin.RobinCoefficient`)
             for a fluid with a Robin interface; None: Dirichlet–Neumann. The input of a solve
             is then z = [x, f] per node (:class:`fsi.coupled.coupling.InterfaceUnknown`): the
             mesh follows x, and the fluid's Robin data are α and the nodal forces f.
@@ -115,14 +115,14 @@ class FluidInterface(_Adapter):
         interface: tuple[Boundary, ...] = (Boundary.INTERFACE,),
         warm_start: bool = True,
         forcing: float = 0.0,
-        robin: RobinCoefficient | None = None,
+        alpha: RobinCoefficient | None = None,
     ):
         super().__init__(fluid_solver, warm_start)
         self.motion, self.to_fluid, self.to_solid = motion, to_fluid, to_solid
         self.interface = tuple(int(b) for b in interface)
         self.forcing = forcing
-        self.robin = robin
-        self.unknown = InterfaceUnknown(to_solid.bs, forces=robin is not None)
+        self.alpha = alpha
+        self.unknown = InterfaceUnknown(to_solid.bs, forces=alpha is not None)
         self._nodes = to_solid.comm.allreduce(len(to_solid.dst_dofs))  # interface nodes, global
         self.first_residual = math.nan  # |F| where the step's first solve stopped
         self.eta = dolfinx.fem.Function(fluid_solver.V, name="interface_displacement")
@@ -169,11 +169,11 @@ class FluidInterface(_Adapter):
         (:meth:`fsi.coupled.coupling.InterfaceUnknown.weights`): with Robin–Neumann, 1 on x and
         c = Δt / (α Ā) on f, Ā the interface's area per node: a change δf of the Robin data
         leaves the slip u − u_Γ = δf / (α Ā) at a node, c δf over one step. None without."""
-        if self.robin is None:
+        if self.alpha is None:
             return None
         area_per_node = self.solver.robin.area / self._nodes
         size = len(self.to_solid.dst_dofs) * self.unknown.block
-        return self.unknown.weights(size, self.dt / (self.robin.at(self.dt) * area_per_node))
+        return self.unknown.weights(size, self.dt / (self.alpha.at(self.dt) * area_per_node))
 
     def _set_robin_data(self, nodal_forces: np.ndarray) -> None:
         """The fluid's Robin data: α(Δt) and the nodal forces (a solid interface vector) on its
@@ -183,11 +183,10 @@ class FluidInterface(_Adapter):
         forces[self.to_fluid.dst_dofs] = self.to_fluid.transfer(
             nodal_forces.reshape(-1, self.to_fluid.bs)
         )
-        robin_data = self.solver.robin  # the fluid's Robin interface
-        robin_data.set(self.robin.at(self.dt), forces, self.solver.mixed_dofs()[0])
+        self.solver.robin.set(self.alpha.at(self.dt), forces, self.solver.mixed_dofs()[0])
 
     def _solve(self, interface_input: np.ndarray) -> SolveResult:
-        if self.robin is not None:  # z = [x, f]
+        if self.alpha is not None:  # z = [x, f]
             self._set_robin_data(self.unknown.nodal_forces(interface_input))
             interface_input = self.unknown.displacement(interface_input)
         self._place_mesh(interface_input)

@@ -144,5 +144,5 @@ def _fluid_side(case: config.Case, fluid_solver, motion, to_fluid, to_solid) -> 
         to_fluid,
         to_solid,
         forcing=case.coupling.fluid_forcing,
-        robin=robin.from_case(case) if robin_neumann else None,
+        alpha=robin.from_case(case) if robin_neumann else None,
     )
