@@ -54,14 +54,22 @@ def parse_options(text: str) -> dict[str, str]:
 
 
 def measure(
-    comm: MPI.Comm, A: PETSc.Mat, prefix: str, options: dict, repeats: int
+    comm: MPI.Comm,
+    A: PETSc.Mat,
+    prefix: str,
+    options: dict,
+    repeats: int,
+    fields: dict[str, PETSc.IS] | None = None,
 ) -> dict[str, float]:
     """Set up, refactorise and solve with ``A`` under ``options`` (PETSc names without the
-    prefix); see the module docstring for what each figure means."""
+    prefix; a ``pc_type: fieldsplit`` gets the system's ``fields``, as its Newton solver gives
+    them); see the module docstring for what each figure means."""
     ksp = PETSc.KSP().create(comm)
     ksp.setOptionsPrefix(prefix)
     with petsc_options(prefix, options):
         ksp.setFromOptions()
+        if fields and ksp.getPC().getType() == PETSc.PC.Type.FIELDSPLIT:
+            ksp.getPC().setFieldSplitIS(*fields.items())
         ksp.setOperators(A)
         setup = wall(comm, ksp.setUp, 1)[0]
 
@@ -104,7 +112,8 @@ def measure(
 
 def jacobians(case: config.Case, comm: MPI.Comm, n_steps: int) -> tuple[object, dict]:
     """The coupled problem after its first ``n_steps`` steps, and each system's Jacobian
-    assembled anew at that state: {system: (matrix, options prefix, the case's options, dofs)}.
+    assembled anew at that state: {system: (matrix, options prefix, the case's options, dofs,
+    the fields of a fieldsplit preconditioner)}.
     The matrices belong to the problem's Newton solvers: keep the problem while using them
     (dolfinx 0.9's solver destroys its matrix with itself)."""
     problem = partitioned.build_coupled(case, comm)
@@ -124,6 +133,7 @@ def jacobians(case: config.Case, comm: MPI.Comm, n_steps: int) -> tuple[object, 
             newton.prefix,
             dict(settings.petsc_options),
             newton.solver.A.getSize()[0],
+            newton.fields,
         )
     return problem, systems
 
@@ -153,10 +163,10 @@ def main(argv: list[str] | None = None) -> list[dict]:
     problem, systems = jacobians(case, comm, args.steps)
     rows = []
     for system in args.systems:
-        A, prefix, own, dofs = systems[system]
+        A, prefix, own, dofs, fields = systems[system]
         solvers = [("case", own)] + [(text, opts) for name, text, opts in tries if name == system]
         for label, options in solvers:
-            row = measure(comm, A, prefix, options, args.repeats)
+            row = measure(comm, A, prefix, options, args.repeats, fields)
             rows.append({"system": system, "dofs": dofs, "solver": label, **row})
     del problem, systems  # the matrices, with their solvers
     _print_rows(say, rows, args.repeats)
