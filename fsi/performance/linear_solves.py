@@ -21,6 +21,7 @@ Usage::
 
     .venv/bin/python scripts/benchmark_linear.py [--level fine] [--steps 3] [--repeats 10]
         [--systems fluid structure] [--try structure 'ksp_type=cg pc_type=gamg' ...]
+        [--set 'structure.solver.petsc_options={ksp_type: cg, pc_type: gamg}' ...]
     mpirun -n 2 .venv/bin/python -m mpi4py scripts/benchmark_linear.py ...
 """
 
@@ -151,10 +152,9 @@ def main(argv: list[str] | None = None) -> list[dict]:
         if comm.rank == 0:
             print(text, flush=True)
 
-    case = config.load(args.config, [f"mesh.level={args.level}"])
-    case = config.load(
-        args.config, [f"mesh.level={args.level}", f"time.end={window(case, args.steps)!r}"]
-    )
+    overrides = [f"mesh.level={args.level}", *args.overrides]
+    case = config.load(args.config, overrides)
+    case = config.load(args.config, [*overrides, f"time.end={window(case, args.steps)!r}"])
     say(
         f"linear solves: {args.config.name}, {args.level}, after {args.steps} steps; "
         f"{comm.size} rank(s), PETSc {'.'.join(map(str, PETSc.Sys.getVersion()))}, "
@@ -188,6 +188,14 @@ def _parser() -> argparse.ArgumentParser:
         default=[],
         metavar=("SYSTEM", "OPTIONS"),
         help="another linear solver for SYSTEM: PETSc options 'key=value ...' without prefix",
+    )
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a config override, as fsi run's (e.g. the case's own solvers, where LU does not fit)",
     )
     return parser
 
