@@ -58,3 +58,16 @@ def test_a_fieldsplit_preconditioner_gets_the_fluids_fields(rows):
 def test_bad_options_are_refused():
     with pytest.raises(SystemExit):
         benchmark_linear.main(["--level", "coarse", "--try", "structure", "ksp_type"])
+
+
+def test_the_case_own_solver_follows_the_config_overrides():
+    """``--set`` changes the case's own solvers (where LU does not fit): its structure row is
+    then Jacobi-preconditioned CG, not an LU."""
+    options = "{ksp_type: cg, pc_type: jacobi, ksp_rtol: 1.0e-10, ksp_max_it: 20000}"
+    rows = benchmark_linear.main(
+        ["--level", "coarse", "--steps", "1", "--repeats", "1", "--systems", "structure"]
+        + ["--set", f"structure.solver.petsc_options={options}"]
+    )
+    [r] = rows
+    assert r["solver"] == "case" and r["converged"] and r["iterations"] > 50, r
+    assert r["factor_entries"] != r["factor_entries"]  # nan: no factorisation
