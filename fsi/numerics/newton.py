@@ -227,6 +227,14 @@ def petsc_options(prefix: str, options: dict) -> Iterator[None]:
             database.delValue(key)
 
 
+def set_fields(ksp: PETSc.KSP, fields: dict[str, PETSc.IS] | None) -> None:
+    """Give a ``pc_type: fieldsplit`` preconditioner its blocks (the system's ``fields``: name →
+    index set); other preconditioners are left alone. After ``setFromOptions``."""
+    pc = ksp.getPC()
+    if fields and pc.getType() == PETSc.PC.Type.FIELDSPLIT:
+        pc.setFieldSplitIS(*fields.items())
+
+
 class Newton:
     """dolfinx's Newton solver for ``problem`` with the settings of a config
     :class:`fsi.config.SolverSettings` and its PETSc options under ``prefix`` (``fluid_``,
@@ -274,9 +282,7 @@ class Newton:
             solver.A.setNearNullSpace(self.near_nullspace)
         with petsc_options(self.prefix, self.options):
             ksp.setFromOptions()
-        pc = ksp.getPC()
-        if self.fields and pc.getType() == PETSc.PC.Type.FIELDSPLIT:
-            pc.setFieldSplitIS(*self.fields.items())
+        set_fields(ksp, self.fields)
         return solver
 
     def _renew(self) -> dolfinx.nls.petsc.NewtonSolver:

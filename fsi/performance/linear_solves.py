@@ -38,7 +38,7 @@ import numpy as np
 
 from fsi import compat, config
 from fsi.coupled import partitioned
-from fsi.numerics.newton import petsc_options
+from fsi.numerics.newton import petsc_options, set_fields
 from fsi.numerics.timestepping import steps
 from fsi.performance.profiling import wall, window
 
@@ -69,8 +69,7 @@ def measure(
     ksp.setOptionsPrefix(prefix)
     with petsc_options(prefix, options):
         ksp.setFromOptions()
-        if fields and ksp.getPC().getType() == PETSc.PC.Type.FIELDSPLIT:
-            ksp.getPC().setFieldSplitIS(*fields.items())
+        set_fields(ksp, fields)
         ksp.setOperators(A)
         setup = wall(comm, ksp.setUp, 1)[0]
 
