@@ -1,5 +1,5 @@
 """``fsi run`` in a child process, as the studies and benchmarks that compare whole runs make them
-(fsi/study/axisymmetric.py, fsi/benchmarks/concentric_3d.py, fsi/performance/accuracy.py): the
+(fsi/study/models.py, fsi/benchmarks/concentric_3d.py, fsi/performance/accuracy.py): the
 command, on one rank or under ``mpirun``, in an environment its ``mpirun`` accepts (also that of
 fsi/study/reproduce.py's runs and fsi/performance/study_speed.py's workers), and a finished run
 kept when asked to reuse it."""

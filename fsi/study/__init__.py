@@ -2,5 +2,5 @@
 summaries (runs), the analyses that explain the differences from the study (analyses), the
 document and its figures (document), the plane and axisymmetric models side by side
 (axisymmetric) and the wall's compliance read from a run (wall_compliance). The commands are
-the thin scripts of scripts/ (reproduce_study.py, compare_axisymmetric.py, wall_compliance.py).
+the thin scripts of scripts/ (reproduce_study.py, compare_models.py, wall_compliance.py).
 """

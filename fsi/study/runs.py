@@ -88,10 +88,10 @@ def load(folder: Path, runs) -> dict[str, report_runs.Run]:
     return loaded
 
 
-def summarise(run: report_runs.Run) -> dict:
+def summarise(run: report_runs.Run, locations: bool = True) -> dict:
     """The run's provenance and case (the settings the analyses vary), its three peaks and
-    flow rate at :data:`TIMES`, the :data:`MAXIMA` (value, time) and, with field files, where
-    its largest |σ₁₂| is."""
+    flow rate at :data:`TIMES`, the :data:`MAXIMA` (value, time) and, with field files and
+    ``locations``, where its maxima are (plane and axisymmetric runs)."""
     rows, info, case = run.rows, run.summary, run.case
     its = [r["coupling_iterations"] for r in rows if "coupling_iterations" in r]
     maxima = {}
@@ -122,7 +122,7 @@ def summarise(run: report_runs.Run) -> dict:
     }
     if case.structure.mode == "moving_wall":
         summary["ring"] = ring(rows, case)
-    if summary["finished"]:
+    if summary["finished"] and locations:
         summary.update(_locations(run, maxima, case.time.end))
     return summary
 
