@@ -3,8 +3,8 @@ docs/axisymmetric.md): the pressure pulse's point A and wave speed against the p
 and the thick-wall estimate; Womersley flow in a deformable tube against the exact linear
 solution (fsi/benchmarks/womersley_tube.py).
 
-The shipped pulse (0.25 mm cells, 25 µs steps, 400 steps) takes ~15 minutes serially, its 3D
-quarter (configs/3d/tube_pulse.yaml) ~1 hour and the shipped Womersley case (two periods of 100
+The shipped pulse (0.25 mm cells, 25 µs steps, 400 steps) takes ~2.5 minutes serially, its 3D
+quarter (configs/3d/tube_pulse.yaml) ~11 minutes and the shipped Womersley case (two periods of 100
 steps) ~7: all three are ``slow``. The default selection runs the pulse on 0.5 mm cells and
 50 µs steps (~8× less work), held to the same tolerances, and Womersley over one period of 50
 steps (its attenuation to 10 %: see its test); measured in docs/axisymmetric.md.
@@ -96,7 +96,7 @@ def test_the_shipped_pressure_pulse(shared_tmp, capsys):
 
 @pytest.mark.slow
 def test_the_shipped_3d_pressure_pulse(shared_tmp, capsys):
-    """configs/3d/tube_pulse.yaml: the quarter tube (1 mm tetrahedra, 400 steps of 25 µs; ~1 h
+    """configs/3d/tube_pulse.yaml: the quarter tube (1 mm tetrahedra, 400 steps of 25 µs; ~11 min
     serially) held to the axisymmetric pulse's tolerances (docs/3d.md has its values beside the
     axisymmetric model's)."""
     out = shared_tmp / "pulse3d_shipped"
