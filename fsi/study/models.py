@@ -36,18 +36,19 @@ from fsi.study.wall_compliance import estimates
 ROOT = Path(__file__).resolve().parents[2]
 
 MODELS = {
-    "plane": ROOT / "configs" / "stenosis_{}.yaml",
-    "axisymmetric": ROOT / "configs" / "axisymmetric" / "stenosis_{}.yaml",
-    "3d": ROOT / "configs" / "3d" / "stenosis_eccentric_{}.yaml",
+    "plane": "configs/stenosis_{}.yaml",
+    "axisymmetric": "configs/axisymmetric/stenosis_{}.yaml",
+    "3d": "configs/3d/stenosis_eccentric_{}.yaml",
 }
-"""Model → its study configs, ``{}`` the case's name (3D: the moving-wall cases only)."""
+"""Model → its study configs under the checkout, ``{}`` the case's name (3D: the moving-wall
+cases only)."""
 
 AT_REST = 0.8
 """s: the report time at which both walls are at rest under the late pressure."""
 
 
 def config_file(model: str, name: str) -> Path:
-    return Path(str(MODELS[model]).format(name))
+    return ROOT / MODELS[model].format(name)
 
 
 def run(model: str, name: str, out: Path, settings: list[str], ranks: int, reuse: bool) -> Path:
