@@ -96,6 +96,21 @@ def test_the_command_on_finished_runs(tmp_path, capsys):
     assert "| verdict | — | passes | fails |" in out
 
 
+def test_a_candidate_whose_run_fails_fails(tmp_path, capsys):
+    """A candidate that cannot finish (here its setting is refused, exit 2) fails in the table
+    and the JSON line, and the others are still compared."""
+    fine = [k * 0.25e-3 for k in range(1, 21)]
+    _folder(tmp_path / "reference", _rows(fine, peak_velocity=lambda t: 100 * t))
+    _folder(tmp_path / "shipped", _rows(fine[3::4], peak_velocity=lambda t: 100 * t + 0.004))
+    args = [str(STUDY), "--out", str(tmp_path), "--reuse", "--set", "time.end=0.005"]
+    status = accuracy.main([*args, "--candidate", "broken", "coupling.tolerance=-1"])
+    out = capsys.readouterr().out
+    assert status == 1
+    assert json.loads(out.strip().splitlines()[-1])["passes"] == {"broken": {"finished": False}}
+    assert "| peak_velocity | 0.800 % | — |" in out
+    assert "| verdict | — | **fails** (the run failed) |" in out
+
+
 @pytest.mark.slow
 def test_the_extrapolated_fluid_on_the_pulse(tmp_path_factory):
     """The accuracy test run for real on the moving Newtonian case's first 5 ms (20 steps; the

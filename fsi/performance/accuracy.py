@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import subprocess
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -114,19 +115,32 @@ def verdicts(shipped: dict[str, float], candidate: dict[str, float]) -> dict[str
     }
 
 
-def table(results: dict[str, dict[str, float]], passed: dict[str, dict[str, bool]]) -> str:
-    """Columns × runs, errors in %, a failing candidate's column marked."""
-    runs = list(results)
+def table(
+    results: dict[str, dict[str, float]],
+    passed: dict[str, dict[str, bool]],
+    unfinished: Sequence[str] = (),
+) -> str:
+    """Columns × runs, errors in %, a failing candidate's column marked; a candidate whose run
+    failed (``unfinished``) has no errors and fails."""
+    runs = [*results, *unfinished]
     lines = ["| column | " + " | ".join(runs) + " |", "|---" * (len(runs) + 1) + "|"]
     for column in results["shipped"]:
         cells = []
         for run in runs:
+            if run in unfinished:
+                cells.append("—")
+                continue
             value = f"{100 * results[run][column]:.3f} %"
             if not passed.get(run, {}).get(column, True):
                 value = f"**{value}**"
             cells.append(value)
         lines.append(f"| {column} | " + " | ".join(cells) + " |")
-    verdict = ["—"] + ["passes" if all(passed[r].values()) else "fails" for r in runs[1:]]
+    verdict = ["—"] + [
+        "**fails** (the run failed)"
+        if r in unfinished
+        else ("passes" if all(passed[r].values()) else "fails")
+        for r in runs[1:]
+    ]
     lines.append("| verdict | " + " | ".join(verdict) + " |")
     return "\n".join(lines)
 
@@ -152,16 +166,21 @@ def main(argv: list[str] | None = None) -> int:
         "shipped": list(args.settings),
         **{n: [*args.settings, *o] for n, o in _candidates(args.candidate).items()},
     }
-    rows = {
-        name: metrics_csv.read_metrics(
-            child_runs.run(args.config, args.out / name, overrides, args.ranks, args.reuse)
-            / "metrics.csv"
-        )
-        for name, overrides in runs.items()
-    }
+    rows, unfinished = {}, []
+    for name, overrides in runs.items():
+        try:
+            folder = child_runs.run(args.config, args.out / name, overrides, args.ranks, args.reuse)
+        except subprocess.CalledProcessError:
+            if name in ("reference", "shipped"):
+                raise
+            print(f"{name}: the run failed (its messages above): the candidate fails", flush=True)
+            unfinished.append(name)
+            continue
+        rows[name] = metrics_csv.read_metrics(folder / "metrics.csv")
     reference = rows.pop("reference")
     results = {name: errors(r, reference) for name, r in rows.items()}
     passed = {n: verdicts(results["shipped"], e) for n, e in results.items() if n != "shipped"}
-    print(table(results, passed))
+    print(table(results, passed, unfinished))
+    passed.update({name: {"finished": False} for name in unfinished})
     print(json.dumps({"errors": results, "passes": passed}))
     return 0 if all(all(p.values()) for p in passed.values()) else 1
