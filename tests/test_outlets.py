@@ -17,11 +17,12 @@ from pathlib import Path
 from mpi4py import MPI
 
 import dolfinx.fem
+import dolfinx.fem.petsc
 import numpy as np
 import pytest
 import ufl
 
-from fsi import cli, config
+from fsi import cli, compat, config
 from fsi.geometry.tags import Boundary, Region
 from fsi.numerics.timestepping import bdf_weights
 from fsi.output import metrics
@@ -158,6 +159,46 @@ def test_resistance_outlet_pressure_is_reference_plus_r_times_q(resistance):
     assert P == pytest.approx(10.0 + resistance * Q, rel=1e-10)
     # The do-nothing outlet of a fully developed flow: its mean pressure is P.
     assert mean_pressure(solver, OUTLET) == pytest.approx(P, rel=1e-6, abs=1e-6)
+
+
+def test_the_outlets_block_enters_a_jacobian_in_one_pass_with_the_same_entries():
+    """The outlet's dense block R' b bᵀ merged into a new Jacobian in one pass
+    (``LumpedOutlet._merge``) gives the entries that inserting it entry by entry gives, on
+    1 and 2 ranks; a second Jacobian into the same matrix adds it in place (the pattern holds
+    it: the same number of nonzeros) with the same entries, and the matrix still assembles."""
+    from petsc4py import PETSc
+
+    solver = channel_solver(
+        VELOCITY_INLET, {"kind": "resistance", "resistance": 1e9, "reference_pressure": 10.0}
+    )
+    assert solver.step(0.0, 1.0).converged
+    problem, x = solver.problem, compat.petsc_vector(solver.U)
+    (outlet,) = problem.lumped
+    problem.F(x, dolfinx.fem.petsc.create_vector(problem.L))  # sets the outlet's b at x
+
+    entry_by_entry = dolfinx.fem.petsc.create_matrix(problem.a)
+    dolfinx.fem.petsc.NonlinearProblem.J(problem, x, entry_by_entry)
+    b = outlet._b.copy()
+    dolfinx.fem.petsc.set_bc(b, problem.bcs, None, 0.0)
+    local = np.flatnonzero(b.array)
+    rows = (local + b.getOwnershipRange()[0]).astype(PETSc.IntType)
+    columns = np.concatenate(MPI.COMM_WORLD.allgather(rows)).astype(PETSc.IntType)
+    values = np.concatenate(MPI.COMM_WORLD.allgather(b.array[local]))
+    entry_by_entry.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+    block = 1e9 * np.outer(b.array[local], values)
+    entry_by_entry.setValues(rows, columns, block, addv=PETSc.InsertMode.ADD_VALUES)
+    entry_by_entry.assemble()
+    size = entry_by_entry.norm()
+    assert size > 1e9 * float(np.dot(values, values)) / 2  # the block is there
+
+    merged = dolfinx.fem.petsc.create_matrix(problem.a)
+    for _ in range(2):
+        problem.J(x, merged)
+        difference = entry_by_entry.copy()
+        difference.axpy(-1.0, merged, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        assert difference.norm() <= 1e-14 * size
+        nonzeros = merged.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"]
+        assert nonzeros == entry_by_entry.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"]
 
 
 def test_resistance_adds_to_the_channels_poiseuille_resistance():

@@ -64,6 +64,9 @@ NITSCHE_PENALTY = 100.0
 # --------------------------------------------------------------------------------------------
 # Lumped outlets: a pressure from the outlet's flow rate (fsi/physics/outlets.py)
 
+_OUTLET_BLOCK = "fsi_lumped_outlet_block"
+"""The name under which a Jacobian carries the lumped outlet's block once it holds its entries."""
+
 
 class LumpedOutlet:
     """An :class:`Outflow` whose pressure P comes from a lumped model (resistance, RCR
@@ -89,6 +92,8 @@ class LumpedOutlet:
         v, _ = ufl.TestFunctions(W)
         self._flux = dolfinx.fem.form(ufl.dot(v, normal) * ds_outlet)
         self._b = dolfinx.fem.petsc.create_vector(self._flux)
+        self._dofs: np.ndarray | None = None  # the block's owned dofs (local), fixed at first use
+        self._columns: np.ndarray | None = None  # all ranks' block dofs (global)
 
     def begin_step(self, weights: Sequence[float]) -> None:
         """The step's law P = P₀' + R' Q, for the time weights (a₀, a₁, a₂) of the step."""
@@ -105,25 +110,61 @@ class LumpedOutlet:
         self.pressure.value = base + slope * self.flow_rate
 
     def add_to_jacobian(self, A: PETSc.Mat, bcs) -> None:
-        """A += R' b bᵀ, without the Dirichlet rows and columns. Collective."""
+        """A += R' b bᵀ, without the Dirichlet rows and columns. Collective.
+
+        The block is dense among the outlet's dofs, which the form's sparsity pattern does not
+        hold. Inserted entry by entry into a matrix without room for it, PETSc grows each row
+        a few entries at a time and copies the whole matrix at each growth: 70 s for the first
+        Jacobian of the 3D carotid heartbeat (a disk of ~200 outlet dofs). So the first time a
+        matrix meets the block, the block comes in as a matrix of its own, merged in one pass
+        (``MatAXPY`` with a different pattern), and the matrix is marked as holding it."""
+        rows, row_values, columns, column_values = self._block(bcs)
+        values = self._law[1] * np.outer(row_values, column_values)
+        if A.query(_OUTLET_BLOCK) is None:
+            self._merge(A, rows, columns, values)
+        else:
+            A.setValues(rows, columns, values, addv=PETSc.InsertMode.ADD_VALUES)
+            A.assemble()
+
+    def _block(self, bcs) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The block's owned rows (global), their b, all ranks' columns (global) and their b.
+        The dofs are those where b ≠ 0 at the first call (above 1e-12 of its largest value:
+        a P2 vertex function integrates to 0 over a flat facet, up to rounding), kept for
+        the run so that the matrix's pattern stays the same as the mesh moves."""
         b = self._b.copy()
         dolfinx.fem.petsc.set_bc(b, bcs, None, 0.0)  # b = 0 at Dirichlet dofs
-        owned = b.array
-        local = np.flatnonzero(owned)
-        rows = (local + b.getOwnershipRange()[0]).astype(PETSc.IntType)
-        values = owned[local]
-        comm = A.getComm().tompi4py()
-        columns = np.concatenate(comm.allgather(rows)).astype(PETSc.IntType)
-        column_values = np.concatenate(comm.allgather(values))
+        owned = b.array.copy()
+        start = b.getOwnershipRange()[0]
         b.destroy()
-        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-        A.setValues(
-            rows,
-            columns,
-            self._law[1] * np.outer(values, column_values),
-            addv=PETSc.InsertMode.ADD_VALUES,
-        )
-        A.assemble()
+        comm = self._b.getComm().tompi4py()
+        if self._dofs is None:
+            largest = comm.allreduce(float(np.abs(owned).max(initial=0.0)), op=MPI.MAX)
+            self._dofs = np.flatnonzero(np.abs(owned) > 1e-12 * largest)
+            rows = (self._dofs + start).astype(PETSc.IntType)
+            self._columns = np.concatenate(comm.allgather(rows)).astype(PETSc.IntType)
+        row_values = owned[self._dofs]
+        column_values = np.concatenate(comm.allgather(row_values))
+        return (self._dofs + start).astype(PETSc.IntType), row_values, self._columns, column_values
+
+    @staticmethod
+    def _merge(A: PETSc.Mat, rows, columns, values) -> None:
+        """A += the block, A's pattern grown to hold it in one pass, A marked as holding it."""
+        comm = A.getComm()
+        (local_rows, _), (local_columns, _) = A.getSizes()
+        first, last = A.getOwnershipRangeColumn()
+        inside = np.count_nonzero((columns >= first) & (columns < last))
+        diagonal = np.zeros(local_rows, dtype=PETSc.IntType)
+        off_diagonal = np.zeros(local_rows, dtype=PETSc.IntType)
+        local = rows - A.getOwnershipRange()[0]
+        diagonal[local], off_diagonal[local] = inside, len(columns) - inside
+        block = PETSc.Mat().createAIJ(A.getSizes(), nnz=(diagonal, off_diagonal), comm=comm)
+        block.setValues(rows, columns, values, addv=PETSc.InsertMode.ADD_VALUES)
+        block.assemble()
+        row_map, column_map = A.getLGMap()  # dolfinx assembles through it; MatAXPY drops it
+        A.axpy(1.0, block, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        A.setLGMap(row_map, column_map)
+        A.compose(_OUTLET_BLOCK, block)
+        block.destroy()
 
     def advance(self, weights: Sequence[float]) -> None:
         """Accept the step: the model's state after a step with flow rate Q."""
