@@ -19,6 +19,27 @@ pytestmark = pytest.mark.skipif(
 )
 
 
+def test_a_failed_run_says_why_not_how_mpi_aborted():
+    """The worker's exception, not Open MPI's MPI_ABORT notice that follows it."""
+    from fsi.performance.study_speed import why_failed
+
+    output = "\n".join(
+        [
+            "Traceback (most recent call last):",
+            '  File "x.py", line 1, in <module>',
+            "fsi.config.reader.ConfigError: case.yaml: time.end: expected a number, got 'x'",
+            "-" * 74,
+            "MPI_ABORT was invoked on rank 0 in communicator MPI_COMM_WORLD",
+            "with errorcode 1.",
+            "NOTE: invoking MPI_ABORT causes Open MPI to kill all MPI processes.",
+        ]
+    )
+    assert why_failed(output) == (
+        "fsi.config.reader.ConfigError: case.yaml: time.end: expected a number, got 'x'"
+    )
+    assert why_failed("one\ntwo") == "one | two"
+
+
 @pytest.fixture(scope="module")
 def benchmark(tmp_path_factory):
     target = tmp_path_factory.mktemp("bench") / "runs.json"

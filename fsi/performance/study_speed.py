@@ -42,6 +42,7 @@ import logging
 import math
 import os
 import platform
+import re
 import resource
 import shutil
 import subprocess
@@ -218,11 +219,19 @@ def launch(args: argparse.Namespace, level: str, mode: str, ranks: int, steps: s
         tic = time.perf_counter()
         done = subprocess.run(command, env=child_runs.environment(), capture_output=True, text=True)
         if done.returncode != 0 or not target.exists():
-            tail = (done.stderr or done.stdout).strip().splitlines()[-5:]
-            return {"level": level, "mode": mode, "ranks": ranks, "failure": " | ".join(tail)}
+            failure = why_failed(done.stderr or done.stdout)
+            return {"level": level, "mode": mode, "ranks": ranks, "failure": failure}
         result = json.loads(target.read_text())
         result["process_s"] = time.perf_counter() - tic
         return result
+
+
+def why_failed(output: str) -> str:
+    """What a failed worker said: its last exception's line (``mpi4py -m`` prints the traceback,
+    then Open MPI's MPI_ABORT notice, which says nothing of the cause), else its last 5 lines."""
+    lines = output.strip().splitlines()
+    raised = [line for line in lines if re.match(r"[A-Za-z_][\w.]*(Error|Exception|Exit)\b", line)]
+    return raised[-1] if raised else " | ".join(lines[-5:])
 
 
 def dofs(r: dict) -> int:
