@@ -11,6 +11,7 @@ weak form (:class:`fsi.physics.fluid_residual.WeakForm`).
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -64,8 +65,9 @@ NITSCHE_PENALTY = 100.0
 # --------------------------------------------------------------------------------------------
 # Lumped outlets: a pressure from the outlet's flow rate (fsi/physics/outlets.py)
 
-_OUTLET_BLOCK = "fsi_lumped_outlet_block"
-"""The name under which a Jacobian carries the lumped outlet's block once it holds its entries."""
+_OUTLET_NUMBERS = itertools.count()
+"""Numbers the lumped outlets: a Jacobian carries each outlet's block under its own name
+(``fsi_lumped_outlet_<n>``) once its pattern holds it."""
 
 
 class LumpedOutlet:
@@ -94,6 +96,7 @@ class LumpedOutlet:
         self._b = dolfinx.fem.petsc.create_vector(self._flux)
         self._dofs: np.ndarray | None = None  # the block's owned dofs (local), fixed at first use
         self._columns: np.ndarray | None = None  # all ranks' block dofs (global)
+        self._name = f"fsi_lumped_outlet_{next(_OUTLET_NUMBERS)}"  # marks a matrix holding it
 
     def begin_step(self, weights: Sequence[float]) -> None:
         """The step's law P = P₀' + R' Q, for the time weights (a₀, a₁, a₂) of the step."""
@@ -120,8 +123,9 @@ class LumpedOutlet:
         (``MatAXPY`` with a different pattern), and the matrix is marked as holding it."""
         rows, row_values, columns, column_values = self._block(bcs)
         values = self._law[1] * np.outer(row_values, column_values)
-        if A.query(_OUTLET_BLOCK) is None:
+        if A.query(self._name) is None:
             self._merge(A, rows, columns, values)
+            A.compose(self._name, self._b)  # any PETSc object: the mark
         else:
             A.setValues(rows, columns, values, addv=PETSc.InsertMode.ADD_VALUES)
             A.assemble()
@@ -148,9 +152,9 @@ class LumpedOutlet:
 
     @staticmethod
     def _merge(A: PETSc.Mat, rows, columns, values) -> None:
-        """A += the block, A's pattern grown to hold it in one pass, A marked as holding it."""
+        """A += the block, A's pattern grown to hold it in one pass."""
         comm = A.getComm()
-        (local_rows, _), (local_columns, _) = A.getSizes()
+        (local_rows, _), _ = A.getSizes()
         first, last = A.getOwnershipRangeColumn()
         inside = np.count_nonzero((columns >= first) & (columns < last))
         diagonal = np.zeros(local_rows, dtype=PETSc.IntType)
@@ -163,7 +167,6 @@ class LumpedOutlet:
         row_map, column_map = A.getLGMap()  # dolfinx assembles through it; MatAXPY drops it
         A.axpy(1.0, block, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
         A.setLGMap(row_map, column_map)
-        A.compose(_OUTLET_BLOCK, block)
         block.destroy()
 
     def advance(self, weights: Sequence[float]) -> None:
