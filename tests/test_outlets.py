@@ -163,7 +163,7 @@ def test_resistance_outlet_pressure_is_reference_plus_r_times_q(resistance):
 
 def test_the_outlets_block_enters_a_jacobian_in_one_pass_with_the_same_entries():
     """The outlet's dense block R' b bᵀ merged into a new Jacobian in one pass
-    (``LumpedOutlet._merge``) gives the entries that inserting it entry by entry gives, on
+    (``fsi.numerics.dense_block``) gives the entries that inserting it entry by entry gives, on
     1 and 2 ranks; a second Jacobian into the same matrix adds it in place (the pattern holds
     it: the same number of nonzeros) with the same entries, and the matrix still assembles."""
     from petsc4py import PETSc

@@ -26,6 +26,7 @@ import ufl
 
 from fsi import config
 from fsi.config.rheology_section import womersley_viscosity
+from fsi.numerics.dense_block import add_dense_block
 from fsi.physics import outlets, rheology
 from fsi.physics.fluid_boundaries import (
     Axis,
@@ -113,22 +114,12 @@ class LumpedOutlet:
         self.pressure.value = base + slope * self.flow_rate
 
     def add_to_jacobian(self, A: PETSc.Mat, bcs) -> None:
-        """A += R' b bᵀ, without the Dirichlet rows and columns. Collective.
-
-        The block is dense among the outlet's dofs, which the form's sparsity pattern does not
-        hold. Inserted entry by entry into a matrix without room for it, PETSc grows each row
-        a few entries at a time and copies the whole matrix at each growth: 70 s for the first
-        Jacobian of the 3D carotid heartbeat (a disk of ~200 outlet dofs). So the first time a
-        matrix meets the block, the block comes in as a matrix of its own, merged in one pass
-        (``MatAXPY`` with a different pattern), and the matrix is marked as holding it."""
+        """A += R' b bᵀ, without the Dirichlet rows and columns: a block dense among the
+        outlet's dofs, which the form's sparsity pattern does not hold
+        (:func:`fsi.numerics.dense_block.add_dense_block`). Collective."""
         rows, row_values, columns, column_values = self._block(bcs)
         values = self._law[1] * np.outer(row_values, column_values)
-        if A.query(self._name) is None:
-            self._merge(A, rows, columns, values)
-            A.compose(self._name, self._b)  # any PETSc object: the mark
-        else:
-            A.setValues(rows, columns, values, addv=PETSc.InsertMode.ADD_VALUES)
-            A.assemble()
+        add_dense_block(A, rows, columns, values, self._name)
 
     def _block(self, bcs) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The block's owned rows (global), their b, all ranks' columns (global) and their b.
@@ -149,25 +140,6 @@ class LumpedOutlet:
         row_values = owned[self._dofs]
         column_values = np.concatenate(comm.allgather(row_values))
         return (self._dofs + start).astype(PETSc.IntType), row_values, self._columns, column_values
-
-    @staticmethod
-    def _merge(A: PETSc.Mat, rows, columns, values) -> None:
-        """A += the block, A's pattern grown to hold it in one pass."""
-        comm = A.getComm()
-        (local_rows, _), _ = A.getSizes()
-        first, last = A.getOwnershipRangeColumn()
-        inside = np.count_nonzero((columns >= first) & (columns < last))
-        diagonal = np.zeros(local_rows, dtype=PETSc.IntType)
-        off_diagonal = np.zeros(local_rows, dtype=PETSc.IntType)
-        local = rows - A.getOwnershipRange()[0]
-        diagonal[local], off_diagonal[local] = inside, len(columns) - inside
-        block = PETSc.Mat().createAIJ(A.getSizes(), nnz=(diagonal, off_diagonal), comm=comm)
-        block.setValues(rows, columns, values, addv=PETSc.InsertMode.ADD_VALUES)
-        block.assemble()
-        row_map, column_map = A.getLGMap()  # dolfinx assembles through it; MatAXPY drops it
-        A.axpy(1.0, block, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
-        A.setLGMap(row_map, column_map)
-        block.destroy()
 
     def advance(self, weights: Sequence[float]) -> None:
         """Accept the step: the model's state after a step with flow rate Q."""
