@@ -7,6 +7,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from mpi4py import MPI
+
 import pytest
 
 from fsi import config
@@ -96,6 +98,9 @@ def test_the_command_on_finished_runs(tmp_path, capsys):
     assert "| verdict | — | passes | fails |" in out
 
 
+@pytest.mark.skipif(
+    MPI.COMM_WORLD.size > 1, reason="launches fsi run (its own MPI); runs in the serial lane"
+)
 def test_a_candidate_whose_run_fails_fails(tmp_path, capsys):
     """A candidate that cannot finish (here its setting is refused, exit 2) fails in the table
     and the JSON line, and the others are still compared."""
