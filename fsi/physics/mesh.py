@@ -386,8 +386,9 @@ def _plane_tolerance(mesh) -> float:
 def bounding_plane_dofs(mesh, space, component: int) -> np.ndarray:
     """The dofs of ``space`` (a space or a subspace) on the boundary's facets in the plane
     x_``component`` = 0 (to :func:`_plane_tolerance`): a mirror plane that bounds the mesh, such
-    as a quarter tube's cuts, whose dofs are those facets' (dolfinx 0.5 crashed locating a
-    submesh's dofs on its vertices and edges on 2 ranks, as :func:`plane_dofs` does)."""
+    as a quarter tube's cuts, whose dofs are those facets'. (A plane through the body would need
+    the dofs of its vertices and edges: dolfinx 0.5 crashed now and then locating a submesh's
+    dofs on those on 2 ranks, so fsi has none.)"""
     tolerance = _plane_tolerance(mesh)
     fdim = mesh.topology.dim - 1
     mesh.topology.create_connectivity(fdim, mesh.topology.dim)
@@ -395,21 +396,3 @@ def bounding_plane_dofs(mesh, space, component: int) -> np.ndarray:
         mesh, fdim, lambda p: np.abs(p[component]) <= tolerance
     )
     return dolfinx.fem.locate_dofs_topological(space, fdim, facets)
-
-
-def plane_dofs(mesh, space, component: int) -> np.ndarray:
-    """The dofs of ``space`` (a space or a subspace) on the mesh's vertices, edges, ... (every
-    entity below the cells) that lie on the plane x_``component`` = 0, to a millionth of the
-    mesh's extent: a symmetry plane that may cut through the body (the structure's
-    :class:`fsi.physics.solid_boundaries.SymmetryPlane`; one that bounds it:
-    :func:`bounding_plane_dofs`)."""
-    tolerance = _plane_tolerance(mesh)
-    rows = []
-    for dim in range(mesh.topology.dim):
-        mesh.topology.create_entities(dim)
-        mesh.topology.create_connectivity(dim, mesh.topology.dim)  # dolfinx 0.9 needs it
-        entities = dolfinx.mesh.locate_entities(
-            mesh, dim, lambda p: np.abs(p[component]) <= tolerance
-        )
-        rows.append(dolfinx.fem.locate_dofs_topological(space, dim, entities))
-    return np.unique(np.concatenate(rows))

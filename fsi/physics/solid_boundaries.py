@@ -29,7 +29,7 @@ from fsi.config import (
     symmetry_planes,
 )
 from fsi.geometry.tags import Boundary, Region
-from fsi.physics.mesh import TaggedMesh, bounding_plane_dofs, plane_dofs
+from fsi.physics.mesh import TaggedMesh, bounding_plane_dofs
 
 log = logging.getLogger(__name__)
 
@@ -79,16 +79,14 @@ class Roller:
 
 @dataclass(frozen=True)
 class SymmetryPlane:
-    """η_``component`` = 0 at every node on the plane x_``component`` = 0 (wherever the mesh has
-    them, inside or on the boundary): a plane of mirror symmetry of the problem, or the
-    points where one crosses the body. A 3D tube's pressure load has the planes through its
-    axis as such planes; holding the nodes on them removes the rigid motions that rollers on
-    its ends leave free (the rotation about the axis, the translations across it)."""
+    """η_``component`` = 0 at every node on the plane x_``component`` = 0 that bounds the body:
+    a plane of mirror symmetry of the problem, such as a quarter tube's cuts (its nodes those
+    of the boundary's facets in it: :func:`fsi.physics.mesh.bounding_plane_dofs`). A tube's
+    pressure load has the planes through its axis as such planes; holding them removes the
+    rigid motions that rollers on its ends leave free (the rotation about the axis, the
+    translations across it)."""
 
     component: int
-    bounding: bool = False
-    """The plane bounds the body (a quarter tube's cut): its nodes are those of the boundary's
-    facets in it (:func:`fsi.physics.mesh.bounding_plane_dofs`)."""
 
 
 Dirichlet = Clamp | HoldRegions | PrescribedDisplacement | Roller | SymmetryPlane
@@ -145,7 +143,7 @@ def boundary_conditions(
     if s.mode == "rigid":
         raise ValueError("structure.mode 'rigid' has no structure to solve")
     dirichlet: tuple[Dirichlet, ...] = (Clamp((Boundary.CLAMPED,)),)
-    dirichlet += tuple(SymmetryPlane(c, bounding=True) for c in symmetry_planes(case.geometry))
+    dirichlet += tuple(SymmetryPlane(c) for c in symmetry_planes(case.geometry))
     stenosis = isinstance(case.geometry, StenosisGeometry)
     if s.mode == "fixed_wall" and stenosis:
         dirichlet += (HoldRegions((Region.WALL,)),)
@@ -214,8 +212,7 @@ class DirichletConditions:
                 continue
             if isinstance(item, SymmetryPlane):
                 sub = V.sub(item.component)
-                dofs_on = bounding_plane_dofs if item.bounding else plane_dofs
-                rows = dofs_on(domain.mesh, sub, item.component)
+                rows = bounding_plane_dofs(domain.mesh, sub, item.component)
                 bc = dolfinx.fem.dirichletbc(PETSc.ScalarType(0), rows, sub)
                 self.bcs.append(bc)
                 self.homogeneous.append(bc)
