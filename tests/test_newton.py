@@ -303,6 +303,29 @@ def test_a_solve_after_a_failed_factorisation_is_not_accepted_untried(reuse):
     assert np.allclose(u.x.array, 2.0, rtol=1e-8)  # Newton's tolerance (chord iterations: run)
 
 
+@pytest.mark.parametrize("reuse", ["none", "run"])
+def test_a_solve_from_near_the_answer_iterates_to_its_tolerance(reuse):
+    """F(u) = (u² − 4) v, solved from u = 1000 (its first increment ~500 a dof), then from the
+    answer 2 perturbed by 1e-6: |F(x_0)| ~ 1e-7 is above atol 1e-10, but below rtol × the
+    *previous* solve's |δx_1|, which dolfinx's relative test divides by at x_0, and the guess
+    was returned as converged after 0 iterations. The first test is now absolute: the solve
+    iterates to |F| < atol."""
+    domain = dolfinx.mesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
+    V = compat.function_space(domain, "Lagrange", 1)
+    u, v = dolfinx.fem.Function(V), ufl.TestFunction(V)
+    problem = dolfinx.fem.petsc.NonlinearProblem((u * u - 4.0) * v * ufl.dx, u)
+    settings = SolverSettings(rtol=1e-9, atol=1e-10, jacobian_reuse=reuse)
+    newton = Newton(domain.comm, problem, settings, "near_answer_")
+    u.x.array[:] = 1000.0
+    assert newton.solve(u, lambda: newton.solver.b.norm()).converged
+    u.x.array[:] = 2.0 + 1e-6
+    initial = newton.solve(u, lambda: newton.solver.b.norm())  # evaluates F(x_0) first
+    assert initial.converged and initial.iterations >= 1, initial
+    assert initial.residual < 1e-10
+    assert np.allclose(u.x.array, 2.0, rtol=1e-12)
+    assert (newton.solver.rtol, newton.solver.atol) == (1e-9, 1e-10)  # put back
+
+
 def test_a_forced_solve_stops_at_its_forcing_with_newtons_solution(whole):
     """A coupling iteration's fluid solve after the first (fsi/coupled/partitioned.py), mimicked
     on the rigid-wall Carreau stenosis: at each step, from a warm start 1 % of the step's change
