@@ -27,7 +27,7 @@ from fsi.geometry.tags import Region
 from fsi.numerics.timestepping import steps
 from fsi.output import report, report_runs
 from fsi.physics import fluid_boundaries, mesh
-from fsi.run import errors, simulation, steppers
+from fsi.run import errors, outputs, simulation, steppers
 
 CHANNEL = "configs/channel_poiseuille.yaml"
 L, H = 0.02, 0.007  # the channel (configs/channel_poiseuille.yaml)
@@ -408,3 +408,43 @@ def test_the_cap_stress_location_is_in_the_cap_and_independent_of_the_ranks():
         (x, y), abs=1e-12
     )
     assert alone["max_principal_cap"] == pytest.approx(row["max_principal_cap"], rel=1e-8)
+
+
+def test_each_heartbeat_says_where_and_when_its_cap_stress_peaked():
+    """summary.json's ``cycles``: the heartbeat's largest ``max_principal_cap`` with the ``t``
+    and the point of that step's metrics row (the first step of equal values); a 3D row's
+    ``z`` too; none where the rows have no cap stress."""
+    rows = [
+        {
+            "t": 0.5,
+            "max_principal_cap": 1.0,
+            "max_principal_cap_x": 1.0,
+            "max_principal_cap_y": 2.0,
+        },
+        {
+            "t": 1.0,
+            "max_principal_cap": 3.0,
+            "max_principal_cap_x": 4.0,
+            "max_principal_cap_y": 5.0,
+        },
+        {
+            "t": 1.5,
+            "max_principal_cap": 7.0,
+            "max_principal_cap_x": 6.0,
+            "max_principal_cap_y": 7.0,
+            "max_principal_cap_z": 8.0,
+        },
+        {
+            "t": 2.0,
+            "max_principal_cap": 7.0,
+            "max_principal_cap_x": 9.0,
+            "max_principal_cap_y": 9.0,
+            "max_principal_cap_z": 9.0,
+        },
+        {"t": 2.5, "peak_velocity": 1.0},
+    ]
+    beats = outputs.cycle_table(rows, 1.0, [])
+    assert [b["values"].get("max_principal_cap") for b in beats] == [3.0, 7.0, None]
+    assert beats[0]["where"]["max_principal_cap"] == {"t": 1.0, "x": 4.0, "y": 5.0}
+    assert beats[1]["where"]["max_principal_cap"] == {"t": 1.5, "x": 6.0, "y": 7.0, "z": 8.0}
+    assert beats[2]["where"] == {}

@@ -231,13 +231,20 @@ HEADLINE = {
 """The metrics columns summarised per heartbeat (:func:`cycle_table`) and how: their largest
 value over the heartbeat's steps (``min_wss``: the smallest)."""
 
+LOCATED = {
+    "max_principal_cap": ("max_principal_cap_x", "max_principal_cap_y", "max_principal_cap_z")
+}
+"""Headline columns whose place is in metrics.csv too: the columns of its coordinates."""
+
 
 def cycle_table(rows: list[dict], period: float, indices: list[dict]) -> list[dict]:
     """summary.json's ``cycles``: per heartbeat k with steps in ``rows`` (the metrics rows, by
     their ``t``): ``cycle`` k, ``start_s`` (k − 1) T, ``end_s`` its last step's t, ``steps``,
     ``complete`` (whether it reached k T), ``values`` (the :data:`HEADLINE` columns the rows
     have, plus ``indices[k − 1]``: ``min_tawss``, ``max_osi``, ``max_rrt`` of that heartbeat's
-    own wall indices, where given), ``change`` (per value, (v_k − v_{k−1}) / |v_{k−1}|; None for
+    own wall indices, where given), ``where`` (for the :data:`LOCATED` columns: the step's
+    ``t`` and the point, ``x``, ``y`` (, ``z``), of the heartbeat's value; the first such
+    step), ``change`` (per value, (v_k − v_{k−1}) / |v_{k−1}|; None for
     the first heartbeat or where either is missing or v_{k−1} is 0) and ``max_change`` (the
     largest |change|, None if none): the solution is periodic when ``max_change`` is small."""
     beats: dict[int, list[dict]] = {}
@@ -245,11 +252,18 @@ def cycle_table(rows: list[dict], period: float, indices: list[dict]) -> list[di
         beats.setdefault(heartbeat(row["t"], period), []).append(row)
     table, previous = [], {}
     for k in sorted(beats):
-        values = {}
+        values, where = {}, {}
         for column, pick in HEADLINE.items():
-            found = [r[column] for r in beats[k] if _is_finite_number(r.get(column))]
-            if found:
-                values[column] = float(pick(found))
+            found = [r for r in beats[k] if _is_finite_number(r.get(column))]
+            if not found:
+                continue
+            row = pick(found, key=lambda r, c=column: r[c])  # the first of equal values
+            values[column] = float(row[column])
+            if column in LOCATED:
+                point = dict(zip("xyz", (row.get(c) for c in LOCATED[column]), strict=True))
+                where[column] = {"t": float(row["t"])} | {
+                    axis: float(v) for axis, v in point.items() if _is_finite_number(v)
+                }
         if k <= len(indices):
             values.update({key: v for key, v in indices[k - 1].items() if v is not None})
         change = {
@@ -266,6 +280,7 @@ def cycle_table(rows: list[dict], period: float, indices: list[dict]) -> list[di
                 "steps": len(beats[k]),
                 "complete": end >= k * period * (1 - SAME_TIME),
                 "values": values,
+                "where": where,
                 "change": change,
                 "max_change": max(known) if known else None,
             }
