@@ -227,6 +227,12 @@ def _add_plot_arguments(p: argparse.ArgumentParser) -> None:
         help="draw the fluid velocity's streamlines over a fluid field",
     )
     p.add_argument(
+        "--fibres",
+        action="store_true",
+        help="draw the HGO wall's two fibre families (solid.xdmf's fibre_1, fibre_2: each "
+        "cell's current direction, projected onto the picture's plane) over a structure field",
+    )
+    p.add_argument(
         "--region",
         choices=["fluid", "wall", "cap", "lipid", "flag"],
         help="only the cells of this region (default: the field's whole mesh)",
@@ -500,6 +506,7 @@ def _plot_options_refused(args: argparse.Namespace) -> str | None:
             ("--time", args.time),
             ("--warp", args.warp),
             ("--streamlines", args.streamlines or None),
+            ("--fibres", args.fibres or None),
             ("--region", args.region),
             ("--component", args.component),
             ("--slice", args.slice),
@@ -536,7 +543,8 @@ def _draw_plot(args: argparse.Namespace) -> tuple[Path, str | None]:
     if plane is not None:
         snapshot = section.cut(snapshot, plane)
     flow = plot.streamline_field(snapshot) if args.streamlines else None
-    written = plot.draw(snapshot, args.out, component=args.component, flow=flow)
+    fibres = plot.fibre_fields(snapshot) if args.fibres else ()
+    written = plot.draw(snapshot, args.out, component=args.component, flow=flow, fibres=fibres)
     note = None
     if snapshot.time_differs:
         note = (

@@ -64,6 +64,53 @@ def streamline_field(snapshot: Snapshot) -> Snapshot:
     return dataclasses.replace(cut, values=cut.values[:, list(snapshot.section.in_plane)])
 
 
+FIBRES = ("fibre_1", "fibre_2")
+"""The HGO wall's fibre families in solid.xdmf: each cell's current unit direction, as the
+three cell fields ``fibre_k_x``, ``_y``, ``_z`` (axisymmetric: z, r, θ)."""
+
+
+def fibre_fields(snapshot: Snapshot) -> list[Snapshot]:
+    """The fibre families' directions at the snapshot's time on its cells (the same warp,
+    region and section), projected onto the picture's plane (an axisymmetric run's (z, r),
+    dropping the hoop component; a section's in-plane axes), for :func:`draw`'s ``fibres``.
+    Raises :class:`PlotError` unless the snapshot is a structure field of a run with an HGO
+    wall."""
+    if snapshot.domain != "structure":
+        raise PlotError(
+            f"--fibres: draws the wall's fibres over a structure field, but "
+            f"{snapshot.name!r} is a {snapshot.domain} field ({snapshot.file.name})"
+        )
+    families = []
+    for family in FIBRES:
+        try:
+            parts = [
+                read_field(
+                    snapshot.run_dir,
+                    f"{family}_{axis}",
+                    snapshot.time,
+                    warp=snapshot.warp,
+                    region=snapshot.region,
+                )
+                for axis in "xyz"
+            ]
+        except PlotError as e:
+            raise PlotError(
+                f"--fibres: no fibres in {snapshot.file} (a structure.<region> with law: hgo "
+                f"writes them): {e}"
+            ) from None
+        fibre = dataclasses.replace(
+            parts[0], name=family, values=np.stack([p.values for p in parts], axis=1)
+        )
+        plane = (0, 1)
+        if snapshot.section is not None:
+            from fsi.output import section
+
+            fibre = section.cut(fibre, snapshot.section)
+            plane = snapshot.section.in_plane
+        families.append(dataclasses.replace(fibre, values=fibre.values[:, list(plane)]))
+    return families
+
+
 def axis_labels(run_dir: Path) -> tuple[str, str]:
     """The picture's axis labels: ``z (mm)``, ``r (mm)`` for an axisymmetric run (its
     ``config.yaml`` says so: docs/axisymmetric.md), ``x (mm)``, ``y (mm)`` otherwise (also when
@@ -122,6 +169,7 @@ def draw(
     *,
     component: str | None = None,
     flow: Snapshot | None = None,
+    fibres: Sequence[Snapshot] = (),
     limit: float | None = None,
     marks: Sequence[tuple[float, float, str]] = (),
 ) -> Path:
@@ -130,7 +178,10 @@ def draw(
     equal aspect, with a colour bar labelled with the field and its unit and the :func:`title`;
     with ``flow`` (the fluid velocity on the same nodes, :func:`streamline_field`) its
     streamlines over it, the velocity interpolated linearly on a regular grid and masked outside
-    the fluid mesh. ``limit`` (the field's SI unit) caps the colour range at ±limit for a signed
+    the fluid mesh; with ``fibres`` (:func:`fibre_fields`) a short line per cell along each
+    family's direction in the plane (its length in proportion to the in-plane part, so a
+    fibre across the plane shows short). ``limit`` (the field's SI unit) caps the colour range
+    at ±limit for a signed
     field, at limit otherwise: larger values show in the end colour (the bar says so), so a
     singular peak need not wash out the rest. ``marks``: points (x, y in m, as drawn) to mark
     with a cross and a label. The file appears complete or not at all (written under another
@@ -168,6 +219,8 @@ def draw(
         image = ax.tripcolor(triangulation, facecolors=values, cmap=cmap, norm=norm)
     if flow is not None:
         _streamlines(ax, flow, lo, hi)
+    for fibre, colour in zip(fibres, ("k", "0.45"), strict=False):
+        _fibre_lines(ax, fibre, colour)
     _frame(ax, snapshot, lo, hi, marks)
     bar_label = f"{prefix}{label}" + (f" ({unit})" if unit else "")
     _colour_bar(fig, ax, image, bar_label, quantity, shown, wide=aspect < 0.6, norm=norm)
@@ -267,6 +320,23 @@ def save_figure(fig, path: Path, dpi: int = 150) -> None:
     finally:
         plt.close(fig)
         partial.unlink(missing_ok=True)
+
+
+def _fibre_lines(ax, fibre: Snapshot, colour: str) -> None:
+    """A line through each cell's centroid along the in-plane part of its fibre direction, 0.8
+    of the cells' mean size long for a fibre in the plane (none where it is 0: no fibres)."""
+    from matplotlib.collections import LineCollection
+
+    xy = fibre.coordinates * 1e3  # mm
+    corners = xy[fibre.triangles]  # (cells, 3, 2)
+    centroids = corners.mean(axis=1)
+    edges = corners[:, 1:] - corners[:, :1]
+    area = 0.5 * np.abs(np.cross(edges[:, 0], edges[:, 1]))
+    half = 0.4 * np.sqrt(2.0 * area.mean()) if len(area) else 0.0
+    direction = np.asarray(fibre.values, dtype=float)[:, :2]
+    keep = np.linalg.norm(direction, axis=1) > 0
+    ends = np.stack([centroids - half * direction, centroids + half * direction], axis=1)
+    ax.add_collection(LineCollection(ends[keep], colors=colour, linewidths=0.6))
 
 
 def _streamlines(ax, flow: Snapshot, lo: np.ndarray, hi: np.ndarray) -> None:

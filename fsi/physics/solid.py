@@ -448,4 +448,5 @@ def build(
             reference_pressure,
             result.mismatch,
         )
+    structure.stress.update()  # the start's stresses (a prestressed wall's), for t = 0's output
     return structure

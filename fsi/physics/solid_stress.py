@@ -64,7 +64,11 @@ class StressFields:
     :attr:`cell_fields` are what the field files hold (XDMF stores one value per cell): each
     cell's extreme of the fields above (``sss``: the value of largest magnitude, sign kept;
     ``von_mises`` and ``max_principal``: the largest), so their maxima over a region are the
-    :meth:`region_maxima`; and ``region``, the cell's region tag (geometry/tags.py ``Region``).
+    :meth:`region_maxima`; ``region``, the cell's region tag (geometry/tags.py ``Region``);
+    and with an HGO law ``fibre_k_x``, ``_y``, ``_z`` (k = 1, 2), its fibre families' current
+    unit directions F a_f / |F a_f| at the cell's midpoint (axisymmetric: the z, r, θ
+    components; zero outside the HGO regions), for ParaView's glyphs and ``fsi plot
+    --fibres``.
     """
 
     def __init__(self, solver: SolidDisplacement, law: HyperelasticLaw, prestress=None):
@@ -111,6 +115,19 @@ class StressFields:
             self.cell_fields[name] = f
         region = self.cell_fields["region"].x.array
         region[self._cell_value] = solver.cell_region[: len(self._cell_value)]
+        # The fibres' current directions F a_f / |F a_f| per cell (HGO regions; 0 elsewhere),
+        # stored as three DG0 scalars each: dolfinx 0.5 writes a DG0 vector at the nodes.
+        self._fibres = []
+        V3 = compat.function_space(mesh, "DG", 0, (3,))
+        self._fibre_cells = compat.cell_dofs(V3)[:, 0]  # cell → its vector's block
+        for k, a in enumerate(reference_fibres(law), start=1):
+            f = dolfinx.fem.Function(V3)
+            expr = dolfinx.fem.Expression(F * a, compat.interpolation_points(V3))
+            parts = [dolfinx.fem.Function(S0) for _ in "xyz"]
+            for part, axis in zip(parts, "xyz", strict=True):
+                part.name = f"fibre_{k}_{axis}"
+                self.cell_fields[part.name] = part
+            self._fibres.append((f, expr, parts))
 
     def _measures(self, sigma, s33):
         """(name, UFL) of the fields ``sss``, ``von_mises``, ``max_principal``. In 3D the UFL
@@ -176,6 +193,13 @@ class StressFields:
             else:
                 extreme = values.max(axis=1)
             self.cell_fields[name].x.array[self._cell_value] = extreme
+        for f, expr, parts in self._fibres:
+            f.interpolate(expr)
+            vectors = f.x.array.reshape(-1, 3)[self._fibre_cells]  # by cell
+            length = np.linalg.norm(vectors, axis=1)
+            vectors[length > 0] /= length[length > 0, None]
+            for i, part in enumerate(parts):
+                part.x.array[self._cell_value] = vectors[:, i]
 
     def region_maxima(self) -> dict[str, RegionStress]:
         """Per region (and ``"all"``): the maxima over the region's cells on all ranks.
@@ -216,6 +240,16 @@ class StressFields:
             return (np.nan, *([np.nan] * gdim))
         top = max(b[0] for b in found)
         return min((b for b in found if b[0] == top), key=lambda b: b[1:])
+
+
+def reference_fibres(law) -> tuple:
+    """The reference fibre directions a_f of ``law``'s HGO part (UFL vectors: zero outside its
+    regions, whose angles are DG0 fields), none if it has no HGO part."""
+    parts = getattr(law, "parts", None)
+    for part in [p for _, p in parts] if parts is not None else [law]:
+        if getattr(part, "fibres", None):
+            return tuple(part.fibres)
+    return ()
 
 
 class RecoveredPressure:
