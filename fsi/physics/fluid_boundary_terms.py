@@ -96,6 +96,7 @@ class LumpedOutlet:
         self._flux = dolfinx.fem.form(ufl.dot(v, normal) * ds_outlet)
         self._b = dolfinx.fem.petsc.create_vector(self._flux)
         self._dofs: np.ndarray | None = None  # the block's owned dofs (local), fixed at first use
+        self._rows: np.ndarray | None = None  # the same, global
         self._columns: np.ndarray | None = None  # all ranks' block dofs (global)
         self._name = f"fsi_lumped_outlet_{next(_OUTLET_NUMBERS)}"  # marks a matrix holding it
 
@@ -135,11 +136,11 @@ class LumpedOutlet:
         if self._dofs is None:
             largest = comm.allreduce(float(np.abs(owned).max(initial=0.0)), op=MPI.MAX)
             self._dofs = np.flatnonzero(np.abs(owned) > 1e-12 * largest)
-            rows = (self._dofs + start).astype(PETSc.IntType)
-            self._columns = np.concatenate(comm.allgather(rows)).astype(PETSc.IntType)
+            self._rows = (self._dofs + start).astype(PETSc.IntType)
+            self._columns = np.concatenate(comm.allgather(self._rows)).astype(PETSc.IntType)
         row_values = owned[self._dofs]
         column_values = np.concatenate(comm.allgather(row_values))
-        return (self._dofs + start).astype(PETSc.IntType), row_values, self._columns, column_values
+        return self._rows, row_values, self._columns, column_values
 
     def advance(self, weights: Sequence[float]) -> None:
         """Accept the step: the model's state after a step with flow rate Q."""
