@@ -331,7 +331,7 @@ def _fibre_lines(ax, fibre: Snapshot, colour: str) -> None:
     corners = xy[fibre.triangles]  # (cells, 3, 2)
     centroids = corners.mean(axis=1)
     edges = corners[:, 1:] - corners[:, :1]
-    area = 0.5 * np.abs(np.cross(edges[:, 0], edges[:, 1]))
+    area = 0.5 * np.abs(edges[:, 0, 0] * edges[:, 1, 1] - edges[:, 0, 1] * edges[:, 1, 0])
     half = 0.4 * np.sqrt(2.0 * area.mean()) if len(area) else 0.0
     direction = np.asarray(fibre.values, dtype=float)[:, :2]
     keep = np.linalg.norm(direction, axis=1) > 0
