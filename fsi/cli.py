@@ -194,10 +194,9 @@ def _add_plot_arguments(p: argparse.ArgumentParser) -> None:
         "--field",
         required=True,
         metavar="NAME",
-        help="a field of RUN_DIR/fields.xdmf (fluid: velocity, pressure, "
-        "wall_shear_stress, viscosity, shear_rate, mesh_displacement) or "
-        "solid.xdmf (structure: eta, sss, von_mises, max_principal, region); or an index of "
-        "RUN_DIR/wall_indices.csv along the walls (tawss, osi, rrt)",
+        help="a field of RUN_DIR/fields.xdmf (velocity, pressure, wall_shear_stress, viscosity, "
+        "shear_rate, mesh_displacement) or solid.xdmf (eta, sss, von_mises, max_principal, "
+        "region); or an index of RUN_DIR/wall_indices.csv along the walls (tawss, osi, rrt)",
     )
     p.add_argument(
         "--time",
@@ -229,8 +228,7 @@ def _add_plot_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--fibres",
         action="store_true",
-        help="draw the HGO wall's two fibre families (solid.xdmf's fibre_1, fibre_2: each "
-        "cell's current direction, projected onto the picture's plane) over a structure field",
+        help="draw an HGO wall's fibre families (their in-plane parts) over a structure field",
     )
     p.add_argument(
         "--region",

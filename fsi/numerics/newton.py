@@ -295,6 +295,24 @@ class Newton:
         self.callbacks.attach(self.solver)
         return self.solver
 
+    def _tolerances(
+        self, forcing: Forcing | None, atol: float, rtol: float
+    ) -> Callable[[int, PETSc.Vec], None]:
+        """The hook that sets the solver's tolerances for its test of F(x_k) (it reads them at
+        every test). At x_0 the test is |F| < atol alone (or the forcing's): dolfinx's relative
+        test divides by |δx_1|, which there is the *previous* solve's, and took an unsolved
+        guess as converged (tests/test_newton.py)."""
+
+        def tolerances(k: int, b: PETSc.Vec) -> None:
+            if k == 0:
+                self.solver.rtol = 0.0
+                if forcing is not None:
+                    self.solver.atol = forcing.atol(atol, b.norm())
+            elif k == 1:
+                self.solver.rtol = rtol
+
+        return tolerances
+
     def solve(
         self,
         u: dolfinx.fem.Function,
@@ -319,20 +337,7 @@ class Newton:
         atol, rtol = self.solver.atol, self.solver.rtol
         if forcing is not None and self.criterion != "residual":
             raise ValueError("a forced solve needs the residual criterion")
-
-        def tolerances(k: int, b: PETSc.Vec) -> None:
-            """The solver's tolerances for its test of F(x_k) (it reads them at every test).
-            At x_0 the test is |F| < atol alone: dolfinx's relative test divides by |δx_1|,
-            which there is the *previous* solve's, and took an unsolved guess as converged
-            (tests/test_newton.py)."""
-            if k == 0:
-                self.solver.rtol = 0.0
-                if forcing is not None:
-                    self.solver.atol = forcing.atol(atol, b.norm())
-            elif k == 1:
-                self.solver.rtol = rtol
-
-        self.callbacks.before_test = tolerances
+        self.callbacks.before_test = self._tolerances(forcing, atol, rtol)
         try:
             with petsc_options(self.prefix, self.options):
                 iterations, converged = self.callbacks.solve(

@@ -178,15 +178,12 @@ def draw(
     equal aspect, with a colour bar labelled with the field and its unit and the :func:`title`;
     with ``flow`` (the fluid velocity on the same nodes, :func:`streamline_field`) its
     streamlines over it, the velocity interpolated linearly on a regular grid and masked outside
-    the fluid mesh; with ``fibres`` (:func:`fibre_fields`) a short line per cell along each
-    family's direction in the plane (its length in proportion to the in-plane part, so a
-    fibre across the plane shows short). ``limit`` (the field's SI unit) caps the colour range
-    at ±limit for a signed
-    field, at limit otherwise: larger values show in the end colour (the bar says so), so a
-    singular peak need not wash out the rest. ``marks``: points (x, y in m, as drawn) to mark
-    with a cross and a label. The file appears complete or not at all (written under another
-    name, then renamed). Raises :class:`PlotError` for a bad ``component`` or ``path`` before
-    anything is written, OSError if the file cannot be written."""
+    the fluid mesh; with ``fibres`` (:func:`fibre_fields`) their lines (:func:`_fibre_lines`).
+    ``limit`` (the field's SI unit) caps the colour range at ±limit (signed) or limit: larger
+    values show in the end colour (the bar says so), so a singular peak need not wash out the
+    rest. ``marks``: points (x, y in m, as drawn) to mark with a cross and a label. The file
+    appears complete or not at all (written under another name, then renamed). Raises
+    :class:`PlotError` for a bad ``component`` or ``path`` first, OSError if unwritable."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -324,7 +321,8 @@ def save_figure(fig, path: Path, dpi: int = 150) -> None:
 
 def _fibre_lines(ax, fibre: Snapshot, colour: str) -> None:
     """A line through each cell's centroid along the in-plane part of its fibre direction, 0.8
-    of the cells' mean size long for a fibre in the plane (none where it is 0: no fibres)."""
+    of the cells' mean size long for a fibre in the plane, shorter as it leaves the plane (none
+    where it is 0: no fibres)."""
     from matplotlib.collections import LineCollection
 
     xy = fibre.coordinates * 1e3  # mm

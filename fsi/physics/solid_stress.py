@@ -120,19 +120,8 @@ class StressFields:
             if self.three_d and degree == 1
             else None
         )
-        # The fibres' current directions F a_f / |F a_f| per cell (HGO regions; 0 elsewhere),
-        # stored as three DG0 scalars each: dolfinx 0.5 writes a DG0 vector at the nodes.
-        self._fibres = []
-        V3 = compat.function_space(mesh, "DG", 0, (3,))
-        self._fibre_cells = compat.cell_dofs(V3)[:, 0]  # cell → its vector's block
-        for k, a in enumerate(reference_fibres(law), start=1):
-            f = dolfinx.fem.Function(V3)
-            expr = dolfinx.fem.Expression(F * a, compat.interpolation_points(V3))
-            parts = [dolfinx.fem.Function(S0) for _ in "xyz"]
-            for part, axis in zip(parts, "xyz", strict=True):
-                part.name = f"fibre_{k}_{axis}"
-                self.cell_fields[part.name] = part
-            self._fibres.append((f, expr, parts))
+        self._fibres = FibreDirections(law, F, S0)
+        self.cell_fields.update(self._fibres.fields)
 
     def _measures(self, sigma, s33):
         """(name, UFL) of the fields ``sss``, ``von_mises``, ``max_principal``. In 3D the UFL
@@ -196,13 +185,7 @@ class StressFields:
             else:
                 extreme = values.max(axis=1)
             self.cell_fields[name].x.array[self._cell_value] = extreme
-        for f, expr, parts in self._fibres:
-            f.interpolate(expr)
-            vectors = f.x.array.reshape(-1, 3)[self._fibre_cells]  # by cell
-            length = np.linalg.norm(vectors, axis=1)
-            vectors[length > 0] /= length[length > 0, None]
-            for i, part in enumerate(parts):
-                part.x.array[self._cell_value] = vectors[:, i]
+        self._fibres.update()
 
     def region_maxima(self) -> dict[str, RegionStress]:
         """Per region (and ``"all"``): the maxima over the region's cells on all ranks.
@@ -321,6 +304,37 @@ class RegionwiseProjection:
             measures = principal_measures(tensors)
             for name, values in measures.items():
                 fields[name].x.array[self._s_cells[cells]] = values[self._p1_cells[cells]]
+
+
+class FibreDirections:
+    """The HGO fibres' current directions F a_f / |F a_f| per cell (zero outside the HGO
+    regions) as :attr:`fields` ``fibre_k_x``, ``_y``, ``_z`` (k = 1, 2): three DG0 scalars
+    each, since dolfinx 0.5 writes a DG0 vector at the nodes; none without an HGO law."""
+
+    def __init__(self, law, F, S0):
+        mesh = S0.mesh
+        V3 = compat.function_space(mesh, "DG", 0, (3,))
+        self._cells = compat.cell_dofs(V3)[:, 0], compat.cell_dofs(S0)[:, 0]  # cell → block, dof
+        self._families, self.fields = [], {}
+        for k, a in enumerate(reference_fibres(law), start=1):
+            f = dolfinx.fem.Function(V3)
+            expr = dolfinx.fem.Expression(F * a, compat.interpolation_points(V3))
+            parts = [dolfinx.fem.Function(S0) for _ in "xyz"]
+            for part, axis in zip(parts, "xyz", strict=True):
+                part.name = f"fibre_{k}_{axis}"
+                self.fields[part.name] = part
+            self._families.append((f, expr, parts))
+
+    def update(self) -> None:
+        """The directions of the current displacement."""
+        vector_of, value_of = self._cells
+        for f, expr, parts in self._families:
+            f.interpolate(expr)
+            vectors = f.x.array.reshape(-1, 3)[vector_of]  # by cell
+            length = np.linalg.norm(vectors, axis=1)
+            vectors[length > 0] /= length[length > 0, None]
+            for i, part in enumerate(parts):
+                part.x.array[value_of] = vectors[:, i]
 
 
 def reference_fibres(law) -> tuple:
