@@ -152,8 +152,8 @@ def test_the_3d_stress_measures_are_sigmas_eigenvalues(tube):
     assert maxima.max_principal == pytest.approx(tt, rel=0.02)
     assert maxima.max_abs_shear == pytest.approx((tt - rr) / 2, rel=0.02)
     assert maxima.max_von_mises == pytest.approx(von_mises, rel=0.02)
-    nodal = cap_resolution.dg_node_principal(tube, Region.WALL)
-    assert nodal > 1.04 * tt  # the reading the projection replaces overshoots (measured +5.9 %)
+    nodal = cap_resolution.dg_node_principal(tube, Region.WALL)  # the reading it replaces
+    assert nodal - tt > abs(maxima.max_principal - tt)  # overshoots more (+5.9 %; trixie +3.7)
     value, *point = tube.stress.location_of_max("max_principal", Region.WALL)
     assert value == maxima.max_principal
     assert np.hypot(point[1], point[2]) == pytest.approx(A_IN, rel=1e-6)  # on the inner surface
