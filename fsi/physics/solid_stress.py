@@ -272,6 +272,9 @@ class RegionwiseProjection:
         self._regions = []
         for region in solver.regions:
             cells = np.flatnonzero(solver.cell_region[: len(cell_value)] == int(region))
+            # The region's P1 nodes, and for each of its cells' DG1 dofs the node it sits on.
+            nodes, node_of = np.unique(self._p1_cells[cells], return_inverse=True)
+            dofs = (self._s_cells[cells].ravel(), node_of.ravel())
             inside = dolfinx.fem.Function(Q0)  # 1 in the region
             inside.x.array[cell_value[cells]] = 1.0
             mass = dolfinx.fem.petsc.assemble_matrix(dolfinx.fem.form(inside * p * q * ufl.dx))
@@ -284,15 +287,16 @@ class RegionwiseProjection:
             ksp.setType("cg")
             ksp.getPC().setType("jacobi")
             ksp.setTolerances(rtol=1e-12, atol=0.0, max_it=1000)
+            # The forms hold ``inside`` and the solver its matrix: nothing else to keep.
             forms = [dolfinx.fem.form(inside * sigma[i, j] * q * ufl.dx) for i, j in self._pairs]
             vectors = [dolfinx.fem.petsc.create_vector(f) for f in forms]
-            self._regions.append((cells, ksp, forms, vectors, mass, inside))
+            self._regions.append((nodes, dofs, ksp, forms, vectors))
 
     def update(self, fields: dict[str, dolfinx.fem.Function]) -> None:
         """``fields``' DG1 values from the current σ (interpolated first). Collective."""
         x = compat.petsc_vector(self._nodal)
-        tensors = np.zeros((len(self._nodal.x.array), 3, 3))
-        for cells, ksp, forms, vectors, _, _ in self._regions:
+        for nodes, (dofs, node_of), ksp, forms, vectors in self._regions:
+            tensors = np.zeros((len(nodes), 3, 3))
             for (i, j), form, b in zip(self._pairs, forms, vectors, strict=True):
                 with b.localForm() as local:  # a ghosted vector: its local form is itself
                     local.set(0.0)
@@ -300,10 +304,9 @@ class RegionwiseProjection:
                 b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
                 ksp.solve(b, x)
                 self._nodal.x.scatter_forward()
-                tensors[:, i, j] = tensors[:, j, i] = self._nodal.x.array
-            measures = principal_measures(tensors)
-            for name, values in measures.items():
-                fields[name].x.array[self._s_cells[cells]] = values[self._p1_cells[cells]]
+                tensors[:, i, j] = tensors[:, j, i] = self._nodal.x.array[nodes]
+            for name, values in principal_measures(tensors).items():
+                fields[name].x.array[dofs] = values[node_of]
 
 
 class FibreDirections:
@@ -312,11 +315,13 @@ class FibreDirections:
     each, since dolfinx 0.5 writes a DG0 vector at the nodes; none without an HGO law."""
 
     def __init__(self, law, F, S0):
-        mesh = S0.mesh
-        V3 = compat.function_space(mesh, "DG", 0, (3,))
-        self._cells = compat.cell_dofs(V3)[:, 0], compat.cell_dofs(S0)[:, 0]  # cell → block, dof
         self._families, self.fields = [], {}
-        for k, a in enumerate(reference_fibres(law), start=1):
+        fibres = reference_fibres(law)
+        if not fibres:
+            return
+        V3 = compat.function_space(S0.mesh, "DG", 0, (3,))
+        self._cells = compat.cell_dofs(V3)[:, 0], compat.cell_dofs(S0)[:, 0]  # cell → block, dof
+        for k, a in enumerate(fibres, start=1):
             f = dolfinx.fem.Function(V3)
             expr = dolfinx.fem.Expression(F * a, compat.interpolation_points(V3))
             parts = [dolfinx.fem.Function(S0) for _ in "xyz"]
@@ -327,8 +332,8 @@ class FibreDirections:
 
     def update(self) -> None:
         """The directions of the current displacement."""
-        vector_of, value_of = self._cells
         for f, expr, parts in self._families:
+            vector_of, value_of = self._cells
             f.interpolate(expr)
             vectors = f.x.array.reshape(-1, 3)[vector_of]  # by cell
             length = np.linalg.norm(vectors, axis=1)
