@@ -10,6 +10,20 @@ import time
 import zlib
 from pathlib import Path
 
+# pytest-xdist (the serial lane of scripts/test runs on two workers) starts its workers with the
+# environment its controller has after MPI_Init: the controller's MPI singleton (Open MPI's PMIx
+# server address and the like), under which an mpirun started by a test takes itself for part of
+# that job and fails. The controller records the names it had before MPI started, and a worker
+# drops every other name but pytest's own.
+_NAMES_BEFORE_MPI = "FSI_TEST_ENVIRONMENT"
+if "PYTEST_XDIST_WORKER" in os.environ and _NAMES_BEFORE_MPI in os.environ:
+    _kept = set(os.environ[_NAMES_BEFORE_MPI].split(","))
+    for _name in list(os.environ):
+        if _name not in _kept and not _name.startswith("PYTEST_"):
+            del os.environ[_name]
+else:
+    os.environ[_NAMES_BEFORE_MPI] = ",".join(os.environ)
+
 from mpi4py import MPI
 from petsc4py import PETSc
 
