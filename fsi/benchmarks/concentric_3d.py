@@ -28,7 +28,7 @@ Usage::
 
     .venv/bin/python scripts/benchmark_concentric.py --out results/concentric --ranks 2
         [--end 0.01] [--lumen-size 2.5e-4] [--local-size 2.5e-4] [--modes rigid moving_wall]
-        [--reuse]
+        [--reuse] [--set KEY=VALUE ...]
 """
 
 from __future__ import annotations
@@ -164,6 +164,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--local-size", type=float, help="m, the 3D plaque box's (the config's)")
     parser.add_argument("--modes", nargs="+", default=["rigid", "moving_wall"])
     parser.add_argument("--reuse", action="store_true", help="keep finished runs in --out")
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="an override of the 3D runs (e.g. the structure's GAMG preset), repeatable",
+    )
     args = parser.parse_args(argv)
     results = {}
     for mode in args.modes:
@@ -173,7 +180,8 @@ def main(argv: list[str] | None = None) -> int:
                     model,
                     mode,
                     args.out,
-                    settings(model, mode, args.end, args.lumen_size, args.local_size),
+                    settings(model, mode, args.end, args.lumen_size, args.local_size)
+                    + (args.set if model == "3d" else []),
                     args.ranks,
                     args.reuse,
                 ),
