@@ -86,8 +86,8 @@ def lipid_angle(p) -> float:
 
 
 def sector(p) -> float:
-    """The modelled part of the vessel's circumference (radians): a tube's ``sector`` (degrees;
-    90: the quarter ``0 <= φ <= 90°`` between the symmetry planes z = 0 and y = 0), else 2π."""
+    """The modelled part of the vessel's circumference (radians): ``sector`` (degrees; 90: the
+    quarter ``0 <= φ <= 90°`` between the symmetry planes z = 0 and y = 0), else 2π."""
     return math.radians(getattr(p, "sector", 360))
 
 
@@ -109,17 +109,19 @@ def _revolved_bump(amplitude: float, length: float, angle: float, radius: float)
 def analytic_volumes(p) -> dict[str, float]:
     """Exact region volumes (m³): the lumen πR²L less the plaque, the wall
     π((R + t)² − R²)L, and the plaque's cap and lipid pool by Pappus's theorem (the revolved
-    meridian areas of geometry/stenosis.py times their centroid's path)."""
+    meridian areas of geometry/stenosis.py times their centroid's path); a quarter's are a
+    quarter of the whole's."""
     R, t, L = lumen_radius(p), p.wall_thickness, p.length
-    share = sector(p) / (2 * math.pi)  # a quarter tube's is a quarter
+    share = sector(p) / (2 * math.pi)
     volumes = {
         Region.FLUID.label: share * math.pi * R**2 * L,
         Region.WALL.label: share * math.pi * ((R + t) ** 2 - R**2) * L,
     }
     if is_stenosis(p):
         A = stenosis.plaque_height(p)
-        plaque = _revolved_bump(A, p.stenosis_length, plaque_angle(p), R)
-        lipid = _revolved_bump(A - p.cap_thickness, p.lipid_length, lipid_angle(p), R)
+        plaque = _revolved_bump(A, p.stenosis_length, min(plaque_angle(p), sector(p)), R)
+        lipid_span = min(lipid_angle(p), sector(p))
+        lipid = _revolved_bump(A - p.cap_thickness, p.lipid_length, lipid_span, R)
         volumes[Region.FLUID.label] -= plaque
         volumes[Region.CAP.label] = plaque - lipid
         volumes[Region.LIPID.label] = lipid
@@ -130,28 +132,28 @@ def analytic_volumes(p) -> dict[str, float]:
 def area_reduction(p) -> float:
     """The fraction of the lumen's cross-section the plaque closes at its apex:
     ``(α / 2π) (1 − (1 − d)²)`` for a plaque of angular span α closing the radius fraction
-    ``d = stenosis_degree`` (0.75 for the concentric d = 0.5)."""
+    ``d = stenosis_degree`` (0.75 for the concentric d = 0.5, its quarter's too)."""
     d = stenosis.plaque_height(p) / lumen_radius(p)
     return plaque_angle(p) / (2 * math.pi) * (1 - (1 - d) ** 2)
 
 
 def interface_area(p, samples: int = 20001) -> float:
-    """Exact area (m²) of the lumen surface: the cylinder 2πRL, with over the plaque's span
-    the surface of revolution ``∫ (R − s) √(1 + s'²) dx`` per radian in place of the
-    cylinder's ``R l``, and for an eccentric plaque its two flat ends (each the meridian
-    plaque's area A l / 2). The integral by the trapezoidal rule on ``samples`` points
-    (relative error ~1e-9)."""
-    R, L = lumen_radius(p), p.length
+    """Exact area (m²) of the lumen surface: the cylinder 2πRL (a quarter's a quarter of it),
+    with over the plaque's span the surface of revolution ``∫ (R − s) √(1 + s'²) dx`` per
+    radian in place of the cylinder's ``R l``, and for an eccentric plaque its two flat ends
+    (each the meridian plaque's area A l / 2). The integral by the trapezoidal rule on
+    ``samples`` points (relative error ~1e-9)."""
+    R, L, whole = lumen_radius(p), p.length, sector(p)
     if not is_stenosis(p):
-        return sector(p) * R * L
-    alpha, l = plaque_angle(p), p.stenosis_length
+        return whole * R * L
+    alpha, l = min(plaque_angle(p), whole), p.stenosis_length
     x = np.linspace(stenosis.apex_x(p) - l / 2, stenosis.apex_x(p) + l / 2, samples)
     s = stenosis.plaque_profile(p, x)
     slope = np.gradient(s, x)
     f = (R - s) * np.sqrt(1 + slope**2)
     revolved = float(np.sum((f[1:] + f[:-1]) / 2 * np.diff(x)))
-    area = 2 * math.pi * R * (L - l) + alpha * revolved + (2 * math.pi - alpha) * R * l
-    if alpha < 2 * math.pi:
+    area = whole * R * (L - l) + alpha * revolved + (whole - alpha) * R * l
+    if alpha < whole:
         area += stenosis.plaque_height(p) * l  # the two ends, A l / 2 each
     return area
 
@@ -372,8 +374,9 @@ class _Builder:
         """Revolve the sections in pieces of at most 180°: the plaque's section over
         ``[−α/2, 0]`` and ``[0, α/2]`` (both from the same faces, so the meridian φ = 0 is made
         of them), its pool's likewise over ``±β/2``, the plain vessel's over the rest, each piece
-        continuing from the previous one's end faces; then fragment everything into conformal
-        volumes (the pieces' coplanar ends, the pool inside the plaque)."""
+        continuing from the previous one's end faces; a quarter (a tube's, or a concentric
+        plaque's and its pool's) over ``[0, 90°]`` in one piece. Then fragment everything into
+        conformal volumes (the pieces' coplanar ends, the pool inside the plaque)."""
         inputs: list[tuple[Region, tuple[int, int]]] = []
 
         def revolve(faces: dict[Region, list[int]], span: float) -> dict[Region, list[int]]:
@@ -389,8 +392,12 @@ class _Builder:
             return tops
 
         plain = self.sections["plain"]
-        if not self.stenosed and sector(self.p) < 2 * math.pi:  # a quarter: φ from 0 to 90°
-            revolve(plain, sector(self.p))
+        if sector(self.p) < 2 * math.pi:  # a quarter, φ from 0 to 90°: of a concentric plaque
+            kinds = ("plaque", "lipid") if self.stenosed else ("plain",)
+            for kind in kinds:
+                revolve(self.sections[kind], sector(self.p))
+            if self.stenosed:
+                self.occ.remove([(2, f) for fs in plain.values() for f in fs], recursive=True)
             self._fragment(inputs)
             return
         if not self.stenosed:  # a tube: from the meridian φ = 0 both ways, as a plaque

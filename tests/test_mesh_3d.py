@@ -20,7 +20,7 @@ from fsi import cli, compat, config
 from fsi.config import run_size
 from fsi.geometry import stenosis, vessel_3d
 from fsi.geometry.tags import Region
-from fsi.physics import mesh
+from fsi.physics import mesh, mesh_3d
 
 SAMPLE = Path(__file__).parents[1] / "configs/3d/stenosis_eccentric_mesh.yaml"
 GEOMETRY = {
@@ -68,6 +68,12 @@ def concentric():
 
 
 @pytest.fixture(scope="module")
+def quarter():
+    """The concentric case's quarter (``sector: 90``), between the mirror planes y = 0, z = 0."""
+    return _built(config.from_dict({**CONCENTRIC, "geometry": {**GEOMETRY, "sector": 90}}))
+
+
+@pytest.fixture(scope="module")
 def tube():
     return _built(config.from_dict(TUBE))
 
@@ -112,15 +118,19 @@ def test_tube_volumes_and_lumen_area_are_the_cylinders(tube):
     assert 1 - _inscribed_loss(h, R) / 4 <= area / vessel_3d.interface_area(g) <= 1
 
 
-@pytest.mark.parametrize("which", ["concentric", "eccentric"])
-def test_stenosis_volumes_match_pappus(which, concentric, eccentric):
+def _stenosis(which: str, concentric, eccentric, quarter):
+    return {"concentric": concentric, "eccentric": eccentric, "quarter": quarter}[which]
+
+
+@pytest.mark.parametrize("which", ["concentric", "eccentric", "quarter"])
+def test_stenosis_volumes_match_pappus(which, concentric, eccentric, quarter):
     """The plaque's cap and lipid pool are the meridian areas of geometry/stenosis.py revolved
     over their spans: by Pappus, the angle times ∫ (R s − s²/2) dx. The mesh's volumes meet
     them within the inscribed-polygon loss at the local size on the smallest radius there,
     R − A (2.0 % at 0.6 mm for the concentric case, 0.7 % at 0.35 mm for the sample's; the
     B-spline profiles add less than 0.01 %, allowed 0.1 %); the lumen and the wall as for the
-    tube, at the size."""
-    case, _, s, *_ = concentric if which == "concentric" else eccentric
+    tube, at the size. The concentric quarter's exact volumes are a quarter of the whole's."""
+    case, _, s, *_ = _stenosis(which, concentric, eccentric, quarter)
     g, m = case.geometry, case.mesh
     exact = vessel_3d.analytic_volumes(g)
     R, A = g.height, stenosis.plaque_height(g)
@@ -130,6 +140,10 @@ def test_stenosis_volumes_match_pappus(which, concentric, eccentric):
     assert s["volume_m3"]["fluid"] == pytest.approx(exact["fluid"], rel=_inscribed_loss(m.size, R))
     wall_tolerance = math.pi * g.length * m.size**2 / 6
     assert s["volume_m3"]["wall"] == pytest.approx(exact["wall"], abs=wall_tolerance)
+    if which == "quarter":
+        whole = vessel_3d.analytic_volumes(concentric[0].geometry)
+        for name in ("fluid", "wall", "cap", "lipid"):
+            assert exact[name] == pytest.approx(whole[name] / 4, rel=1e-14), name
     if which == "concentric":  # the revolved axisymmetric plaque: the whole ring
         plaque = exact["cap"] + exact["lipid"]
         meridian = stenosis.analytic_areas(
@@ -167,14 +181,18 @@ def test_the_eccentric_plaque_stays_in_its_span(eccentric):
     assert vessel_3d.lipid_angle(g) < vessel_3d.plaque_angle(g) == pytest.approx(math.radians(120))
 
 
-@pytest.mark.parametrize("which", ["concentric", "eccentric"])
-def test_lumen_area_and_the_plaque_measures(which, concentric, eccentric):
+@pytest.mark.parametrize("which", ["concentric", "eccentric", "quarter"])
+def test_lumen_area_and_the_plaque_measures(which, concentric, eccentric, quarter):
     """The lumen surface's area against :func:`vessel_3d.interface_area` (the revolved cap's
     by quadrature, the eccentric plaque's flat ends); the stenosis degree exact (the apex is a
     circle of mesh vertices); the area reduction 1 − (1 − d)² over the plaque's share of the
     circle, measured from two polygonal sections (within 1 %); the thinnest cap within the
-    local size's chord error of cap_thickness; point A a vertex."""
-    case, _, s, *_ = concentric if which == "concentric" else eccentric
+    local size's chord error of cap_thickness; point A a vertex. The quarter's area a quarter
+    of the concentric vessel's, its area reduction the same."""
+    case, _, s, *_ = _stenosis(which, concentric, eccentric, quarter)
+    if which == "quarter":
+        whole = vessel_3d.interface_area(concentric[0].geometry)
+        assert vessel_3d.interface_area(case.geometry) == pytest.approx(whole / 4, rel=1e-12)
     g, measures = case.geometry, s["measures"]
     assert measures["interface_area_m2"] == pytest.approx(vessel_3d.interface_area(g), rel=5e-3)
     assert measures["stenosis_degree"] == pytest.approx(g.stenosis_degree, rel=1e-12)
@@ -185,15 +203,29 @@ def test_lumen_area_and_the_plaque_measures(which, concentric, eccentric):
     assert measures["point_a_distance_m"] == 0.0
 
 
+def test_the_quarters_cuts_carry_no_tag(quarter):
+    """The concentric quarter has every region and boundary of the whole vessel, no tagged face
+    on its cuts y = 0 and z = 0 (every tagged face's centroid off them: no traction, support or
+    clamp acts there; fsi/physics holds the normal components), and its mirror planes."""
+    case, tagged, s = quarter
+    for region in mesh.regions(case):
+        assert s["cells"][region.label] > 0, region
+    for boundary in mesh.boundaries(case):
+        assert s["facets"][boundary.label] > 0, boundary
+        centroids = mesh_3d.facet_triangles(tagged, boundary).mean(axis=1)
+        assert centroids[:, 1:].min(initial=np.inf) > 0, boundary
+    assert config.symmetry_planes(case.geometry) == (1, 2)
+
+
 def test_point_a_is_a_vertex_of_the_tube(tube):
     case, tagged, s = tube
     assert s["measures"]["point_a_distance_m"] == 0.0
     assert vessel_3d.point_a(case.geometry) == (0.01, 0.0035, 0.0)
 
 
-def test_the_cell_estimate_is_near_the_count(eccentric, concentric, tube):
+def test_the_cell_estimate_is_near_the_count(eccentric, concentric, quarter, tube):
     """Validation's estimate (mesh.max_cells) within a factor 1.5 of gmsh's count."""
-    for case, _, s, *_ in (eccentric, concentric, tube):
+    for case, _, s, *_ in (eccentric, concentric, quarter, tube):
         ratio = run_size.estimated_cells(case) / s["cells"]["total"]
         assert 1 / 1.5 < ratio < 1.5, (case.geometry.kind, ratio)
 
@@ -233,6 +265,7 @@ def test_fsi_mesh_writes_the_same_json_on_every_rank(eccentric):
         (["geometry.plaque_sides=[top]"], "geometry.plaque_sides"),
         (["geometry.dimension=2"], "geometry.plaque_angle"),  # a 2D plaque spans no angle
         (["geometry.dimension=4"], "geometry.dimension"),
+        (["geometry.sector=90"], "geometry.sector"),  # an eccentric plaque's is no mirror
         (["mesh.lumen_size=0"], "mesh.lumen_size"),
         (["mesh.lumen_size=0.001"], "mesh.lumen_size"),  # coarser than mesh.size
     ],

@@ -3,15 +3,18 @@ axisymmetric").
 
 The same vessel and plaque in both models: configs/axisymmetric/stenosis_moving_carreau.yaml,
 and configs/3d/stenosis_eccentric_moving_carreau.yaml with ``geometry.plaque_angle: 360`` (the
-axisymmetric plaque revolved) and ``mesh.lumen_size`` (the throat's core refined), both under
-the study's pulse to ``--end``, with a rigid (``structure.mode: rigid``) and a moving wall, the
-axisymmetric model on its ``fine`` mesh (the reference: its coarse mesh is within 0.7 % of it). Each
-run is made by ``fsi run`` into ``--out`` (unless ``--reuse`` finds it finished), on ``--ranks``
-ranks; from each:
+axisymmetric plaque revolved), its quarter (``geometry.sector: 90``, the mirror planes y = 0
+and z = 0; ``--sector 360`` the whole vessel), the plaque's box and the throat's core at
+:data:`LOCAL_SIZE` and :data:`LUMEN_SIZE` (``mesh.local_size``, ``mesh.lumen_size``), both
+under the study's pulse to ``--end``, with a rigid (``structure.mode: rigid``) and a moving
+wall, the axisymmetric model on its ``fine`` mesh (the reference: its coarse mesh is within
+0.7 % of it). Each run is made by ``fsi run`` into ``--out`` (unless ``--reuse`` finds it
+finished), on ``--ranks`` ranks; from each:
 
-- ``peak_velocity`` (m/s) and ``flow_rate`` (m³/s, the inlet's): the largest over the run's
-  steps (metrics.csv); the pressure drop across the vessel is the inlet's prescribed traction in
-  both (the outlet's is 0), so the flow rate it drives is what is compared;
+- ``peak_velocity`` (m/s) and ``flow_rate`` (m³/s, the inlet's, a quarter's times 4): the
+  largest over the run's steps (metrics.csv); the pressure drop across the vessel is the
+  inlet's prescribed traction in both (the outlet's is 0), so the flow rate it drives is what is
+  compared;
 - with the moving wall, ``cap_principal`` (Pa): the cap's largest principal Cauchy stress over the
   run (metrics.csv's, wherever it is); ``cap_principal_inner`` (Pa): the same over the cap's cells
   more than :data:`END_MARGIN` from the plaque's ends (the stored ``max_principal`` cell field),
@@ -27,20 +30,21 @@ issue's 3 % (:data:`TOLERANCE`), and as the last line of its standard output one
 Usage::
 
     .venv/bin/python scripts/benchmark_concentric.py --out results/concentric --ranks 2
-        [--end 0.01] [--lumen-size 2.5e-4] [--local-size 2.5e-4] [--modes rigid moving_wall]
-        [--reuse] [--set KEY=VALUE ...]
+        [--end 0.006] [--lumen-size 1.8e-4] [--local-size 1.8e-4] [--sector 90]
+        [--modes rigid moving_wall] [--reuse] [--set KEY=VALUE ...]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 import numpy as np
 
 from fsi import config
-from fsi.geometry import stenosis
+from fsi.geometry import stenosis, vessel_3d
 from fsi.output import field_files, metrics_csv
 from fsi.run import child_runs
 
@@ -50,6 +54,11 @@ CONFIGS = {
     "3d": ROOT / "configs/3d/stenosis_eccentric_moving_carreau.yaml",
 }
 TOLERANCE = 0.03
+LUMEN_SIZE = LOCAL_SIZE = 1.8e-4
+"""m: the 3D throat's core and plaque's box (docs/3d.md: the largest velocity +4.5, +3.9 and
+−0.6 % against the axisymmetric model's at 0.35/0.25, 0.25/0.25 and 0.18/0.18 mm, rigid)."""
+END = 0.006
+"""s: past every compared peak (the largest velocity's at ~4.75 ms, the pulse's end at 5 ms)."""
 """The issue's bound on |3D − axisymmetric| / axisymmetric for every quantity."""
 
 FLUID = ("peak_velocity", "flow_rate")
@@ -67,16 +76,18 @@ UNITS = {
 
 
 def settings(
-    model: str, mode: str, end: float, lumen_size: float, local_size: float | None = None
+    model: str,
+    mode: str,
+    end: float = END,
+    lumen_size: float = LUMEN_SIZE,
+    local_size: float = LOCAL_SIZE,
+    sector: int = 90,
 ) -> list[str]:
-    """The ``--set`` overrides of one run (``local_size``: the 3D plaque box's, if not the
-    config's)."""
+    """The ``--set`` overrides of one run."""
     common = [f"structure.mode={mode}", f"time.end={end!r}"]
     if model == "3d":
-        sizes = [f"mesh.lumen_size={lumen_size!r}"]
-        if local_size is not None:
-            sizes.append(f"mesh.local_size={local_size!r}")
-        return ["geometry.plaque_angle=360", *sizes, *common]
+        sizes = [f"mesh.lumen_size={lumen_size!r}", f"mesh.local_size={local_size!r}"]
+        return ["geometry.plaque_angle=360", f"geometry.sector={sector}", *sizes, *common]
     return ["mesh.level=fine", *common]
 
 
@@ -115,11 +126,12 @@ def cap_principal_inner(folder: Path) -> float:
 
 
 def values(folder: Path, moving: bool) -> dict[str, float]:
-    """The module docstring's quantities of one run."""
+    """The module docstring's quantities of one run (a quarter's flow rate times 4)."""
     rows = metrics_csv.read_metrics(folder / "metrics.csv")
+    whole = 2 * math.pi / vessel_3d.sector(config.load(folder / "config.yaml").geometry)
     result = {
         "peak_velocity": max(r["peak_velocity"] for r in rows),
-        "flow_rate": max(r["inlet_flow_rate"] for r in rows),
+        "flow_rate": whole * max(r["inlet_flow_rate"] for r in rows),
     }
     if moving:
         result["cap_principal"] = max(r["max_principal_cap"] for r in rows)
@@ -159,9 +171,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, required=True, help="folder of the runs")
     parser.add_argument("--ranks", type=int, default=1)
-    parser.add_argument("--end", type=float, default=0.01, help="s (default: the pulse's 10 ms)")
-    parser.add_argument("--lumen-size", type=float, default=2.5e-4, help="m, the 3D throat's")
-    parser.add_argument("--local-size", type=float, help="m, the 3D plaque box's (the config's)")
+    parser.add_argument("--end", type=float, default=END, help="s")
+    parser.add_argument("--lumen-size", type=float, default=LUMEN_SIZE, help="m, the throat's")
+    parser.add_argument("--local-size", type=float, default=LOCAL_SIZE, help="m, the box's")
+    parser.add_argument("--sector", type=int, choices=(90, 360), default=90, help="degrees")
     parser.add_argument("--modes", nargs="+", default=["rigid", "moving_wall"])
     parser.add_argument("--reuse", action="store_true", help="keep finished runs in --out")
     parser.add_argument(
@@ -172,25 +185,33 @@ def main(argv: list[str] | None = None) -> int:
         help="an override of the 3D runs (e.g. the structure's GAMG preset), repeatable",
     )
     args = parser.parse_args(argv)
-    results = {}
-    for mode in args.modes:
-        result = {
-            model: values(
-                run(
-                    model,
-                    mode,
-                    args.out,
-                    settings(model, mode, args.end, args.lumen_size, args.local_size)
-                    + (args.set if model == "3d" else []),
-                    args.ranks,
-                    args.reuse,
-                ),
-                mode != "rigid",
-            )
-            for model in CONFIGS
-        }
-        result["difference"] = compare(result["axisymmetric"], result["3d"])
-        results[mode] = result
-    print(table(results))
-    print(json.dumps(results))
+    sizes = {"lumen_size": args.lumen_size, "local_size": args.local_size, "sector": args.sector}
+    found = results(args.out, args.ranks, args.modes, args.end, sizes, args.set, args.reuse)
+    print(table(found))
+    print(json.dumps(found))
     return 0
+
+
+def results(
+    out: Path,
+    ranks: int,
+    modes: tuple[str, ...] = ("rigid", "moving_wall"),
+    end: float = END,
+    sizes: dict | None = None,
+    overrides: tuple[str, ...] = (),
+    reuse: bool = False,
+) -> dict:
+    """Per mode: both models' quantities (:func:`values`) and the 3D run's differences;
+    ``sizes``: :func:`settings`' keyword arguments of the 3D run, ``overrides`` its other
+    ``--set``s."""
+    found = {}
+    for mode in modes:
+        result = {}
+        for model in CONFIGS:
+            line = settings(model, mode, end)
+            if model == "3d":
+                line = settings(model, mode, end, **(sizes or {})) + list(overrides)
+            result[model] = values(run(model, mode, out, line, ranks, reuse), mode != "rigid")
+        result["difference"] = compare(result["axisymmetric"], result["3d"])
+        found[mode] = result
+    return found

@@ -38,11 +38,14 @@ class StenosisGeometry:
     # height the lumen's radius, the plaque a concentric ring of cap and lipid.
     axisymmetric: bool = False
     # 3: the circular vessel as a solid (docs/3d.md), height the lumen's radius, the plaque the
-    # axisymmetric one revolved over plaque_angle; only `fsi mesh` builds it so far.
+    # axisymmetric one revolved over plaque_angle.
     dimension: Literal[2, 3] = 2
     # The plaque's angular span in 3D (degrees): 360 the concentric ring, less an eccentric
     # plaque centred on +y.
     plaque_angle: float = checked(360.0, lambda v: 0 < v <= 360, "a number in (0, 360]", "degrees")
+    # The part of a 3D vessel that is modelled (degrees): 360 the whole, 90 the quarter
+    # y >= 0, z >= 0 between the symmetry planes y = 0 and z = 0 (a concentric plaque's only).
+    sector: Literal[90, 360] = 360
 
 
 @dataclass(frozen=True)
@@ -68,8 +71,7 @@ class TubeGeometry:
     radius: float = positive(0.005, "m")
     wall_thickness: float = positive(0.001, "m")
     axisymmetric: bool = True
-    # 3: the circular tube as a solid (docs/3d.md; with axisymmetric false); only `fsi mesh`
-    # builds it so far.
+    # 3: the circular tube as a solid (docs/3d.md; with axisymmetric false).
     dimension: Literal[2, 3] = 2
     # The part of a 3D tube that is modelled (degrees): 360 the whole, 90 the quarter
     # y >= 0, z >= 0 with the symmetry planes y = 0 and z = 0 (docs/3d.md).
@@ -108,7 +110,7 @@ def dimension(geometry: GeometrySettings) -> int:
 
 
 def symmetry_planes(geometry: GeometrySettings) -> tuple[int, ...]:
-    """The axes c of the planes x_c = 0 that bound a 3D quarter tube (``sector: 90``): the
+    """The axes c of the planes x_c = 0 that bound a 3D quarter vessel (``sector: 90``): the
     solution's mirror planes, where the normal components of velocity, displacement and mesh
     motion are 0; none for a whole vessel."""
     return (1, 2) if getattr(geometry, "sector", 360) == 90 else ()

@@ -83,14 +83,21 @@ def _validate_dimension(g) -> None:
 
 
 def _validate_sector(case: Case) -> None:
-    """A quarter (``sector: 90``) is a 3D tube's, and its inlet a pressure inlet: a velocity
+    """A quarter (``sector: 90``) is a 3D tube's or a concentric 3D stenosis's (its cuts are
+    mirror planes of the solution only then), and its inlet a pressure inlet: a velocity
     inlet's profile is laid out on a whole disk (fsi/physics/fluid_boundaries.py)."""
     g = case.geometry
     if getattr(g, "sector", 360) == 360:
         return
     if dimension(g) != 3:
+        raise ConfigError("", "geometry.sector", "360 unless geometry.dimension is 3", g.sector)
+    if getattr(g, "plaque_angle", 360) != 360:
         raise ConfigError(
-            "", "geometry.sector", "360 unless geometry.dimension is 3 (a 3D tube)", g.sector
+            "",
+            "geometry.sector",
+            f"360 with geometry.plaque_angle {g.plaque_angle} (a quarter models a concentric "
+            "plaque only, plaque_angle 360)",
+            g.sector,
         )
     if isinstance(case.fluid.inlet, (ParabolicInflow, *FLOW_RATE_INLETS)):
         raise ConfigError(

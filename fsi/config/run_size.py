@@ -113,10 +113,11 @@ def _estimated_tetrahedra(g, size: float, local: float, lumen: float | None = No
     box = core = 0.0
     if g.kind == "stenosis":
         R, A = g.height, stenosis_geometry.plaque_height(g)
-        share = vessel_3d_geometry.plaque_angle(g) / (2 * math.pi)
+        whole = vessel_3d_geometry.sector(g)  # a quarter's box and core are a quarter
+        share = min(vessel_3d_geometry.plaque_angle(g), whole) / (2 * math.pi)
         box = share * math.pi * (R**2 - (R - A) ** 2) * g.stenosis_length
         if lumen is not None:
-            core = math.pi * (R - A) ** 2 * g.stenosis_length
+            core = whole / 2 * (R - A) ** 2 * g.stenosis_length
     rest = volumes["total"] - box - core
     core_cells = 0.0 if lumen is None else core / lumen**3
     return (box / local**3 + core_cells + rest / size**3) / TETRAHEDRON_VOLUME
