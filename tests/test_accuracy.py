@@ -125,3 +125,25 @@ def test_the_extrapolated_fluid_on_the_pulse(tmp_path_factory):
     status = accuracy.main([str(STUDY), "--out", str(out), "--set", "time.end=0.005"])
     rows = (out / "shipped" / "metrics.csv").read_text().splitlines()
     assert len(rows) == 21 and status in (0, 1)
+
+
+def test_a_candidate_with_its_own_schedule_is_compared_at_the_shipped_steps_it_took():
+    """Finer in one stretch, coarser in another: only the times the shipped run also has are
+    compared (the finer steps' extra rows are left out, the coarser ones' are all shipped)."""
+    shipped = _rows([k * 0.25e-3 for k in range(1, 9)], peak_velocity=lambda t: 0.0)
+    candidate = _rows(
+        [k * 0.125e-3 for k in range(1, 9)] + [1.5e-3, 2.0e-3], peak_velocity=lambda t: 0.0
+    )
+    kept = accuracy.at_shipped_times(candidate, shipped)
+    assert [r["t"] for r in kept] == pytest.approx([0.25e-3, 0.5e-3, 0.75e-3, 1.0e-3, 1.5e-3, 2e-3])
+
+
+def test_a_candidate_may_carry_a_yaml_list_among_its_settings():
+    """The candidate's K=V,K=V splits at the commas outside brackets and braces."""
+    text = "fluid.solver.linearization=extrapolated,time.schedule=[{until: 0.05, dt: 5.0e-4}, {until: 0.8, dt: 5.0e-3}], coupling.tolerance=1e-4"
+    assert accuracy.split_overrides(text) == (
+        "fluid.solver.linearization=extrapolated",
+        "time.schedule=[{until: 0.05, dt: 5.0e-4}, {until: 0.8, dt: 5.0e-3}]",
+        "coupling.tolerance=1e-4",
+    )
+    assert accuracy.split_overrides("") == ()

@@ -3,7 +3,8 @@
 A faster scheme is judged against a **time-converged reference**: the fully implicit scheme
 (Newton fluid, implicit geometry, no fluid forcing) with tight tolerances (coupling 1e-8, the
 fluid's and the structure's Newton atol 1e-12) and every step of the case's schedule quartered,
-compared at the case's own steps (:func:`reference_overrides`). For every headline column
+compared at the case's own steps (:func:`reference_overrides`). A candidate with a schedule of its own is compared at the shipped
+steps it also took (:func:`at_shipped_times`). For every headline column
 (:data:`fsi.performance.comparison.HEADLINE`) a run's **error** is the largest |x − x_ref| over
 the compared times divided by the peak of |x_ref| over the run (:func:`errors`); the columns whose
 exact value is ~0 (:data:`AGAINST_INLET`: the mean pressure at a stress-free outlet) are divided
@@ -106,6 +107,20 @@ def errors(rows: Sequence[dict], reference: Sequence[dict]) -> dict[str, float]:
     return out
 
 
+def at_shipped_times(rows: Sequence[dict], shipped: Sequence[dict]) -> list[dict]:
+    """The rows of ``rows`` at the shipped run's times: a candidate with its own schedule (finer
+    in one stretch, coarser in another) is compared at the shipped steps it also took."""
+    times = sorted(r["t"] for r in shipped)
+    kept, i = [], 0
+    for row in rows:
+        t = row["t"]
+        while i < len(times) and times[i] < t - SAME_TIME * max(abs(t), 1.0):
+            i += 1
+        if i < len(times) and abs(times[i] - t) <= SAME_TIME * max(abs(t), 1.0):
+            kept.append(row)
+    return kept
+
+
 def verdicts(shipped: dict[str, float], candidate: dict[str, float]) -> dict[str, bool]:
     """Per column: the candidate's error at most max(1.25 × the shipped run's, 0.5 %)."""
     return {
@@ -145,10 +160,23 @@ def table(
     return "\n".join(lines)
 
 
+def split_overrides(text: str) -> tuple[str, ...]:
+    """``K=V,K=V`` split at the commas outside brackets and braces, so that a value may be a YAML
+    list or mapping (``time.schedule=[{until: 0.05, dt: 5.0e-4}, ...]``)."""
+    parts, depth, start = [], 0, 0
+    for i, char in enumerate(text):
+        depth += {"[": 1, "{": 1, "]": -1, "}": -1}.get(char, 0)
+        if char == "," and depth == 0:
+            parts.append(text[start:i])
+            start = i + 1
+    parts.append(text[start:])
+    return tuple(p.strip() for p in parts if p.strip())
+
+
 def _candidates(pairs: Sequence[Sequence[str]] | None) -> dict[str, tuple[str, ...]]:
     if not pairs:
         return dict(CANDIDATES)
-    return {name: tuple(o for o in overrides.split(",") if o) for name, overrides in pairs}
+    return {name: split_overrides(overrides) for name, overrides in pairs}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -178,7 +206,9 @@ def main(argv: list[str] | None = None) -> int:
             continue
         rows[name] = metrics_csv.read_metrics(folder / "metrics.csv")
     reference = rows.pop("reference")
-    results = {name: errors(r, reference) for name, r in rows.items()}
+    results = {
+        name: errors(at_shipped_times(r, rows["shipped"]), reference) for name, r in rows.items()
+    }
     passed = {n: verdicts(results["shipped"], e) for n, e in results.items() if n != "shipped"}
     print(table(results, passed, unfinished))
     passed.update({name: {"finished": False} for name in unfinished})
