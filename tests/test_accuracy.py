@@ -140,7 +140,11 @@ def test_a_candidate_with_its_own_schedule_is_compared_at_the_shipped_steps_it_t
 
 def test_a_candidate_may_carry_a_yaml_list_among_its_settings():
     """The candidate's K=V,K=V splits at the commas outside brackets and braces."""
-    text = "fluid.solver.linearization=extrapolated,time.schedule=[{until: 0.05, dt: 5.0e-4}, {until: 0.8, dt: 5.0e-3}], coupling.tolerance=1e-4"
+    text = (
+        "fluid.solver.linearization=extrapolated,"
+        "time.schedule=[{until: 0.05, dt: 5.0e-4}, {until: 0.8, dt: 5.0e-3}],"
+        " coupling.tolerance=1e-4"
+    )
     assert accuracy.split_overrides(text) == (
         "fluid.solver.linearization=extrapolated",
         "time.schedule=[{until: 0.05, dt: 5.0e-4}, {until: 0.8, dt: 5.0e-3}]",

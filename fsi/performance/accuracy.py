@@ -3,8 +3,8 @@
 A faster scheme is judged against a **time-converged reference**: the fully implicit scheme
 (Newton fluid, implicit geometry, no fluid forcing) with tight tolerances (coupling 1e-8, the
 fluid's and the structure's Newton atol 1e-12) and every step of the case's schedule quartered,
-compared at the case's own steps (:func:`reference_overrides`). A candidate with a schedule of its own is compared at the shipped
-steps it also took (:func:`at_shipped_times`). For every headline column
+compared at the case's own steps (:func:`reference_overrides`); a candidate with a schedule of
+its own at the shipped steps it also took (:func:`at_shipped_times`). For every headline column
 (:data:`fsi.performance.comparison.HEADLINE`) a run's **error** is the largest |x − x_ref| over
 the compared times divided by the peak of |x_ref| over the run (:func:`errors`); the columns whose
 exact value is ~0 (:data:`AGAINST_INLET`: the mean pressure at a stress-free outlet) are divided
