@@ -159,19 +159,59 @@ class NewtonCallbacks:
 
 
 class DirichletLifting:
-    """The Dirichlet part of a residual evaluation at the iterate x, as dolfinx's
-    ``NonlinearProblem.F`` does it: ``b ← b + J (g − x)`` on the free rows (the lifting, with the
-    Jacobian form ``a``), then ``b = x − g`` on the constrained rows. The lifting is skipped when
-    x equals g at every constrained dof on every rank: it is exactly zero then, and assembling it
-    costs the Jacobian's element matrices of every cell with a constrained dof. That is so at
-    every Newton iterate after a solve's first (the update sets x = g there; the structure's
-    clamped dofs stay at 0 throughout): about 12 % of a coarse moving-wall heartbeat
-    (docs/performance.md). The vector b is the same bit for bit either way."""
+    """The Dirichlet conditions of a Newton solve, as dolfinx's ``NonlinearProblem`` has them,
+    with the lifting taken from the Jacobian instead of assembled.
+
+    :meth:`jacobian` assembles J without the conditions, keeps its columns of the constrained
+    dofs (a thin matrix C), then sets the constrained rows and columns to the identity's: the
+    matrix dolfinx assembles with the conditions. :meth:`apply` makes a residual: ``b ← b +
+    C (g − x)`` on the free rows (the lifting), then ``b = x − g`` on the constrained rows.
+
+    dolfinx assembles the lifting J(x) (g − x) from the Jacobian form, the element matrices of
+    every cell with a constrained dof: as much as a third of a 3D moving-wall fluid solve, whose
+    interface velocity changes at every coupling iteration (docs/performance.md). C is the
+    Jacobian the Newton step is solved with, assembled at that iterate or, with a kept Jacobian
+    (:class:`NewtonCallbacks`), earlier: the step is then the chord step of the whole system,
+    its known constrained part moved to the right-hand side, where dolfinx's pairs the kept
+    free-row block with a fresh lifting. Either way the converged solution is the same; with C
+    assembled at x the residual is dolfinx's to round-off. Before any Jacobian (a solve's first
+    residual) the lifting is assembled from the form, as dolfinx does. It is skipped where x = g
+    at every constrained dof on every rank: it is zero then, at every Newton iterate after a
+    solve's first (the update sets x = g there; the structure's clamped dofs stay at 0).
+    """
 
     def __init__(self, a, bcs: list):
         self.a, self.bcs = a, bcs
         self._gap: PETSc.Vec | None = None  # g − x at the owned constrained dofs, else 0
-        self.skipped = 0  # liftings not assembled (counter, for the benchmarks)
+        self._columns: PETSc.Mat | None = None  # C: the last Jacobian's constrained columns
+        self._constrained: PETSc.IS | None = None  # the owned constrained dofs (global)
+        self._rows: PETSc.IS | None = None  # every owned row (global)
+        self.skipped = 0  # liftings not needed (counter, for the benchmarks)
+
+    def jacobian(self, A: PETSc.Mat) -> None:
+        """``A``: J without the conditions, its constrained columns kept as C, then the
+        constrained rows and columns the identity's. Collective."""
+        A.zeroEntries()
+        dolfinx.fem.petsc.assemble_matrix(A, self.a)
+        A.assemble()
+        if self._constrained is None:
+            self._constrained, self._rows = self._index_sets(A)
+        if self._columns is not None:
+            self._columns.destroy()
+        self._columns = A.createSubMatrix(self._rows, self._constrained)
+        A.zeroRowsColumns(self._constrained, diag=1.0)
+
+    def _index_sets(self, A: PETSc.Mat) -> tuple[PETSc.IS, PETSc.IS]:
+        space = self.a.function_spaces[0]
+        index_map, bs = space.dofmap.index_map, space.dofmap.index_map_bs
+        start = index_map.local_range[0] * bs
+        owned = [bc.dof_indices()[0][: bc.dof_indices()[1]] for bc in self.bcs]
+        local = np.unique(np.concatenate([np.zeros(0, np.int32), *owned]))
+        comm = A.getComm()
+        constrained = PETSc.IS().createGeneral((local + start).astype(PETSc.IntType), comm=comm)
+        first, last = A.getOwnershipRange()
+        rows = PETSc.IS().createStride(last - first, first, 1, comm=comm)
+        return constrained, rows
 
     def apply(self, b: PETSc.Vec, x: PETSc.Vec) -> None:
         """``b``, the assembled residual with its ghost contributions not yet summed: lifted
@@ -181,11 +221,18 @@ class DirichletLifting:
         with self._gap.localForm() as local:
             local.set(0.0)
         dolfinx.fem.petsc.set_bc(self._gap, self.bcs, x, 1.0)
-        if self._gap.norm(PETSc.NormType.NORM_INFINITY) == 0.0:  # NaN: lift, as before
-            self.skipped += 1
-        else:
+        lift = self._gap.norm(PETSc.NormType.NORM_INFINITY) != 0.0  # NaN: lift, as before
+        self.skipped += not lift
+        if lift and self._columns is None:
             dolfinx.fem.petsc.apply_lifting(b, [self.a], [self.bcs], [x], -1.0)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        if lift and self._columns is not None:
+            gap = self._gap.getSubVector(self._constrained)
+            lifting = self._columns.createVecLeft()
+            self._columns.mult(gap, lifting)
+            self._gap.restoreSubVector(self._constrained, gap)
+            b.axpy(1.0, lifting)
+            lifting.destroy()
         dolfinx.fem.petsc.set_bc(b, self.bcs, x, -1.0)
 
 

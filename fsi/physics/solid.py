@@ -99,8 +99,8 @@ class SolidState:
 
 class _Problem(dolfinx.fem.petsc.NonlinearProblem):
     """The residual with the interface's nodal forces subtracted (on owned, free dofs); its
-    Dirichlet rows as dolfinx's, lifted only when the iterate is not already at the prescribed
-    values (:class:`fsi.numerics.newton.DirichletLifting`)."""
+    Dirichlet rows as dolfinx's, lifted with the Jacobian's columns only when the iterate is not
+    already at the prescribed values (:class:`fsi.numerics.newton.DirichletLifting`)."""
 
     def __init__(self, F, u, bcs, J, nodal: Callable[[], tuple[np.ndarray, np.ndarray]]):
         super().__init__(F, u, bcs, J=J)
@@ -118,6 +118,9 @@ class _Problem(dolfinx.fem.petsc.NonlinearProblem):
             array = b.getArray(readonly=False)
             array[rows] -= values
         self.residual_norm = b.norm()
+
+    def J(self, x, A):
+        self.dirichlet.jacobian(A)  # dolfinx's, and the lifting's columns kept
 
 
 # --------------------------------------------------------------------------------------------
