@@ -106,10 +106,17 @@ class NewtonCallbacks:
 
     def forget(self) -> None:
         """Drop the kept Jacobian: the next Jacobian call assembles (and the solve factorises)
-        anew, as a solver built at this point would. With reuse ``run``, a restart repeats the run's
-        arithmetic only from checkpoints after this call (fsi/run/simulation.py).
+        anew, as a solver built at this point would, and the next lifting comes from the form
+        (:class:`DirichletLifting`). With reuse ``run``, a restart repeats the run's arithmetic
+        only from checkpoints after this call (fsi/run/simulation.py).
         """
         self._have_jacobian = False
+        self._forget_lifting()
+
+    def _forget_lifting(self) -> None:
+        lifting = getattr(self.problem, "dirichlet", None)
+        if isinstance(lifting, DirichletLifting):
+            lifting.forget()
 
     def _contracting(self) -> bool:
         """The last iteration (if any in this solve) reduced |F| by at least ``max_rate``."""
@@ -132,11 +139,13 @@ class NewtonCallbacks:
         (iterations of both attempts, converged).
         """
         self._norms, self._evaluations = [], 0
+        if self.reuse != "run" and step != self._step:
+            # a new step starts as a restarted run's would: without the last step's Jacobian
+            self._have_jacobian = False
+            self._forget_lifting()
+        self._step = step
         if self.reuse == "none":
             return newton.solve(u)
-        if self.reuse == "step" and step != self._step:
-            self._have_jacobian = False
-        self._step = step
         start = u.x.array.copy()
         try:
             iterations, converged = newton.solve(u)
@@ -174,10 +183,12 @@ class DirichletLifting:
     (:class:`NewtonCallbacks`), earlier: the step is then the chord step of the whole system,
     its known constrained part moved to the right-hand side, where dolfinx's pairs the kept
     free-row block with a fresh lifting. Either way the converged solution is the same; with C
-    assembled at x the residual is dolfinx's to round-off. Before any Jacobian (a solve's first
-    residual) the lifting is assembled from the form, as dolfinx does. It is skipped where x = g
-    at every constrained dof on every rank: it is zero then, at every Newton iterate after a
-    solve's first (the update sets x = g there; the structure's clamped dofs stay at 0).
+    assembled at x the residual is dolfinx's to round-off. Before any Jacobian, and after
+    :meth:`forget` (at a new step unless Jacobians are kept across steps, and where they are
+    dropped for a checkpoint: a restarted run has none), the lifting is assembled from the form,
+    as dolfinx does. It is skipped where x = g at every constrained dof on every rank: it is
+    zero then, at every Newton iterate after a solve's first (the update sets x = g there; the
+    structure's clamped dofs stay at 0).
     """
 
     def __init__(self, a, bcs: list):
@@ -212,6 +223,13 @@ class DirichletLifting:
         first, last = A.getOwnershipRange()
         rows = PETSc.IS().createStride(last - first, first, 1, comm=comm)
         return constrained, rows
+
+    def forget(self) -> None:
+        """Drop C: the next lifting (until a Jacobian is assembled) comes from the form, as in a
+        run restarted here (:meth:`NewtonCallbacks.forget`)."""
+        if self._columns is not None:
+            self._columns.destroy()
+            self._columns = None
 
     def apply(self, b: PETSc.Vec, x: PETSc.Vec) -> None:
         """``b``, the assembled residual with its ghost contributions not yet summed: lifted
