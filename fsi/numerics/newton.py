@@ -216,8 +216,10 @@ class DirichletLifting:
         space = self.a.function_spaces[0]
         index_map, bs = space.dofmap.index_map, space.dofmap.index_map_bs
         start = index_map.local_range[0] * bs
-        owned = [bc.dof_indices()[0][: bc.dof_indices()[1]] for bc in self.bcs]
-        local = np.unique(np.concatenate([np.zeros(0, np.int32), *owned]))
+        local = np.unique(
+            np.concatenate([np.zeros(0, np.int32)] + [bc.dof_indices()[0] for bc in self.bcs])
+        )
+        local = local[local < index_map.size_local * bs]  # the owned ones (blocked spaces unrolled)
         comm = A.getComm()
         constrained = PETSc.IS().createGeneral((local + start).astype(PETSc.IntType), comm=comm)
         first, last = A.getOwnershipRange()
